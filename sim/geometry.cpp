@@ -1,1 +1,89 @@
-// placeholder: being written
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include "sim/grid.hpp"
+
+namespace scout::sim {
+
+Cell FloorFrame::grid_pose(const Eigen::Vector2d& px) const {
+  const int x = static_cast<int>(std::floor(px.x()));
+  const int y = static_cast<int>(std::floor(px.y()));
+  return {std::clamp(x, 0, width_px - 1), std::clamp(y, 0, height_px - 1)};
+}
+
+Window camera_window(const Cell& pose, int patch_px, const FloorFrame& frame) {
+  const int half = patch_px / 2;
+  Window w;
+  w.x0 = std::max(pose.x() - half, 0);
+  w.y0 = std::max(pose.y() - half, 0);
+  w.x1 = std::min(pose.x() - half + patch_px, frame.width_px);
+  w.y1 = std::min(pose.y() - half + patch_px, frame.height_px);
+  // A window wholly off the floor (only possible for a pose off the floor) is empty, not negative.
+  w.x1 = std::max(w.x1, w.x0);
+  w.y1 = std::max(w.y1, w.y0);
+  return w;
+}
+
+const char* to_string(Axis axis) {
+  switch (axis) {
+    case Axis::Horizontal: return "h";
+    case Axis::Vertical: return "v";
+    case Axis::None: break;
+  }
+  return "none";
+}
+
+Decision decide(const Cell& p, const Cell& g) {
+  if (p == g) return Decision::AtGoal;
+  if (p.x() == g.x()) return Decision::Vertical;
+  if (p.y() == g.y()) return Decision::Horizontal;
+  return Decision::Choose;
+}
+
+Cell move_command(const Cell& p, const Cell& g, Axis axis, int step_px) {
+  const auto toward = [step_px](int from, int to) {
+    const int d = to - from;
+    return d >= 0 ? std::min(d, step_px) : -std::min(-d, step_px);
+  };
+  switch (axis) {
+    case Axis::Horizontal: return {toward(p.x(), g.x()), 0};
+    case Axis::Vertical: return {0, toward(p.y(), g.y())};
+    case Axis::None: break;
+  }
+  return {0, 0};
+}
+
+RevealMask::RevealMask(const FloorFrame& frame)
+    : width_(frame.width_px), seen_(static_cast<std::size_t>(frame.area_px()), 0) {}
+
+int RevealMask::reveal(const Window& window) {
+  int fresh = 0;
+  for (int y = window.y0; y < window.y1; ++y) {
+    std::uint8_t* row = seen_.data() + static_cast<std::size_t>(y) * width_;
+    for (int x = window.x0; x < window.x1; ++x) {
+      fresh += row[x] == 0;
+      row[x] = 1;
+    }
+  }
+  count_ += fresh;
+  return fresh;
+}
+
+void RevealMask::clear() {
+  std::fill(seen_.begin(), seen_.end(), 0);
+  count_ = 0;
+}
+
+GridModel::GridModel(const FloorFrame& frame, int patch_px, const Cell& start)
+    : frame_(frame), patch_px_(patch_px), pose_(start), revealed_(frame) {
+  revealed_.reveal(camera_window(pose_, patch_px_, frame_));
+}
+
+void GridModel::move(const Cell& command) {
+  const Cell target = pose_ + command;
+  pose_ = {std::clamp(target.x(), 0, frame_.width_px - 1), std::clamp(target.y(), 0, frame_.height_px - 1)};
+  revealed_.reveal(camera_window(pose_, patch_px_, frame_));
+}
+
+}  // namespace scout::sim

@@ -1,1 +1,166 @@
-// placeholder: being written
+#include "sim/robots.hpp"
+
+#include <box2d/box2d.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace scout::sim {
+
+namespace {
+
+// Where the walls stand. Box2D keeps a disc at rest against an edge at a centre distance of
+// radius + polygon skin - slop, within a few slops. We put the edge so that this resting
+// distance falls two slops *beyond* the border pixel's centre: a normal move onto a border cell
+// then settles without touching the wall, and a push into the wall stops the centre at most
+// ~0.1 px (0.01 m) past the border centre — on the border pixel, never off the floor.
+constexpr float kWallClearance_m = 2.0f * b2_linearSlop;
+
+float wall_offset_m(double radius_m) {
+  return static_cast<float>(radius_m) + b2_polygonRadius - b2_linearSlop + kWallClearance_m;
+}
+
+}  // namespace
+
+struct RobotBatch::Robot {
+  std::unique_ptr<b2World> world;
+  b2Body* body = nullptr;
+};
+
+RobotParams RobotParams::from_world(const worlds::World& world) {
+  RobotParams p;
+  p.radius_m = world.robot.radius_m;
+  p.mass_kg = world.robot.mass_kg;
+  p.max_speed_mps = world.robot.max_speed_mps;
+  p.kp_per_s = world.controller.kp_per_s;
+  p.tolerance_px = world.controller.tolerance_px;
+  p.dt_s = world.physics.dt_s;
+  p.velocity_iterations = world.physics.velocity_iterations;
+  p.position_iterations = world.physics.position_iterations;
+  p.max_ticks_per_move = world.physics.max_ticks_per_move;
+  return p;
+}
+
+double RobotBatch::wall_margin_px(const FloorFrame& frame) { return kWallClearance_m / frame.pixel_size_m; }
+
+RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int count)
+    : frame_(frame), params_(params), robots_(new Robot[count > 0 ? count : 0]), count_(count) {
+  if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
+  if (frame.width_px <= 0 || frame.height_px <= 0 || frame.pixel_size_m <= 0)
+    throw std::invalid_argument("RobotBatch: the floor must have a positive size");
+
+  // The rectangle the centre may reach: border pixels' centres, in metres (floor frame, y down;
+  // Box2D does not care about handedness without gravity or rotation).
+  const float px = static_cast<float>(frame.pixel_size_m);
+  const float min_x = 0.5f * px, max_x = (frame.width_px - 0.5f) * px;
+  const float min_y = 0.5f * px, max_y = (frame.height_px - 0.5f) * px;
+  const float off = wall_offset_m(params.radius_m);
+  // A chain collides on one side only, the right of each edge: wind it so that the right
+  // side faces the floor.
+  const b2Vec2 corners[4] = {{min_x - off, min_y - off}, {min_x - off, max_y + off},
+                             {max_x + off, max_y + off}, {max_x + off, min_y - off}};
+  const float density = static_cast<float>(params.mass_kg / (M_PI * params.radius_m * params.radius_m));
+
+  for (int i = 0; i < count; ++i) {
+    Robot& r = robots_[i];
+    r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
+    r.world->SetAllowSleeping(false);
+    r.world->SetContinuousPhysics(true);  // a fast move must not pass through a wall
+
+    b2BodyDef wall_def;
+    b2Body* walls = r.world->CreateBody(&wall_def);
+    b2ChainShape loop;
+    loop.CreateLoop(corners, 4);
+    walls->CreateFixture(&loop, 0.0f);
+
+    b2BodyDef body_def;
+    body_def.type = b2_dynamicBody;
+    body_def.fixedRotation = true;
+    body_def.allowSleep = false;
+    body_def.position.Set(min_x, min_y);
+    r.body = r.world->CreateBody(&body_def);
+    b2CircleShape disc;
+    disc.m_radius = static_cast<float>(params.radius_m);
+    b2FixtureDef fixture;
+    fixture.shape = &disc;
+    fixture.density = density;
+    fixture.friction = 0.0f;
+    fixture.restitution = 0.0f;
+    r.body->CreateFixture(&fixture);
+  }
+}
+
+RobotBatch::~RobotBatch() = default;
+
+int RobotBatch::size() const { return count_; }
+const FloorFrame& RobotBatch::frame() const { return frame_; }
+const RobotParams& RobotBatch::params() const { return params_; }
+
+void RobotBatch::place(int robot, const Cell& cell) {
+  Robot& r = robots_[robot];
+  const Eigen::Vector2d m = frame_.px_to_m(frame_.cell_centre_px(cell));
+  r.body->SetTransform(b2Vec2(static_cast<float>(m.x()), static_cast<float>(m.y())), 0.0f);
+  r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+}
+
+Eigen::Vector2d RobotBatch::position_m(int robot) const {
+  const b2Vec2 p = robots_[robot].body->GetPosition();
+  return {p.x, p.y};
+}
+
+Eigen::Vector2d RobotBatch::position_px(int robot) const { return frame_.m_to_px(position_m(robot)); }
+
+Cell RobotBatch::grid_pose(int robot) const { return frame_.grid_pose(position_px(robot)); }
+
+bool RobotBatch::touching_wall(int robot) const {
+  for (const b2ContactEdge* e = robots_[robot].body->GetContactList(); e != nullptr; e = e->next)
+    if (e->contact->IsTouching()) return true;
+  return false;
+}
+
+void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> results) {
+  if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size())
+    throw std::invalid_argument("RobotBatch::move: " + std::to_string(commands.size()) + " commands for " +
+                                std::to_string(count_) + " robots and " + std::to_string(results.size()) +
+                                " results");
+  const float dt = static_cast<float>(params_.dt_s);
+  const double tolerance_m = params_.tolerance_px * frame_.pixel_size_m;
+  const double max_speed = params_.max_speed_mps;
+  const double kp = params_.kp_per_s;
+  const int n = static_cast<int>(commands.size());
+
+  // Each robot lives in its own world, so robots are independent work items: no
+  // synchronisation per tick, and the result does not depend on the thread count.
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    Robot& r = robots_[i];
+    MoveResult& out = results[i];
+    out = MoveResult{};
+    const Cell target_cell = grid_pose(i) + commands[i];
+    const Eigen::Vector2d target = frame_.px_to_m(frame_.cell_centre_px(target_cell));
+    for (;;) {
+      const b2Vec2 p = r.body->GetPosition();
+      const Eigen::Vector2d error(target.x() - p.x, target.y() - p.y);
+      const double distance = error.norm();
+      if (distance <= tolerance_m) {
+        out.settled = true;
+        break;
+      }
+      if (out.ticks >= params_.max_ticks_per_move) break;
+      // Saturated P-control of velocity: the body still collides, so a wall stops it.
+      const double speed = std::min(max_speed, kp * distance);
+      const Eigen::Vector2d v = error * (speed / distance);
+      r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
+      r.world->Step(dt, params_.velocity_iterations, params_.position_iterations);
+      ++out.ticks;
+      const b2Vec2 reached = r.body->GetLinearVelocity();
+      out.peak_speed_mps = std::max(out.peak_speed_mps, static_cast<double>(reached.Length()));
+      if (!out.touched_wall) out.touched_wall = touching_wall(i);
+    }
+    // The robot comes to rest on its cell (or where the wall stopped it) before the next move.
+    r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+  }
+}
+
+}  // namespace scout::sim

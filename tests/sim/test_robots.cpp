@@ -1,0 +1,198 @@
+// Physics in the loop: the real Box2D world, driven by the real controller.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include <omp.h>
+
+#include "sim/robots.hpp"
+
+namespace scout::sim {
+namespace {
+
+const FloorFrame kFloor{28, 28, 0.1};
+
+// The paper preset: 2 m/s at 0.1 m/px and dt = 1/60 s is 1/3 px per tick.
+RobotParams preset() { return RobotParams{}; }
+
+MoveResult move_one(RobotBatch& batch, int robot, const Cell& command) {
+  std::vector<Cell> commands(static_cast<std::size_t>(robot) + 1, Cell(0, 0));
+  commands[robot] = command;
+  std::vector<MoveResult> results(commands.size());
+  batch.move(commands, results);
+  return results[robot];
+}
+
+void expect_on_cell_centre(const RobotBatch& batch, int robot, const Cell& cell) {
+  const Eigen::Vector2d centre = kFloor.cell_centre_px(cell);
+  const Eigen::Vector2d at = batch.position_px(robot);
+  EXPECT_EQ(batch.grid_pose(robot), cell);
+  EXPECT_NEAR(at.x(), centre.x(), preset().tolerance_px);
+  EXPECT_NEAR(at.y(), centre.y(), preset().tolerance_px);
+}
+
+TEST(RobotBatch, PlacedRobotRestsOnTheCellCentre) {
+  RobotBatch batch(kFloor, preset(), 1);
+  batch.place(0, {5, 9});
+  expect_on_cell_centre(batch, 0, {5, 9});
+  EXPECT_NEAR(batch.position_m(0).x(), 0.55, 1e-6);
+}
+
+TEST(RobotBatch, MovesLandOnTheCommandedCellInAllFourDirections) {
+  const Cell commands[] = {{2, 0}, {-2, 0}, {0, 2}, {0, -2}, {1, 0}, {0, -1}};
+  for (const Cell& command : commands) {
+    RobotBatch batch(kFloor, preset(), 1);
+    batch.place(0, {14, 14});
+    const MoveResult r = move_one(batch, 0, command);
+    EXPECT_TRUE(r.settled);
+    EXPECT_FALSE(r.touched_wall);
+    expect_on_cell_centre(batch, 0, Cell(14, 14) + command);
+    // Driven, not teleported: 2 px at 1/3 px per tick needs at least 6 ticks, and the speed
+    // never exceeds the limit.
+    EXPECT_GE(r.ticks, 3 * std::abs(command.x() + command.y()));
+    EXPECT_GT(r.peak_speed_mps, 0.5 * preset().max_speed_mps);
+    EXPECT_LE(r.peak_speed_mps, preset().max_speed_mps * (1 + 1e-5));
+  }
+}
+
+TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
+  // Drive along all four borders, and from near each border onto it.
+  RobotBatch batch(kFloor, preset(), 1);
+  batch.place(0, {2, 2});
+  const Cell legs[] = {{-2, 0}, {0, -2}};
+  for (const Cell& c : legs) {
+    const MoveResult r = move_one(batch, 0, c);
+    EXPECT_TRUE(r.settled);
+    EXPECT_FALSE(r.touched_wall);
+  }
+  expect_on_cell_centre(batch, 0, {0, 0});
+  const struct { Cell step; int count; } sides[] = {{{1, 0}, 27}, {{0, 1}, 27}, {{-1, 0}, 27}, {{0, -1}, 27}};
+  Cell expected(0, 0);
+  for (const auto& side : sides) {
+    for (int k = 0; k < side.count; ++k) {
+      const MoveResult r = move_one(batch, 0, side.step);
+      expected += side.step;
+      ASSERT_TRUE(r.settled) << "at " << expected.transpose();
+      EXPECT_FALSE(r.touched_wall) << "at " << expected.transpose();
+      expect_on_cell_centre(batch, 0, expected);
+    }
+  }
+}
+
+TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
+  const struct { Cell start, command; } cases[] = {
+      {{0, 14}, {-2, 0}}, {{1, 14}, {-5, 0}}, {{27, 3}, {2, 0}}, {{14, 0}, {0, -2}},
+      {{14, 27}, {0, 2}}, {{27, 27}, {3, 3}}, {{26, 1}, {40, -40}}};
+  for (const auto& c : cases) {
+    RobotBatch batch(kFloor, preset(), 1);
+    batch.place(0, c.start);
+    const MoveResult r = move_one(batch, 0, c.command);
+    EXPECT_TRUE(r.touched_wall) << c.start.transpose();
+    EXPECT_TRUE(batch.touching_wall(0));
+    EXPECT_FALSE(r.settled);  // the target is unreachable
+    EXPECT_EQ(r.ticks, preset().max_ticks_per_move);
+    // The centre stays on the floor's border pixels: within the wall margin of their centres.
+    const Eigen::Vector2d at = batch.position_px(0);
+    const double margin = RobotBatch::wall_margin_px(kFloor) + 0.05;
+    EXPECT_GE(at.x(), 0.5 - margin);
+    EXPECT_LE(at.x(), 27.5 + margin);
+    EXPECT_GE(at.y(), 0.5 - margin);
+    EXPECT_LE(at.y(), 27.5 + margin);
+    const Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27), std::clamp(c.start.y() + c.command.y(), 0, 27)};
+    EXPECT_EQ(batch.grid_pose(0), expected);
+  }
+}
+
+TEST(RobotBatch, NeverLeavesTheFloorUnderRandomPushes) {
+  RobotBatch batch(kFloor, preset(), 8);
+  std::mt19937 rng(3);
+  for (int i = 0; i < 8; ++i) batch.place(i, {static_cast<int>(rng() % 28), static_cast<int>(rng() % 28)});
+  std::vector<Cell> commands(8);
+  std::vector<MoveResult> results(8);
+  for (int step = 0; step < 60; ++step) {
+    for (Cell& c : commands) c = Cell(static_cast<int>(rng() % 41) - 20, static_cast<int>(rng() % 41) - 20);
+    batch.move(commands, results);
+    for (int i = 0; i < 8; ++i) {
+      const Eigen::Vector2d at = batch.position_px(i);
+      ASSERT_GT(at.x(), 0.0);
+      ASSERT_LT(at.x(), 28.0);
+      ASSERT_GT(at.y(), 0.0);
+      ASSERT_LT(at.y(), 28.0);
+    }
+  }
+}
+
+// FNV-1a over the exact float positions: any change in any bit changes the hash.
+std::uint64_t hash_positions(const RobotBatch& batch, std::uint64_t h) {
+  for (int i = 0; i < batch.size(); ++i) {
+    const Eigen::Vector2d p = batch.position_m(i);
+    unsigned char bytes[sizeof(double) * 2];
+    std::memcpy(bytes, p.data(), sizeof bytes);
+    for (unsigned char b : bytes) h = (h ^ b) * 1099511628211ull;
+  }
+  return h;
+}
+
+std::uint64_t random_drive_hash(std::uint32_t seed, int robots, int moves) {
+  RobotBatch batch(kFloor, preset(), robots);
+  std::mt19937 rng(seed);
+  for (int i = 0; i < robots; ++i) batch.place(i, {static_cast<int>(rng() % 28), static_cast<int>(rng() % 28)});
+  std::vector<Cell> commands(robots);
+  std::vector<MoveResult> results(robots);
+  std::uint64_t h = 1469598103934665603ull;
+  for (int m = 0; m < moves; ++m) {
+    for (Cell& c : commands) c = (rng() % 2) ? Cell(static_cast<int>(rng() % 5) - 2, 0) : Cell(0, static_cast<int>(rng() % 5) - 2);
+    batch.move(commands, results);
+    h = hash_positions(batch, h);
+  }
+  return h;
+}
+
+TEST(RobotBatch, SameSeedSameTrajectoryHashDifferentSeedDifferent) {
+  const std::uint64_t a = random_drive_hash(11, 16, 20);
+  EXPECT_EQ(a, random_drive_hash(11, 16, 20));
+  EXPECT_NE(a, random_drive_hash(12, 16, 20));
+}
+
+TEST(RobotBatch, ResultDoesNotDependOnTheThreadCount) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const std::uint64_t one = random_drive_hash(5, 16, 20);
+  omp_set_num_threads(2);
+  const std::uint64_t two = random_drive_hash(5, 16, 20);
+  omp_set_num_threads(before);
+  EXPECT_EQ(one, two);
+}
+
+TEST(RobotBatch, RobotsInOneBatchDoNotInteract) {
+  // Robot 0 alone, and robot 0 among 239 others that all start on its very cell and drive
+  // through it: its positions are bit-identical.
+  const Cell start{14, 14};
+  const Cell path[] = {{2, 0}, {0, 2}, {-1, 0}, {0, -2}, {-2, 0}, {0, 1}};
+  auto drive = [&](int robots) {
+    RobotBatch batch(kFloor, preset(), robots);
+    for (int i = 0; i < robots; ++i) batch.place(i, start);
+    std::vector<Cell> commands(robots);
+    std::vector<MoveResult> results(robots);
+    std::vector<Eigen::Vector2d> trace;
+    for (std::size_t m = 0; m < std::size(path); ++m) {
+      for (int i = 0; i < robots; ++i) commands[i] = i == 0 ? path[m] : path[(m + i) % std::size(path)];
+      batch.move(commands, results);
+      trace.push_back(batch.position_m(0));
+    }
+    return trace;
+  };
+  const auto alone = drive(1);
+  const auto crowded = drive(240);
+  ASSERT_EQ(alone.size(), crowded.size());
+  for (std::size_t m = 0; m < alone.size(); ++m) {
+    EXPECT_EQ(alone[m].x(), crowded[m].x());
+    EXPECT_EQ(alone[m].y(), crowded[m].y());
+  }
+}
+
+}  // namespace
+}  // namespace scout::sim
