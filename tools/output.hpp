@@ -1,0 +1,45 @@
+#pragma once
+// Output folders and files of the CLI: written to a staging folder and moved into place at the
+// end, so that a failed or interrupted command never leaves a half-written --out folder.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace scout::tools {
+
+/// An output folder being written. `path()` is where to write; commit() moves it to its final
+/// place (replacing an old one only when overwriting was allowed).
+class OutputDir {
+ public:
+  /// Refuses (InputError) an existing `target` unless `overwrite`.
+  OutputDir(std::filesystem::path target, bool overwrite);
+  ~OutputDir();
+  OutputDir(const OutputDir&) = delete;
+  OutputDir& operator=(const OutputDir&) = delete;
+
+  const std::filesystem::path& path() const { return staging_; }
+  const std::filesystem::path& target() const { return target_; }
+  void commit();
+
+ private:
+  std::filesystem::path target_;
+  std::filesystem::path staging_;
+  bool overwrite_;
+  bool committed_ = false;
+};
+
+/// Writes a file atomically: a temporary file beside it, then a rename.
+void write_file_atomic(const std::filesystem::path& file, const std::string& text);
+
+/// The manifest every output folder gets: command line, git commit, library versions, the
+/// resolved world (YAML text, may be empty) and the SHA-256 of each data file.
+nlohmann::json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
+                             const std::vector<std::filesystem::path>& data_files,
+                             const std::string& gl_description);
+
+/// The command line as one string, for manifests.
+std::vector<std::string> command_line(int argc, char** argv);
+
+}  // namespace scout::tools

@@ -1,0 +1,202 @@
+// scout run: headless rollouts of a world, with trajectory.json, images and manifest.json.
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <random>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "learn/rollout.hpp"
+#include "render/snapshot.hpp"
+#include "sim/random.hpp"
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/floors.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+/// The robots of one command run together at most this many at a time (a training batch).
+constexpr int kBatchRobots = 240;
+
+struct RunOptions {
+  std::string world;
+  std::string out;
+  std::string data_root;
+  std::uint64_t seed = 0;
+  bool seed_given = false;
+  int count = 1;
+  bool overwrite = false;
+  bool images = true;
+  int scale = 10;
+};
+
+/// One rollout to do: its seed fixes its digit (for `index: random`), its start and its choices.
+struct PlannedRun {
+  std::uint64_t seed;
+  int index;
+  sim::Cell start;
+};
+
+// Streams derived from a run's seed, so that drawing one thing never shifts another.
+enum Stream : std::uint64_t { kIndexStream = 1, kStartStream = 2, kPolicyStream = 3 };
+
+std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
+                                  const sim::FloorFrame& frame, std::uint64_t seed, int count) {
+  std::vector<PlannedRun> runs(count);
+  for (int k = 0; k < count; ++k) {
+    PlannedRun& r = runs[k];
+    r.seed = sim::derive_seed(seed, static_cast<std::uint64_t>(k));
+    std::mt19937_64 index_rng(sim::derive_seed(r.seed, kIndexStream));
+    r.index = world.floor.index ? *world.floor.index
+                                : static_cast<int>(sim::uniform_below(index_rng, static_cast<std::uint64_t>(floors.size())));
+    std::mt19937_64 start_rng(sim::derive_seed(r.seed, kStartStream));
+    r.start = learn::draw_start(world, frame, start_rng);
+  }
+  return runs;
+}
+
+json cell_json(const sim::Cell& c) { return json::array({c.x(), c.y()}); }
+
+json run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors) {
+  json j;
+  j["seed"] = run.seed;
+  j["dataset"] = floors.source;
+  j["split"] = floors.split ? json(worlds::to_string(*floors.split)) : json(nullptr);
+  j["index"] = run.index;
+  const int label = floors.labels[run.index];
+  j["label"] = label >= 0 ? json(label) : json(nullptr);
+  j["start"] = cell_json(record.start);
+  json steps = json::array();
+  for (const learn::StepRecord& s : record.steps) {
+    json step;
+    step["episode"] = s.episode;
+    step["step"] = s.step;
+    step["goal"] = cell_json(s.goal);
+    step["axis"] = sim::to_string(s.axis);
+    step["sampled"] = s.sampled;
+    step["command"] = cell_json(s.command);
+    step["ticks"] = s.result.ticks;
+    step["settled"] = s.result.settled;
+    step["pose_m"] = json::array({s.pose_m.x(), s.pose_m.y()});
+    step["grid_pose"] = cell_json(s.grid_pose);
+    step["revealed_px"] = s.revealed_px;
+    steps.push_back(std::move(step));
+  }
+  j["steps"] = std::move(steps);
+  return j;
+}
+
+void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record,
+                  const std::uint8_t* floor, const sim::FloorFrame& frame, int patch_px, int scale,
+                  std::vector<std::string>& written) {
+  for (const learn::SnapshotRecord& snap : record.snapshots) {
+    render::Snapshot s;
+    s.floor = floor;
+    s.width_px = frame.width_px;
+    s.height_px = frame.height_px;
+    s.revealed = snap.seen.data();
+    s.patch_px = patch_px;
+    s.robot = {snap.robot.x(), snap.robot.y()};
+    if (snap.goal) s.goal = render::PixelPose{snap.goal->x(), snap.goal->y()};
+    for (std::size_t p = 0; p < snap.path_length; ++p) s.path.push_back({record.path[p].x(), record.path[p].y()});
+    s.scale = scale;
+    const bool final_image = !snap.goal;
+    const std::string name = final_image ? fmt::format("run{:03d}_final.png", run_number)
+                                         : fmt::format("run{:03d}_episode{}.png", run_number, snap.episode);
+    render::write_png(folder / name, render::draw_snapshot(s));
+    written.push_back(name);
+  }
+}
+
+void run_command(const RunOptions& opt, const Context& context) {
+  if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
+  worlds::World world = worlds::load_world(opt.world);
+  if (opt.seed_given) world.seed = opt.seed;
+  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
+  const worlds::FloorSet floors = worlds::load_floors(world, data_root);
+  const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  OutputDir out(opt.out, opt.overwrite);  // refuses an existing folder before any work is done
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
+  const int batch_robots = std::min(opt.count, kBatchRobots);
+  learn::RolloutEngine engine(world, frame, batch_robots);
+  const fs::path images_dir = out.path() / "images";
+  if (opt.images) fs::create_directories(images_dir);
+
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  json runs_json = json::array();
+  std::vector<std::string> images;
+  long moves = 0, ticks = 0, revealed = 0;
+  for (int first = 0; first < opt.count; first += batch_robots) {
+    const int n = std::min(batch_robots, opt.count - first);
+    std::vector<std::uint8_t> batch_floors(area * n);
+    std::vector<sim::Cell> starts(n);
+    std::vector<std::uint64_t> policy_seeds(n);
+    for (int i = 0; i < n; ++i) {
+      const PlannedRun& r = runs[first + i];
+      std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
+      starts[i] = r.start;
+      policy_seeds[i] = sim::derive_seed(r.seed, kPolicyStream);
+    }
+    learn::RandomPolicy policy(policy_seeds);
+    const std::vector<learn::RolloutRecord> records = engine.run(batch_floors, starts, policy);
+    for (int i = 0; i < n; ++i) {
+      const learn::RolloutRecord& rec = records[i];
+      runs_json.push_back(run_json(runs[first + i], rec, floors));
+      for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
+      moves += static_cast<long>(rec.steps.size());
+      revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
+      if (opt.images)
+        write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
+                     opt.scale, images);
+    }
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  json trajectory;
+  trajectory["world"] = opt.world;
+  trajectory["seed"] = world.seed;
+  trajectory["runs"] = std::move(runs_json);
+  write_file_atomic(out.path() / "trajectory.json", trajectory.dump(1) + "\n");
+  json manifest = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
+  manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
+  write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  out.commit();
+
+  fmt::print("{} run{} of {} ({} moves, {:.1f} ticks per move, {:.1f} px revealed per run) in {:.2f} s\n", opt.count,
+             opt.count == 1 ? "" : "s", opt.world, moves, moves ? double(ticks) / moves : 0.0,
+             double(revealed) / opt.count, seconds);
+  fmt::print("trajectory: {}\n", (out.target() / "trajectory.json").string());
+  if (opt.images) fmt::print("images:     {} ({} PNG files)\n", (out.target() / "images").string(), images.size());
+}
+
+}  // namespace
+
+void add_run_command(CLI::App& app, const Context& context) {
+  auto opt = std::make_shared<RunOptions>();
+  auto* cmd = app.add_subcommand("run", "Drive robots over a world headless (mode (i): i.i.d. random goals and "
+                                        "actions) and export trajectory.json, images and manifest.json.");
+  cmd->add_option("world", opt->world, "World file (YAML), e.g. worlds/mnist.yaml")->required();
+  cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")->required();
+  cmd->add_option("--seed", opt->seed, "Seed (overrides the world file's)")->each([opt](const std::string&) {
+    opt->seed_given = true;
+  });
+  cmd->add_option("--count", opt->count, "Number of rollouts (each on its own digit with index: random)")
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->check(CLI::Range(1, 64));
+  cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing --out folder");
+  cmd->add_flag("!--no-images", opt->images, "Skip the PNG snapshots");
+  cmd->callback([opt, &context] { run_command(*opt, context); });
+}
+
+}  // namespace scout::tools
