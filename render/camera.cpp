@@ -234,11 +234,13 @@ struct PatchCamera::Impl {
     glUniform1i(glGetUniformLocation(program, "tile_columns"), tile_columns);
     glUniform1i(glGetUniformLocation(program, "patch_px"), patch_px);
     glUniform2f(glGetUniformLocation(program, "framebuffer_px"),
-                static_cast<float>(framebuffer_width_px), static_cast<float>(framebuffer_height_px));
+                static_cast<float>(framebuffer_width_px),
+                static_cast<float>(framebuffer_height_px));
     // Unused uniforms are optimised away; glUniform* at location -1 is a no-op.
     glUniform2i(glGetUniformLocation(program, "floor_px"), floor_width_px, floor_height_px);
     glUniform2f(glGetUniformLocation(program, "inverse_floor_px"),
-                1.0f / static_cast<float>(floor_width_px), 1.0f / static_cast<float>(floor_height_px));
+                1.0f / static_cast<float>(floor_width_px),
+                1.0f / static_cast<float>(floor_height_px));
     glUniform1i(glGetUniformLocation(program, "floors_per_layer"), floors_per_layer);
     glUniform1i(glGetUniformLocation(program, "floors"), 0);
   }
@@ -248,8 +250,8 @@ struct PatchCamera::Impl {
     glBindVertexArray(vertex_array);
     glGenBuffers(1, &pose_buffer);
     glBindBuffer(GL_ARRAY_BUFFER, pose_buffer);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose),
-                 nullptr, GL_STREAM_DRAW);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose), nullptr,
+                 GL_STREAM_DRAW);
     glEnableVertexAttribArray(0);
     glVertexAttribIPointer(0, 2, GL_INT, sizeof(PixelPose), nullptr);
 
@@ -281,18 +283,16 @@ struct PatchCamera::Impl {
     GLint max_renderbuffer_px = 0;
     glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
     if (framebuffer_width_px > max_renderbuffer_px || framebuffer_height_px > max_renderbuffer_px) {
-      throw std::runtime_error("PatchCamera: a tile grid of " +
-                               std::to_string(framebuffer_width_px) + " x " +
-                               std::to_string(framebuffer_height_px) +
-                               " px exceeds the GL renderbuffer limit");
+      throw std::runtime_error(
+          "PatchCamera: a tile grid of " + std::to_string(framebuffer_width_px) + " x " +
+          std::to_string(framebuffer_height_px) + " px exceeds the GL renderbuffer limit");
     }
     glGenRenderbuffers(1, &colour_buffer);
     glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
     glRenderbufferStorage(GL_RENDERBUFFER, GL_R8, framebuffer_width_px, framebuffer_height_px);
     glGenFramebuffers(1, &framebuffer);
     glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
-                              colour_buffer);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
       throw std::runtime_error("PatchCamera: the R8 framebuffer is incomplete");
     }
@@ -335,12 +335,12 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
   require(floor_height_px > 0 && floor_height_px <= kMaxFloorPx,
           "floor height must be 1.." + std::to_string(kMaxFloorPx) + " px, got " +
               std::to_string(floor_height_px));
-  require(patch_px > 0 && patch_px <= kMaxPatchPx,
-          "patch size must be 1.." + std::to_string(kMaxPatchPx) + " px, got " +
-              std::to_string(patch_px));
-  require(max_robots > 0 && max_robots <= kMaxRobots,
-          "max_robots must be 1.." + std::to_string(kMaxRobots) + ", got " +
-              std::to_string(max_robots));
+  require(patch_px > 0 && patch_px <= kMaxPatchPx, "patch size must be 1.." +
+                                                       std::to_string(kMaxPatchPx) + " px, got " +
+                                                       std::to_string(patch_px));
+  require(max_robots > 0 && max_robots <= kMaxRobots, "max_robots must be 1.." +
+                                                          std::to_string(kMaxRobots) + ", got " +
+                                                          std::to_string(max_robots));
   Impl& impl = *impl_;
   impl.floor_width_px = floor_width_px;
   impl.floor_height_px = floor_height_px;
@@ -372,11 +372,11 @@ PatchCamera::~PatchCamera() {
 
 void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
   Impl& impl = *impl_;
-  require(count > 0 && count <= impl.max_robots,
-          "load_floors: count must be 1.." + std::to_string(impl.max_robots) + ", got " +
-              std::to_string(count));
-  const std::size_t floor_bytes =
-      static_cast<std::size_t>(impl.floor_width_px) * static_cast<std::size_t>(impl.floor_height_px);
+  require(count > 0 && count <= impl.max_robots, "load_floors: count must be 1.." +
+                                                     std::to_string(impl.max_robots) + ", got " +
+                                                     std::to_string(count));
+  const std::size_t floor_bytes = static_cast<std::size_t>(impl.floor_width_px) *
+                                  static_cast<std::size_t>(impl.floor_height_px);
   require(floors.size() == floor_bytes * static_cast<std::size_t>(count),
           "load_floors: expected " + std::to_string(count) + " floors of " +
               std::to_string(impl.floor_width_px) + " x " + std::to_string(impl.floor_height_px) +
@@ -413,10 +413,9 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
           "capture: " + std::to_string(poses.size()) + " poses but only " +
               std::to_string(impl.floors_loaded) + " floors loaded");
   require(patches.size() == poses.size() * patch_bytes,
-          "capture: patches must hold " + std::to_string(poses.size() * patch_bytes) +
-              " bytes (" + std::to_string(poses.size()) + " patches of " +
-              std::to_string(impl.patch_px) + " x " + std::to_string(impl.patch_px) + "), got " +
-              std::to_string(patches.size()));
+          "capture: patches must hold " + std::to_string(poses.size() * patch_bytes) + " bytes (" +
+              std::to_string(poses.size()) + " patches of " + std::to_string(impl.patch_px) +
+              " x " + std::to_string(impl.patch_px) + "), got " + std::to_string(patches.size()));
   if (poses.empty()) return;
   impl.make_current();
 
@@ -435,7 +434,8 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
   for (int robot = 0; robot < robots; ++robot) {
     const std::size_t tile_x = static_cast<std::size_t>(robot % impl.tile_columns) * m;
     const std::size_t tile_y = static_cast<std::size_t>(robot / impl.tile_columns) * m;
-    const std::uint8_t* tile = impl.read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
+    const std::uint8_t* tile =
+        impl.read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
     for (std::size_t row = 0; row < m; ++row) {
       std::memcpy(out, tile + row * static_cast<std::size_t>(width), m);
       out += m;

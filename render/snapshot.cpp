@@ -2,13 +2,12 @@
 // and the goal window, and optionally the classifier's bars. Drawn with OpenCV, in BGR.
 #include "render/snapshot.hpp"
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -17,12 +16,12 @@ namespace scout::render {
 namespace {
 
 // Colours, BGR.
-const cv::Scalar kRobotColour(255, 0, 0);       // blue: the camera window
-const cv::Scalar kGoalColour(0, 200, 0);        // green: the goal window
-const cv::Scalar kPathColour(0, 140, 255);      // orange: the path and its poses
+const cv::Scalar kRobotColour(255, 0, 0);   // blue: the camera window
+const cv::Scalar kGoalColour(0, 200, 0);    // green: the goal window
+const cv::Scalar kPathColour(0, 140, 255);  // orange: the path and its poses
 const cv::Scalar kPanelBackground(32, 32, 32);
 const cv::Scalar kBarColour(150, 150, 150);
-const cv::Scalar kBestBarColour(0, 140, 255);   // the argmax, in the path's orange
+const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
 const cv::Scalar kTextColour(230, 230, 230);
 
 constexpr int kMaxScale = 64;

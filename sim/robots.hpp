@@ -36,15 +36,17 @@ struct MoveResult {
 };
 
 /// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical
-/// whatever else is in the batch, and the batch is advanced in parallel (OpenMP) by robot.
+/// whatever else is in the batch, and the batch is advanced in parallel by robot.
 class RobotBatch {
  public:
-  RobotBatch(const FloorFrame& frame, const RobotParams& params, int count);
+  /// `count` robots on `frame`; `threads` advance them (0: one per hardware thread).
+  RobotBatch(const FloorFrame& frame, const RobotParams& params, int count, int threads = 0);
   ~RobotBatch();
   RobotBatch(const RobotBatch&) = delete;
   RobotBatch& operator=(const RobotBatch&) = delete;
 
   int size() const;
+  int threads() const;
   const FloorFrame& frame() const;
   const RobotParams& params() const;
 
@@ -75,6 +77,7 @@ class RobotBatch {
   RobotParams params_;
   std::unique_ptr<Robot[]> robots_;
   int count_;
+  std::unique_ptr<class WorkerPool> pool_;
 };
 
 /// "Box2D 2.4.1": the physics library in use (for manifests).

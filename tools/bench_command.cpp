@@ -4,8 +4,6 @@
 #include <memory>
 #include <random>
 
-#include <omp.h>
-
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -120,11 +118,12 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
     for (int m = 0; m < moves_per_rollout; ++m) camera.capture(poses[m], patches);
   });
 
+  const int robots_threads = robots.threads();
   const double steps = double(n) * moves_per_rollout;
   const double t_all = median(together), t_phys = median(physics), t_cam = median(render_times);
-  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} OpenMP threads\n", n,
+  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} physics threads\n", n,
              moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats,
-             omp_get_max_threads());
+             robots_threads);
   fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, frame.pixel_size_m,
              world.robot.max_speed_mps, world.physics.dt_s);
   fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
@@ -139,11 +138,11 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   fmt::print("  camera: {}\n", engine.camera_description());
 
   if (!opt.json_out.empty()) {
-    nlohmann::json j;
+    nlohmann::ordered_json j;
     j["robots"] = n;
     j["moves_per_rollout"] = moves_per_rollout;
     j["repeats"] = opt.repeats;
-    j["threads"] = omp_get_max_threads();
+    j["threads"] = robots_threads;
     j["median_ms"] = {{"physics_and_camera", t_all * 1e3}, {"physics", t_phys * 1e3}, {"camera", t_cam * 1e3}};
     j["agent_steps_per_s"] = {{"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
     j["patches_per_s"] = steps / t_cam;

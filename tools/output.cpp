@@ -79,23 +79,23 @@ void write_file_atomic(const fs::path& file, const std::string& text) {
 
 std::vector<std::string> command_line(int argc, char** argv) { return {argv, argv + argc}; }
 
-nlohmann::json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
+nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
                              const std::vector<fs::path>& data_files, const std::string& gl_description) {
-  nlohmann::json m;
+  nlohmann::ordered_json m;
   m["command_line"] = argv;
   m["git_commit"] = git_commit();
   m["scout_version"] = SCOUT_VERSION;
   m["created_utc"] = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", fmt::gmtime(std::chrono::system_clock::to_time_t(std::chrono::system_clock::now())));
-  nlohmann::json libs;
-  libs["box2d"] = sim::physics_library_version();
+  nlohmann::ordered_json libs;
+  libs["box2d"] = sim::physics_library_version();  // as b2_version reports it
   libs["opencv"] = render::image_library_version();
   libs["eigen"] = fmt::format("{}.{}.{}", EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION);
   libs["nlohmann_json"] = fmt::format("{}.{}.{}", NLOHMANN_JSON_VERSION_MAJOR, NLOHMANN_JSON_VERSION_MINOR, NLOHMANN_JSON_VERSION_PATCH);
-  libs["fmt"] = fmt::format("{}", FMT_VERSION);
+  libs["fmt"] = fmt::format("{}.{}.{}", FMT_VERSION / 10000, FMT_VERSION / 100 % 100, FMT_VERSION % 100);
   if (!gl_description.empty()) libs["gl"] = gl_description;
   m["libraries"] = libs;
   if (!world_yaml.empty()) m["world"] = world_yaml;
-  nlohmann::json hashes = nlohmann::json::object();
+  nlohmann::ordered_json hashes = nlohmann::ordered_json::object();
   for (const fs::path& f : data_files) hashes[fs::absolute(f).lexically_normal().string()] = worlds::sha256_file(f);
   m["data_sha256"] = hashes;
   return m;

@@ -35,7 +35,7 @@ void write_file_atomic(const std::filesystem::path& file, const std::string& tex
 
 /// The manifest every output folder gets: command line, git commit, library versions, the
 /// resolved world (YAML text, may be empty) and the SHA-256 of each data file.
-nlohmann::json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
+nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
                              const std::vector<std::filesystem::path>& data_files,
                              const std::string& gl_description);
 

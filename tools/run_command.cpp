@@ -21,7 +21,7 @@ namespace scout::tools {
 namespace {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
+using json = nlohmann::ordered_json;
 
 /// The robots of one command run together at most this many at a time (a training batch).
 constexpr int kBatchRobots = 240;

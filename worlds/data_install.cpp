@@ -305,7 +305,8 @@ DataInstallReport install_mnist(const fs::path& data_root) {
   }
   std::vector<int> train;
   train.reserve(rest.size());
-  for (int k : stratified_split(rest_labels, {1.0}, kSplitSeed).front()) train.push_back(rest[static_cast<std::size_t>(k)]);
+  const std::vector<std::vector<int>> rest_order = stratified_split(rest_labels, {1.0}, kSplitSeed);
+  for (int k : rest_order.front()) train.push_back(rest[static_cast<std::size_t>(k)]);
 
   // SOURCE.json goes first out and last in: until it is rewritten the folder reads as not installed.
   fs::create_directories(report.folder, ec);

@@ -192,11 +192,18 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
     std::sort(order.begin(), order.end(),
               [](const Remainder& a, const Remainder& b) { return a.key != b.key ? a.key > b.key : a.cls < b.cls; });
     std::int64_t missing = total - assigned;
-    for (const Remainder& r : order) {
-      if (missing <= 0) break;
-      if (left[r.cls] - quota[r.cls] > 0) {  // earlier parts may have used the class up
-        ++quota[r.cls];
-        --missing;
+    // One pass is the largest-remainder rule. Only when earlier parts have used small classes up
+    // can members still be missing after it; further passes in the same order then take them
+    // from the classes that have some left.
+    for (bool progress = true; missing > 0 && progress;) {
+      progress = false;
+      for (const Remainder& r : order) {
+        if (missing == 0) break;
+        if (left[r.cls] - quota[r.cls] > 0) {
+          ++quota[r.cls];
+          --missing;
+          progress = true;
+        }
       }
     }
     if (missing != 0)

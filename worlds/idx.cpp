@@ -201,11 +201,11 @@ void write_atomically(const fs::path& file, const std::uint8_t* header, std::siz
 ImageSet parse_idx_images(const std::vector<std::uint8_t>& bytes, const fs::path& origin) {
   Content content = open_content(bytes, kImagesHeader, origin);
   const std::vector<std::uint8_t>& b = content.get();
+  // The magic first: "this is a label file" says more than "the header is short".
+  if (b.size() >= 4 && read_be32(b.data()) != kImagesMagic) fail(origin, magic_problem(read_be32(b.data()), kImagesMagic));
   if (b.size() < kImagesHeader)
     fail(origin, fmt::format("truncated header: {} bytes, an idx3-ubyte image file starts with a {}-byte header",
                              b.size(), kImagesHeader));
-  const std::uint32_t magic = read_be32(b.data());
-  if (magic != kImagesMagic) fail(origin, magic_problem(magic, kImagesMagic));
   const std::uint32_t count = read_be32(b.data() + 4);
   const std::uint32_t rows = read_be32(b.data() + 8);
   const std::uint32_t cols = read_be32(b.data() + 12);
@@ -236,11 +236,10 @@ ImageSet parse_idx_images(const std::vector<std::uint8_t>& bytes, const fs::path
 std::vector<std::uint8_t> parse_idx_labels(const std::vector<std::uint8_t>& bytes, const fs::path& origin) {
   Content content = open_content(bytes, kLabelsHeader, origin);
   const std::vector<std::uint8_t>& b = content.get();
+  if (b.size() >= 4 && read_be32(b.data()) != kLabelsMagic) fail(origin, magic_problem(read_be32(b.data()), kLabelsMagic));
   if (b.size() < kLabelsHeader)
     fail(origin, fmt::format("truncated header: {} bytes, an idx1-ubyte label file starts with a {}-byte header",
                              b.size(), kLabelsHeader));
-  const std::uint32_t magic = read_be32(b.data());
-  if (magic != kLabelsMagic) fail(origin, magic_problem(magic, kLabelsMagic));
   const std::uint32_t count = read_be32(b.data() + 4);
   if (count == 0) fail(origin, "header says 0 labels; a label file holds at least one");
   const std::string says = fmt::format("header says {} labels", count);

@@ -8,6 +8,7 @@
 // pipeline that could otherwise exhaust the stack.
 #include "worlds/world.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <fstream>
 #include <limits>
 #include <set>
+#include <sstream>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -603,6 +605,22 @@ void Loader::read(const YAML::Node& root) {
   if (!floor_seen) world_.floor.dataset = "mnist";  // no floor section: the paper's floor
 }
 
+/// Parser events are ignored except where each document starts (to name a second document).
+class DocumentStarts final : public YAML::EventHandler {
+ public:
+  YAML::Mark last = YAML::Mark::null_mark();
+
+  void OnDocumentStart(const YAML::Mark& mark) override { last = mark; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
 /// The line a field was given on, else its section's, else the first: defaults have no line.
 int field_line(const World& world, const std::string& field, const std::string& section) {
   if (const auto it = world.lines.find(field); it != world.lines.end()) return it->second;
@@ -617,19 +635,25 @@ World parse_world(std::string_view text, const std::filesystem::path& origin) {
   world.file = origin;
   Loader loader(origin, world);
   loader.check_text(text);
-  std::vector<YAML::Node> documents;
+  // YAML::LoadAll is not used: in yaml-cpp 0.7 it loops forever, allocating, on a stray "," at
+  // document level (yaml-cpp issue #1040). Load reads the first document only, and a parser that
+  // is asked for at most two documents tells whether there is more.
+  YAML::Node root;
   try {
-    documents = YAML::LoadAll(std::string(text));
+    root = YAML::Load(std::string(text));
+    if (!root.IsMap()) loader.fail(1, "expected a map of sections (floor, robot, ...)");
+    std::istringstream stream{std::string(text)};
+    YAML::Parser parser(stream);
+    DocumentStarts starts;
+    if (parser.HandleNextDocument(starts) && parser.HandleNextDocument(starts)) {
+      loader.fail(line_of(starts.last), "expected one YAML document, got more");
+    }
   } catch (const YAML::Exception& e) {
     // e.msg is yaml-cpp's message without its own "line X, column Y" prefix.
     loader.fail(line_of(e.mark), "YAML syntax error: " + e.msg);
   }
-  if (documents.empty()) loader.fail(1, "expected a map of sections (floor, robot, ...)");
-  if (documents.size() > 1) {
-    loader.fail(line_of(documents[1]), "expected one YAML document, got " + std::to_string(documents.size()));
-  }
   try {
-    loader.read(documents.front());
+    loader.read(root);
   } catch (const YAML::Exception& e) {
     // Validation checks every node's kind before using it, so this is a safety net only.
     loader.fail(line_of(e.mark), "YAML error: " + e.msg);

@@ -1,18 +1,16 @@
 // Snapshot pictures: sizes, colours of seen and unseen pixels, the outlines, the panel, and
 // atomic PNG writing.
 #include <gtest/gtest.h>
-
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <unistd.h>
 
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
 
 #include "render/snapshot.hpp"
 
@@ -121,7 +119,7 @@ TEST(DrawSnapshot, UnseenBlackDiffersFromSeenBlack) {
 TEST(DrawSnapshot, RobotWindowIsABlueOutlineAndGoalWindowAGreenOne) {
   const Scene scene;
   Snapshot snapshot = scene.snapshot();
-  snapshot.robot = {3, 3};  // m = 3: columns and rows 2..4, output pixels 20..49
+  snapshot.robot = {3, 3};          // m = 3: columns and rows 2..4, output pixels 20..49
   snapshot.goal = PixelPose{9, 6};  // columns 8..10, rows 5..7: output x 80..109, y 50..79
   const Picture picture = draw_snapshot(snapshot);
 
@@ -174,10 +172,10 @@ TEST(DrawSnapshot, WindowIsClippedToTheFloor) {
   snapshot.patch_px = 6;
   snapshot.robot = {0, 9};  // columns -3..2 and rows 6..11, clipped to 0..2 and 6..9
   const Picture picture = draw_snapshot(snapshot);
-  EXPECT_TRUE(is_blue(pixel(picture, 0, 80)));    // left edge at the floor's border
-  EXPECT_TRUE(is_blue(pixel(picture, 29, 80)));   // right edge at column 2
-  EXPECT_TRUE(is_blue(pixel(picture, 15, 60)));   // top edge at row 6
-  EXPECT_TRUE(is_blue(pixel(picture, 15, 99)));   // bottom edge at the floor's border
+  EXPECT_TRUE(is_blue(pixel(picture, 0, 80)));   // left edge at the floor's border
+  EXPECT_TRUE(is_blue(pixel(picture, 29, 80)));  // right edge at column 2
+  EXPECT_TRUE(is_blue(pixel(picture, 15, 60)));  // top edge at row 6
+  EXPECT_TRUE(is_blue(pixel(picture, 15, 99)));  // bottom edge at the floor's border
   EXPECT_FALSE(is_blue(pixel(picture, 30, 80)));
   EXPECT_FALSE(is_blue(pixel(picture, 15, 59)));
 }
@@ -202,8 +200,8 @@ TEST(DrawSnapshot, PathIsDrawnThroughPixelCentres) {
 
 TEST(DrawSnapshot, ClassPanelIsAppendedWithTheArgmaxHighlighted) {
   const Scene scene;
-  const std::array<float, 10> probabilities = {0.05f, 0.02f, 0.03f, 0.1f, 0.05f,
-                                               0.05f, 0.05f, 0.6f, 0.03f, 0.02f};
+  const std::array<float, 10> probabilities = {0.05f, 0.02f, 0.03f, 0.1f,  0.05f,
+                                               0.05f, 0.05f, 0.6f,  0.03f, 0.02f};
   Snapshot plain = scene.snapshot();
   plain.goal = PixelPose{9, 6};
   Snapshot with_panel = plain;
@@ -265,9 +263,9 @@ class WritePng : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    directory_ = std::filesystem::temp_directory_path() /
-                 (std::string("scout_render_test_") + info->name() + "_" +
-                  std::to_string(::getpid()));
+    directory_ =
+        std::filesystem::temp_directory_path() /
+        (std::string("scout_render_test_") + info->name() + "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(directory_);
     std::filesystem::create_directories(directory_);
   }

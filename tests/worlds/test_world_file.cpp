@@ -219,6 +219,8 @@ struct BadCase {
   const char* prefix;
 };
 
+void PrintTo(const BadCase& bad, std::ostream* os) { *os << bad.name; }
+
 class BadWorld : public ::testing::TestWithParam<BadCase> {};
 
 TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) {
@@ -312,7 +314,9 @@ const BadCase kBadCases[] = {
     {"OnlyComments", "# nothing here\n\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
     {"SequenceTopLevel", "- floor\n- robot\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
     {"ScalarTopLevel", "42\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
-    {"TwoDocuments", "seed: 1\n---\nseed: 2\n", "w.yaml:3: expected one YAML document, got 2"},
+    {"TwoDocuments", "seed: 1\n---\nseed: 2\n", "w.yaml:2: expected one YAML document, got more"},
+    {"StrayCommaAfterTheMap", "seed: 1\n---\n,\n", "w.yaml:2: expected one YAML document, got more"},
+    {"StrayCommaFirst", ",\nseed: 1\n", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
     {"DeepFlowNesting", "seed: [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[\n",
      "w.yaml:1: expected nesting at most 64 levels deep, got deeper"},
     {"DeepCompactNesting",
@@ -320,13 +324,14 @@ const BadCase kBadCases[] = {
      "w.yaml:2: expected nesting at most 64 levels deep, got deeper"},
     {"AliasOfAWrongKind", "a: &a [1, 2]\n", "w.yaml:1: a: expected a section among"},
     {"AliasedSectionWithWrongKeys", "robot: &r {radius_m: 1}\ncontroller: *r\n",
-     "w.yaml:2: controller.radius_m: expected a key among kp_per_s, tolerance_px"},
+     // The shared node's keys are written on line 1: that is the line named.
+     "w.yaml:1: controller.radius_m: expected a key among kp_per_s, tolerance_px"},
     {"CyclicAlias", "seed: &a [*a]\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got a sequence of 1 element"},
     {"NewlineInValueIsEscaped", "floor:\n  split: \"te\\nst\"\n", "w.yaml:2: floor.split: expected train, validation or test, got the string \"te\\nst\""},
 };
 
 INSTANTIATE_TEST_SUITE_P(WorldFile, BadWorld, ::testing::ValuesIn(kBadCases),
-                         [](const ::testing::TestParamInfo<BadCase>& info) { return std::string(info.param.name); });
+                         [](const ::testing::TestParamInfo<BadCase>& bad) { return std::string(bad.param.name); });
 
 TEST(WorldFile, DeepIndentationNestingIsRefused) {
   std::string text;

@@ -1,0 +1,215 @@
+// Rollouts with the real Box2D world and the real OSMesa camera in the loop, checked against the
+// exact grid model of sim/.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+
+#include "learn/rollout.hpp"
+#include "sim/random.hpp"
+
+namespace scout::learn {
+namespace {
+
+const sim::FloorFrame kFloor{28, 28, 0.1};
+
+worlds::World preset_world() { return worlds::World{}; }  // the struct's defaults are the paper preset
+
+std::vector<std::uint8_t> random_floors(int count, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<std::uint8_t> floors(static_cast<std::size_t>(count) * kFloor.area_px());
+  for (auto& p : floors) p = static_cast<std::uint8_t>(rng() & 0xFF);
+  return floors;
+}
+
+struct Batch {
+  std::vector<std::uint8_t> floors;
+  std::vector<sim::Cell> starts;
+  std::vector<std::uint64_t> seeds;
+};
+
+Batch random_batch(int count, std::uint64_t seed) {
+  Batch b;
+  b.floors = random_floors(count, seed);
+  std::mt19937_64 rng(seed + 1);
+  const worlds::World world = preset_world();
+  for (int i = 0; i < count; ++i) {
+    b.starts.push_back(draw_start(world, kFloor, rng));
+    b.seeds.push_back(sim::derive_seed(seed, static_cast<std::uint64_t>(i)));
+  }
+  return b;
+}
+
+TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 240);
+  long compared_moves = 0, sampled = 0;
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const Batch b = random_batch(240, seed);
+    RandomPolicy policy(b.seeds);
+    const auto records = engine.run(b.floors, b.starts, policy);
+    ASSERT_EQ(records.size(), 240u);
+    for (int i = 0; i < 240; ++i) {
+      const RolloutRecord& rec = records[i];
+      ASSERT_EQ(rec.steps.size(), static_cast<std::size_t>(world.task.episodes * world.task.steps));
+      sim::GridModel model(kFloor, world.camera.patch_px, b.starts[i]);
+      for (const StepRecord& s : rec.steps) {
+        // The grid model takes the recorded goal and, only where the protocol lets the policy
+        // choose, the recorded axis; everything else it computes itself.
+        const sim::Decision d = sim::decide(model.pose(), s.goal);
+        ASSERT_EQ(s.sampled, d == sim::Decision::Choose);
+        sim::Axis axis = d == sim::Decision::Vertical ? sim::Axis::Vertical
+                         : d == sim::Decision::Horizontal ? sim::Axis::Horizontal
+                                                          : sim::Axis::None;
+        if (d == sim::Decision::Choose) {
+          ASSERT_NE(s.axis, sim::Axis::None);
+          axis = s.axis;
+          ++sampled;
+        }
+        ASSERT_EQ(s.axis, axis);
+        const sim::Cell command = sim::move_command(model.pose(), s.goal, axis, world.task.step_px);
+        ASSERT_EQ(s.command, command);
+        model.move(command);
+        ASSERT_EQ(s.grid_pose, model.pose()) << "robot " << i << " episode " << s.episode << " step " << s.step;
+        ASSERT_EQ(s.revealed_px, model.revealed().count());
+        EXPECT_TRUE(s.result.settled);
+        ++compared_moves;
+      }
+      // The physics run's seen pixels equal the model's, and y holds the floor exactly there.
+      const auto& seen = engine.state().seen[i].data();
+      ASSERT_EQ(seen, model.revealed().data());
+      const std::uint8_t* y = engine.state().observed_image(i);
+      const std::uint8_t* x = b.floors.data() + static_cast<std::size_t>(i) * kFloor.area_px();
+      for (int p = 0; p < kFloor.area_px(); ++p) ASSERT_EQ(y[p], seen[p] ? x[p] : 0) << "pixel " << p;
+    }
+  }
+  EXPECT_EQ(compared_moves, 3 * 240 * 20);
+  EXPECT_GT(sampled, 1000);  // the comparison exercised the policy's choices, not only forced moves
+}
+
+std::vector<RolloutRecord> run_batch(const Batch& b, int count, RolloutEngine& engine) {
+  RandomPolicy policy(std::span(b.seeds.data(), count));
+  return engine.run(std::span(b.floors.data(), static_cast<std::size_t>(count) * kFloor.area_px()),
+                    std::span(b.starts.data(), count), policy);
+}
+
+void expect_same_trajectory(const RolloutRecord& a, const RolloutRecord& b) {
+  ASSERT_EQ(a.steps.size(), b.steps.size());
+  for (std::size_t k = 0; k < a.steps.size(); ++k) {
+    EXPECT_EQ(a.steps[k].goal, b.steps[k].goal);
+    EXPECT_EQ(a.steps[k].command, b.steps[k].command);
+    EXPECT_EQ(a.steps[k].result.ticks, b.steps[k].result.ticks);
+    // Bit for bit, not approximately.
+    EXPECT_EQ(std::memcmp(a.steps[k].pose_m.data(), b.steps[k].pose_m.data(), 2 * sizeof(double)), 0);
+  }
+}
+
+TEST(Rollout, ARobotDrivesTheSameAloneAndInABatchOf240) {
+  const worlds::World world = preset_world();
+  const Batch b = random_batch(240, 77);
+  RolloutEngine big(world, kFloor, 240);
+  const auto crowded = run_batch(b, 240, big);
+  RolloutEngine small(world, kFloor, 1);
+  const auto alone = run_batch(b, 1, small);
+  expect_same_trajectory(alone[0], crowded[0]);
+}
+
+std::uint64_t trajectory_hash(const std::vector<RolloutRecord>& records) {
+  std::uint64_t h = 1469598103934665603ull;
+  auto add = [&h](const void* p, std::size_t n) {
+    const auto* bytes = static_cast<const unsigned char*>(p);
+    for (std::size_t k = 0; k < n; ++k) h = (h ^ bytes[k]) * 1099511628211ull;
+  };
+  for (const auto& r : records)
+    for (const auto& s : r.steps) {
+      add(s.pose_m.data(), 2 * sizeof(double));
+      add(s.goal.data(), 2 * sizeof(int));
+    }
+  return h;
+}
+
+TEST(Rollout, SameSeedSameHashDifferentSeedDifferentHash) {
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 32);
+  const std::uint64_t a = trajectory_hash(run_batch(random_batch(32, 5), 32, engine));
+  EXPECT_EQ(a, trajectory_hash(run_batch(random_batch(32, 5), 32, engine)));
+  EXPECT_NE(a, trajectory_hash(run_batch(random_batch(32, 6), 32, engine)));
+}
+
+TEST(Rollout, SnapshotsAtEachEpisodeStartAndAtTheEnd) {
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 4);
+  const auto records = run_batch(random_batch(4, 9), 4, engine);
+  for (const RolloutRecord& r : records) {
+    ASSERT_EQ(r.snapshots.size(), static_cast<std::size_t>(world.task.episodes + 1));
+    ASSERT_EQ(r.path.size(), r.steps.size() + 1);
+    for (int e = 0; e < world.task.episodes; ++e) {
+      const SnapshotRecord& s = r.snapshots[e];
+      EXPECT_EQ(s.episode, e);
+      ASSERT_TRUE(s.goal.has_value());
+      EXPECT_EQ(*s.goal, r.steps[static_cast<std::size_t>(e) * world.task.steps].goal);
+      EXPECT_EQ(s.path_length, static_cast<std::size_t>(e) * world.task.steps + 1);
+    }
+    EXPECT_FALSE(r.snapshots.back().goal.has_value());
+    EXPECT_EQ(r.snapshots.back().robot, r.steps.back().grid_pose);
+  }
+}
+
+TEST(RandomPolicy, GoalsCoverTheFloorUniformlyAndAxesAreFair) {
+  const worlds::World world = preset_world();
+  std::vector<std::uint64_t> seeds(64);
+  for (int i = 0; i < 64; ++i) seeds[i] = static_cast<std::uint64_t>(i) + 1000;
+  RandomPolicy policy(seeds);
+  BatchState state;
+  state.frame = kFloor;
+  std::vector<int> hits(static_cast<std::size_t>(kFloor.area_px()), 0);
+  std::vector<sim::Cell> goals(64);
+  const int draws = 1000;
+  for (int d = 0; d < draws; ++d) {
+    policy.choose_goals(state, 0, goals);
+    for (const sim::Cell& g : goals) {
+      ASSERT_TRUE(kFloor.contains(g));
+      ++hits[static_cast<std::size_t>(g.y()) * kFloor.width_px + g.x()];
+    }
+  }
+  // 64,000 goals over 784 pixels: about 82 each; a chi-square far above its 783 degrees of
+  // freedom would mean a biased or broken sampler.
+  const double expected = 64.0 * draws / kFloor.area_px();
+  double chi2 = 0;
+  for (int h : hits) chi2 += (h - expected) * (h - expected) / expected;
+  EXPECT_LT(chi2, 950.0);
+  EXPECT_GT(chi2, 620.0);
+
+  std::vector<std::uint8_t> need(64, 1);
+  need[3] = 0;
+  std::vector<sim::Axis> axes(64, sim::Axis::None);
+  int vertical = 0, total = 0;
+  for (int d = 0; d < 500; ++d) {
+    std::fill(axes.begin(), axes.end(), sim::Axis::None);
+    policy.choose_axes(state, need, axes);
+    EXPECT_EQ(axes[3], sim::Axis::None);  // not asked, not chosen
+    for (int i = 0; i < 64; ++i)
+      if (need[i]) {
+        ASSERT_NE(axes[i], sim::Axis::None);
+        vertical += axes[i] == sim::Axis::Vertical;
+        ++total;
+      }
+  }
+  EXPECT_NEAR(double(vertical) / total, 0.5, 0.01);
+}
+
+TEST(RolloutEngine, RefusesBadBatches) {
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 4);
+  const Batch b = random_batch(5, 1);
+  RandomPolicy policy(b.seeds);
+  EXPECT_THROW(engine.run(b.floors, b.starts, policy), std::invalid_argument);  // 5 robots > 4
+  std::vector<sim::Cell> off{{28, 0}};
+  EXPECT_THROW(engine.run(std::span(b.floors.data(), static_cast<std::size_t>(kFloor.area_px())), off, policy),
+               std::invalid_argument);
+  std::vector<sim::Cell> one{{3, 3}};
+  EXPECT_THROW(engine.run(std::span(b.floors.data(), 10), one, policy), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace scout::learn
