@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 #include <openssl/evp.h>
 
 #include <array>
@@ -15,7 +16,6 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <system_error>
@@ -267,7 +267,7 @@ DataInstallReport install_mnist(const fs::path& data_root) {
   }
 
   std::error_code ec;
-  fs::create_directories(data_root, ec);
+  if (!data_root.empty()) fs::create_directories(data_root, ec);
   if (ec) throw InputError(fmt::format("{}: cannot create the data folder: {}", data_root.string(), ec.message()));
   const TempDir tmp(data_root);
 

@@ -173,8 +173,9 @@ class Loader {
 
 void Loader::check_text(std::string_view text) const {
   if (text.size() > kMaxFileBytes) {
-    throw InputError(one_line(origin_.string() + ": expected a world file of at most 1 MiB, got " +
-                              std::to_string(text.size()) + " bytes"));
+    throw InputError(one_line(origin_.string() + ": expected a world file of at most 1 MiB (" +
+                              std::to_string(kMaxFileBytes) + " bytes), got " + std::to_string(text.size()) +
+                              " bytes"));
   }
   // Over-estimates depth where unsure (brackets in plain scalars, lines of a block scalar count
   // as nesting), which only refuses odd files; the quote rules are strict enough that text can
@@ -674,6 +675,11 @@ World load_world(const std::filesystem::path& file) {
     text.append(buf.data(), static_cast<std::size_t>(in.gcount()));
   }
   if (in.bad()) throw InputError(one_line(file.string() + ": cannot open world file"));
+  if (text.size() > kMaxFileBytes) {
+    // Only the first bytes were read, so the true size is unknown here.
+    throw InputError(one_line(file.string() + ": expected a world file of at most 1 MiB (" +
+                              std::to_string(kMaxFileBytes) + " bytes), got more"));
+  }
   return parse_world(text, file);
 }
 
@@ -710,9 +716,14 @@ std::string to_yaml(const World& world) {
   if (!world.floor.image.empty()) {
     out << YAML::Key << "image" << YAML::Value << YAML::DoubleQuoted << world.floor.image.string();
   } else {
-    // Quoted so that no name ("~", "null", "123") is read back as anything but a string.
     const std::string dataset = world.floor.dataset.empty() ? std::string("mnist") : world.floor.dataset;
-    out << YAML::Key << "dataset" << YAML::Value << YAML::DoubleQuoted << dataset;
+    out << YAML::Key << "dataset" << YAML::Value;
+    if (dataset == "mnist" || dataset == "fashion-mnist") {
+      out << dataset;
+    } else {
+      // Quoted so that no folder name ("~", "null", "123") is read back as anything but a string.
+      out << YAML::DoubleQuoted << dataset;
+    }
     out << YAML::Key << "split" << YAML::Value << to_string(world.floor.split);
     out << YAML::Key << "index" << YAML::Value;
     if (world.floor.index) {

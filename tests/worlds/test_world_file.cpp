@@ -346,7 +346,16 @@ TEST(WorldFile, VeryDeepNestingIsRefusedWithoutCrashing) {
 
 TEST(WorldFile, TooLargeTextIsRefused) {
   const std::string text = "seed: 1\n" + std::string(std::size_t{1} << 20, '#');
-  expect_error(text, "w.yaml: expected a world file of at most 1 MiB, got 1048584 bytes");
+  expect_error(text, "w.yaml: expected a world file of at most 1 MiB (1048576 bytes), got 1048584 bytes");
+}
+
+TEST(WorldFile, TooLargeFileIsRefusedWithoutReadingItAll) {
+  try {
+    load_world("/dev/zero");  // endless: the loader must stop reading past the cap
+    FAIL() << "accepted /dev/zero";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/dev/zero: expected a world file of at most 1 MiB (1048576 bytes), got more");
+  }
 }
 
 TEST(WorldFile, BracketsInsideQuotesAndCommentsAreNotNesting) {

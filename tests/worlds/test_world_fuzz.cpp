@@ -128,6 +128,30 @@ class Fuzzer {
     return s;
   }
 
+  /// A world-shaped map: known (and a few unknown) sections and fields, block or flow style,
+  /// with values drawn from the edge cases, so that the accept path meets odd values too.
+  std::string structured() {
+    std::string s;
+    const std::size_t sections = 1 + below(5);
+    for (std::size_t i = 0; i < sections; ++i) {
+      const auto& [section, fields] = kSchema[below(kSchema.size())];
+      if (section == "seed") {
+        s += "seed: " + pick(kNumbers) + "\n";
+        continue;
+      }
+      const bool flow = below(2) == 0;
+      s += section + (flow ? ": {" : ":\n");
+      const std::size_t n = below(4);
+      for (std::size_t j = 0; j < n; ++j) {
+        const std::string field = below(20) == 0 ? pick(kTokens) : fields[below(fields.size())];
+        const std::string value = below(2) == 0 ? pick(kNumbers) : pick(kValues);
+        s += flow ? (j ? ", " : "") + field + ": " + value : "  " + field + ": " + value + "\n";
+      }
+      if (flow) s += "}\n";
+    }
+    return s;
+  }
+
   std::string deep_nesting() {
     const std::size_t depth = 30 + below(3000);
     std::string s = pick(std::vector<std::string>{"seed: ", "floor:\n  dataset: ", "", "robot:\n  start: "});
@@ -200,6 +224,18 @@ class Fuzzer {
       "random", "[1, 2]", "[1, 2, 3]", "{}", "[]", "~", "", "\"6\"", "6.0", "0", "-3", "1e400", ".inf", ".nan",
       "-0", "0x10", "18446744073709551615", "18446744073709551616", "&x 5", "*x", "!!str 6", "|\n  6",
       "[[[[", "a.png", "fashion-mnist", "../x", "512", "513", "1000", "0.4999", "1e-300"};
+  const std::vector<std::string> kNumbers = {
+      "0", "1", "2", "3", "6", "28", "100", "512", "1000", "0.05", "0.1", "0.25", "0.4999", "0.5", "1.0", "2.0", "10",
+      "60", "1e4", "1e6", "1e-3", "-1", "-0", "-0.0", "6.5", "1e400", "1e-400", ".5", "5.", "+3", "007",
+      "2147483647", "2147483648", "18446744073709551615", "18446744073709551616", "[3, 4]", "[0, 0]", "random"};
+  const std::vector<std::pair<std::string, std::vector<std::string>>> kSchema = {
+      {"floor", {"dataset", "split", "index", "image", "pixel_size_m"}},
+      {"robot", {"radius_m", "mass_kg", "max_speed_mps", "start"}},
+      {"controller", {"kp_per_s", "tolerance_px"}},
+      {"camera", {"patch_px"}},
+      {"task", {"episodes", "steps", "step_px"}},
+      {"physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"}},
+      {"seed", {}}};
   const std::vector<char> kInterestingChars = {'[', ']', '{', '}', ':', '-', '#', '"', '\'', '&', '*', '!',
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e', '%', '@', '`'};
 };
@@ -210,10 +246,16 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
   ASSERT_TRUE(feed(preset));
 
   Fuzzer fuzz(kSeed);
+  int accepted_structured = 0;
   int accepted_mutants = 0;
   for (int i = 0; i < kCasesPerKind; ++i) {
     feed(fuzz.random_bytes());
-    feed(fuzz.token_soup());
+    // Token soup and world-shaped maps share one kind: half each.
+    if (i % 2 == 0) {
+      feed(fuzz.token_soup());
+    } else {
+      accepted_structured += feed(fuzz.structured()) ? 1 : 0;
+    }
     feed(fuzz.deep_nesting());
     accepted_mutants += feed(fuzz.mutate(preset)) ? 1 : 0;
     if (::testing::Test::HasFailure()) break;  // one input's report is enough to act on
@@ -222,6 +264,9 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
   // must be exercised as well as the refusals.
   EXPECT_GT(accepted_mutants, kCasesPerKind / 50);
   EXPECT_LT(accepted_mutants, kCasesPerKind);
+  EXPECT_GT(accepted_structured, kCasesPerKind / 200);
+  RecordProperty("accepted_mutants", accepted_mutants);
+  RecordProperty("accepted_structured", accepted_structured);
 }
 
 }  // namespace

