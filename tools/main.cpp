@@ -27,6 +27,16 @@ int main(int argc, char** argv) {
   CLI::App app{"Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.", "scout"};
   app.set_version_flag("--version", std::string("scout ") + SCOUT_VERSION);
   app.require_subcommand(1);
+  // One line for a bad command line too (subcommands inherit this when they are added).
+  app.failure_message([](const CLI::App* failed, const CLI::Error& e) {
+    // Point at the help of the deepest subcommand given (`scout bench sim --help`).
+    std::string path = failed->get_name();
+    for (const CLI::App* a = failed; !a->get_subcommands().empty();) {
+      a = a->get_subcommands().front();
+      path += " " + a->get_name();
+    }
+    return "scout: usage error: " + one_line(e.what()) + " (see " + path + " --help)\n";
+  });
   app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error.");
   scout::tools::add_run_command(app, context);
   scout::tools::add_data_command(app, context);

@@ -215,6 +215,23 @@ TEST_F(Cli, APngFloorWorks) {
   EXPECT_EQ(png.rows, 200);
 }
 
+TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
+  const Result first = scout("data --data " + path("data"));
+  ASSERT_EQ(first.status, 0) << first.output;
+  EXPECT_NE(first.output.find("8000 train, 1000 validation, 1000 test"), std::string::npos) << first.output;
+  const json m = read_json(path("data") + "/mnist/manifest.json");
+  EXPECT_EQ(m["data_sha256"].size(), 6u);
+  const auto stamp = fs::last_write_time(path("data") + "/mnist/train-images-idx3-ubyte");
+  const Result again = scout("data --data " + path("data"));
+  ASSERT_EQ(again.status, 0) << again.output;
+  EXPECT_NE(again.output.find("nothing to do"), std::string::npos) << again.output;
+  EXPECT_EQ(fs::last_write_time(path("data") + "/mnist/train-images-idx3-ubyte"), stamp);
+  // The installed data drives a run: the mnist world with this data folder.
+  const Result run = scout("run " + world("mnist.yaml") + " --data " + path("data") + " --out " + path("out"));
+  ASSERT_EQ(run.status, 0) << run.output;
+  EXPECT_EQ(read_json(path("out") + "/trajectory.json")["runs"][0]["dataset"], "mnist");
+}
+
 TEST_F(Cli, HelpVersionAndUsageErrors) {
   const Result version = scout("--version");
   EXPECT_EQ(version.status, 0);
@@ -224,9 +241,16 @@ TEST_F(Cli, HelpVersionAndUsageErrors) {
     EXPECT_EQ(help.status, 0) << cmd;
     EXPECT_NE(help.output.find("Usage"), std::string::npos) << cmd;
   }
-  EXPECT_EQ(scout("run").status, 2);                         // no world, no --out
-  EXPECT_EQ(scout("frobnicate").status, 2);                  // no such command
-  EXPECT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0").status, 2);
+  // A bad command line is one line too, pointing at the right help.
+  const Result missing = scout("run");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_EQ(missing.output, "scout: usage error: world is required (see scout run --help)\n");
+  EXPECT_EQ(scout("frobnicate").status, 2);  // no such command
+  const Result zero = scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0");
+  EXPECT_EQ(zero.status, 2);
+  EXPECT_EQ(zero.output.rfind("scout: usage error: --count", 0), 0u) << zero.output;
+  EXPECT_EQ(zero.output.find('\n'), zero.output.size() - 1) << zero.output;
+  EXPECT_FALSE(fs::exists(path("x")));
 }
 
 }  // namespace
