@@ -5,7 +5,7 @@
 #include <string>
 
 #include "render/camera.hpp"
-#include "sim/random.hpp"
+#include "worlds/random.hpp"
 
 namespace scout::learn {
 
@@ -28,7 +28,7 @@ void RandomPolicy::choose_goals(const BatchState& state, int /*episode*/, std::s
   if (goals.size() > rngs_.size()) throw std::invalid_argument("RandomPolicy: more robots than seeds");
   const auto area = static_cast<std::uint64_t>(state.frame.area_px());
   for (std::size_t i = 0; i < goals.size(); ++i) {
-    const auto pixel = static_cast<int>(sim::uniform_below(rngs_[i], area));
+    const auto pixel = static_cast<int>(worlds::uniform_below(rngs_[i], area));
     goals[i] = {pixel % state.frame.width_px, pixel / state.frame.width_px};
   }
 }
@@ -41,7 +41,7 @@ void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std:
 
 sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, std::mt19937_64& rng) {
   if (world.robot.start) return {world.robot.start->first, world.robot.start->second};
-  const auto pixel = static_cast<int>(sim::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
+  const auto pixel = static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
   return {pixel % frame.width_px, pixel / frame.width_px};
 }
 

@@ -10,7 +10,7 @@
 
 #include "learn/rollout.hpp"
 #include "render/camera.hpp"
-#include "sim/random.hpp"
+#include "worlds/random.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -64,13 +64,13 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   std::vector<std::uint8_t> batch_floors(area * n);
   std::vector<sim::Cell> starts(n);
   for (int i = 0; i < n; ++i) {
-    const auto index = static_cast<int>(sim::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
+    const auto index = static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
     std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
     starts[i] = learn::draw_start(world, frame, rng);
   }
   auto seeds_for = [n](int repeat) {
     std::vector<std::uint64_t> seeds(n);
-    for (int i = 0; i < n; ++i) seeds[i] = sim::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
+    for (int i = 0; i < n; ++i) seeds[i] = worlds::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
     return seeds;
   };
 

@@ -10,7 +10,7 @@
 
 #include "learn/rollout.hpp"
 #include "render/snapshot.hpp"
-#include "sim/random.hpp"
+#include "worlds/random.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -53,11 +53,11 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
   std::vector<PlannedRun> runs(count);
   for (int k = 0; k < count; ++k) {
     PlannedRun& r = runs[k];
-    r.seed = sim::derive_seed(seed, static_cast<std::uint64_t>(k));
-    std::mt19937_64 index_rng(sim::derive_seed(r.seed, kIndexStream));
+    r.seed = worlds::derive_seed(seed, static_cast<std::uint64_t>(k));
+    std::mt19937_64 index_rng(worlds::derive_seed(r.seed, kIndexStream));
     r.index = world.floor.index ? *world.floor.index
-                                : static_cast<int>(sim::uniform_below(index_rng, static_cast<std::uint64_t>(floors.size())));
-    std::mt19937_64 start_rng(sim::derive_seed(r.seed, kStartStream));
+                                : static_cast<int>(worlds::uniform_below(index_rng, static_cast<std::uint64_t>(floors.size())));
+    std::mt19937_64 start_rng(worlds::derive_seed(r.seed, kStartStream));
     r.start = learn::draw_start(world, frame, start_rng);
   }
   return runs;
@@ -145,7 +145,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       const PlannedRun& r = runs[first + i];
       std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
       starts[i] = r.start;
-      policy_seeds[i] = sim::derive_seed(r.seed, kPolicyStream);
+      policy_seeds[i] = worlds::derive_seed(r.seed, kPolicyStream);
     }
     learn::RandomPolicy policy(policy_seeds);
     const std::vector<learn::RolloutRecord> records = engine.run(batch_floors, starts, policy);

@@ -1,5 +1,6 @@
 // Data set folders, their splits, and the deterministic stratified selection behind them.
 #include "worlds/dataset.hpp"
+#include "worlds/random.hpp"
 
 #include <fmt/format.h>
 #include <openssl/evp.h>
@@ -25,26 +26,6 @@ namespace fs = std::filesystem;
 
 constexpr const char* kImagesKind = "-images-idx3-ubyte";
 constexpr const char* kLabelsKind = "-labels-idx1-ubyte";
-
-// A uniform integer in [0, bound). std::uniform_int_distribution is implementation-defined, so
-// the same seed would give different splits with different standard libraries; this rejection
-// sampler depends only on mt19937_64, whose output the standard fixes.
-std::uint64_t bounded(std::mt19937_64& rng, std::uint64_t bound) {
-  // 2^64 mod bound: drawing below it would favour the smallest residues.
-  const std::uint64_t reject_below = (0 - bound) % bound;
-  std::uint64_t r;
-  do r = rng();
-  while (r < reject_below);
-  return r % bound;
-}
-
-// Fisher–Yates, written out for the same reason: std::shuffle's sequence is unspecified.
-void shuffle(std::vector<int>& v, std::mt19937_64& rng) {
-  for (std::size_t i = v.size(); i > 1; --i) {
-    const std::size_t j = static_cast<std::size_t>(bounded(rng, i));
-    std::swap(v[i - 1], v[j]);
-  }
-}
 
 std::string expected_names() {
   return fmt::format(

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "learn/rollout.hpp"
-#include "sim/random.hpp"
+#include "worlds/random.hpp"
 
 namespace scout::learn {
 namespace {
@@ -35,7 +35,7 @@ Batch random_batch(int count, std::uint64_t seed) {
   const worlds::World world = preset_world();
   for (int i = 0; i < count; ++i) {
     b.starts.push_back(draw_start(world, kFloor, rng));
-    b.seeds.push_back(sim::derive_seed(seed, static_cast<std::uint64_t>(i)));
+    b.seeds.push_back(worlds::derive_seed(seed, static_cast<std::uint64_t>(i)));
   }
   return b;
 }
