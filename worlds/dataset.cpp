@@ -85,7 +85,10 @@ fs::path default_data_root() {
 }
 
 fs::path dataset_folder(const std::string& name, const fs::path& data_root) {
-  if (name == "mnist") return data_root / "mnist";
+  // The data folder may be the project's (MNIST in its mnist/ subfolder) or a folder that holds
+  // MNIST's IDX files itself, such as a user's full download.
+  if (name == "mnist")
+    return find_idx(data_root, std::string("train") + kImagesKind) ? data_root : data_root / "mnist";
   if (name == "fashion-mnist") return "/usr/share/datasets/fashion-mnist";
   return fs::path(name);
 }

@@ -21,7 +21,8 @@ struct LabeledImages {
 /// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
 std::filesystem::path default_data_root();
 
-/// Folder holding data set `name`: "mnist" -> <data_root>/mnist, "fashion-mnist" ->
+/// Folder holding data set `name`: "mnist" -> <data_root>/mnist, or <data_root> itself when it
+/// holds train-images-idx3-ubyte[.gz] (a user's MNIST download), "fashion-mnist" ->
 /// /usr/share/datasets/fashion-mnist, anything else is a folder path used as given.
 std::filesystem::path dataset_folder(const std::string& name, const std::filesystem::path& data_root);
 

@@ -230,6 +230,10 @@ TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
   const Result run = scout("run " + world("mnist.yaml") + " --data " + path("data") + " --out " + path("out"));
   ASSERT_EQ(run.status, 0) << run.output;
   EXPECT_EQ(read_json(path("out") + "/trajectory.json")["runs"][0]["dataset"], "mnist");
+  // So does a folder that holds the IDX files itself (as a user's MNIST download would).
+  const Result direct = scout("run " + world("mnist.yaml") + " --data " + path("data") + "/mnist --out " + path("out2"));
+  ASSERT_EQ(direct.status, 0) << direct.output;
+  EXPECT_EQ(read_json(path("out2") + "/trajectory.json")["runs"], read_json(path("out") + "/trajectory.json")["runs"]);
 }
 
 TEST_F(Cli, HelpVersionAndUsageErrors) {
