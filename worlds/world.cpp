@@ -604,6 +604,18 @@ void Loader::read(const YAML::Node& root) {
     }
   }
   if (!floor_seen) world_.floor.dataset = "mnist";  // no floor section: the paper's floor
+
+  // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
+  // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
+  const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
+  if (gain_per_tick >= 2.0) {
+    const auto it = world_.lines.find("controller.kp_per_s");
+    const int line = it != world_.lines.end() ? it->second : world_.lines.count("physics.dt_s") ? world_.lines.at("physics.dt_s") : 1;
+    fail_field(line, "controller.kp_per_s",
+               "less than 2 / physics.dt_s = " + format_double(2.0 / world_.physics.dt_s) +
+                   " (kp_per_s * dt_s = 1 lands in one tick; 2 or more never settles)",
+               format_double(world_.controller.kp_per_s));
+  }
 }
 
 /// Parser events are ignored except where each document starts (to name a second document).

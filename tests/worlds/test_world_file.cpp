@@ -189,7 +189,7 @@ TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
   const World w = parse_world(
       "floor: {pixel_size_m: 10, index: 2147483647, split: validation}\n"
       "robot: {radius_m: 1e-3, mass_kg: 1e4, max_speed_mps: 1000, start: [0, 0]}\n"
-      "controller: {kp_per_s: 1e6, tolerance_px: 0.499}\n"
+      "controller: {kp_per_s: 1.99, tolerance_px: 0.499}\n"
       "camera: {patch_px: 512}\n"
       "task: {episodes: 1000, steps: 1, step_px: 512}\n"
       "physics: {dt_s: 1, velocity_iterations: 100, position_iterations: 1, max_ticks_per_move: 100000}\n"
@@ -203,6 +203,18 @@ TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
   EXPECT_EQ(w.physics.max_ticks_per_move, 100000);
   EXPECT_EQ(w.seed, std::numeric_limits<std::uint64_t>::max());
   EXPECT_EQ(w.lines.at("camera.patch_px"), 4);
+}
+
+TEST(WorldFile, TheGainMayBeHighWhenTheTickIsShort) {
+  const World w = parse_world("controller: {kp_per_s: 1e6}\nphysics: {dt_s: 1e-6}\n", "w.yaml");
+  EXPECT_EQ(w.controller.kp_per_s, 1e6);
+}
+
+TEST(WorldFile, AGainThatCannotSettleIsRefused) {
+  // kp * dt = 2: the position error flips sign with the same size every tick.
+  expect_error("controller: {kp_per_s: 120}\nphysics: {dt_s: 0.0166667}\n",
+               "w.yaml:1: controller.kp_per_s: expected less than 2 / physics.dt_s");
+  expect_error("physics:\n  dt_s: 0.1\n", "w.yaml:2: controller.kp_per_s: expected less than 2 / physics.dt_s");
 }
 
 TEST(WorldFile, SplitNames) {
