@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "worlds/dataset.hpp"
+#include "worlds/digest.hpp"
 
 extern char** environ;
 
@@ -104,22 +105,9 @@ std::string describe(const ProgramResult& r) {
 
 // npm's integrity string for a file: "sha512-" and the base64 of the SHA-512 digest.
 std::string sha512_integrity(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open: {}", file.string(), std::strerror(errno)));
-  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
-  if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha512(), nullptr) != 1)
-    throw InputError(fmt::format("{}: cannot initialise SHA-512", file.string()));
-  std::vector<char> buffer(std::size_t{1} << 16);
-  while (in) {
-    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    if (in.gcount() > 0) EVP_DigestUpdate(ctx.get(), buffer.data(), static_cast<std::size_t>(in.gcount()));
-  }
-  if (in.bad()) throw InputError(fmt::format("{}: read error", file.string()));
-  unsigned char digest[EVP_MAX_MD_SIZE];
-  unsigned int length = 0;
-  EVP_DigestFinal_ex(ctx.get(), digest, &length);
-  std::string b64(4 * ((length + 2) / 3) + 1, '\0');
-  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest, static_cast<int>(length));
+  const std::vector<std::uint8_t> digest = digest_file(file, DigestKind::Sha512);
+  std::string b64(4 * ((digest.size() + 2) / 3) + 1, '\0');
+  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest.data(), static_cast<int>(digest.size()));
   b64.resize(static_cast<std::size_t>(written));
   return "sha512-" + b64;
 }

@@ -1,9 +1,9 @@
 // Data set folders, their splits, and the deterministic stratified selection behind them.
 #include "worlds/dataset.hpp"
+#include "worlds/digest.hpp"
 #include "worlds/random.hpp"
 
 #include <fmt/format.h>
-#include <openssl/evp.h>
 
 #include <algorithm>
 #include <array>
@@ -212,25 +212,8 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
 }
 
 std::string sha256_file(const fs::path& file) {
-  std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw InputError(fmt::format("{}: no such file", file.string()));
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open: {}", file.string(), std::strerror(errno)));
-  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
-  if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr) != 1)
-    throw InputError(fmt::format("{}: cannot initialise SHA-256", file.string()));
-  std::vector<char> buffer(std::size_t{1} << 16);
-  while (in) {
-    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    if (in.gcount() > 0) EVP_DigestUpdate(ctx.get(), buffer.data(), static_cast<std::size_t>(in.gcount()));
-  }
-  if (in.bad()) throw InputError(fmt::format("{}: read error", file.string()));
-  unsigned char digest[EVP_MAX_MD_SIZE];
-  unsigned int length = 0;
-  EVP_DigestFinal_ex(ctx.get(), digest, &length);
   std::string hex;
-  hex.reserve(2 * length);
-  for (unsigned int i = 0; i < length; ++i) hex += fmt::format("{:02x}", digest[i]);
+  for (std::uint8_t byte : digest_file(file, DigestKind::Sha256)) hex += fmt::format("{:02x}", byte);
   return hex;
 }
 

@@ -1,0 +1,15 @@
+#pragma once
+// Message digests of files (module-internal): SHA-256 for data checksums and manifests, SHA-512
+// for npm's integrity strings.
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+namespace scout::worlds {
+
+enum class DigestKind { Sha256, Sha512 };
+
+/// The digest of a file's bytes. Throws InputError naming the file if it cannot be read.
+std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestKind kind);
+
+}  // namespace scout::worlds
