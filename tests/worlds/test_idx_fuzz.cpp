@@ -5,7 +5,6 @@
 #include <zlib.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdint>
 #include <iterator>
 #include <random>
@@ -159,7 +158,6 @@ void check(const Bytes& input, int case_no, Tally& tally) {
 }
 
 TEST(IdxFuzz, TwentyThousandCasesParseConsistentlyOrThrowInputError) {
-  const auto start = std::chrono::steady_clock::now();
   Mutator m(0x5C0u);  // fixed seed: a failure is reproducible by its case number
 
   // Valid seeds of several shapes, raw and gzipped at different levels (0 gives stored blocks).
@@ -204,11 +202,9 @@ TEST(IdxFuzz, TwentyThousandCasesParseConsistentlyOrThrowInputError) {
     check(input, n, tally);
     if (HasFatalFailure()) return;
   }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // Both outcomes must be common, or the loop is not exercising the parsers.
   EXPECT_GT(tally.parsed, kCases / 50);
   EXPECT_GT(tally.rejected, kCases / 2);
-  EXPECT_LT(seconds, 10.0);
   RecordProperty("parsed", tally.parsed);
   RecordProperty("rejected", tally.rejected);
 }
