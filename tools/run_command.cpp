@@ -1,6 +1,7 @@
 // scout run: headless rollouts of a world, with trajectory.json, images and manifest.json.
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <memory>
 #include <random>
 
@@ -65,7 +66,9 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
 
 json cell_json(const sim::Cell& c) { return json::array({c.x(), c.y()}); }
 
-json run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors) {
+// One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
+// by step, in files of any size).
+std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors) {
   json j;
   j["seed"] = run.seed;
   j["dataset"] = floors.source;
@@ -74,7 +77,9 @@ json run_json(const PlannedRun& run, const learn::RolloutRecord& record, const w
   const int label = floors.labels[run.index];
   j["label"] = label >= 0 ? json(label) : json(nullptr);
   j["start"] = cell_json(record.start);
-  json steps = json::array();
+  std::string text = j.dump();
+  text.pop_back();  // the closing brace: the steps follow
+  text += ", \"steps\": [";
   for (const learn::StepRecord& s : record.steps) {
     json step;
     step["episode"] = s.episode;
@@ -88,10 +93,9 @@ json run_json(const PlannedRun& run, const learn::RolloutRecord& record, const w
     step["pose_m"] = json::array({s.pose_m.x(), s.pose_m.y()});
     step["grid_pose"] = cell_json(s.grid_pose);
     step["revealed_px"] = s.revealed_px;
-    steps.push_back(std::move(step));
+    text += (&s == record.steps.data() ? "\n    " : ",\n    ") + step.dump();
   }
-  j["steps"] = std::move(steps);
-  return j;
+  return text + "\n  ]}";
 }
 
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record,
@@ -133,7 +137,11 @@ void run_command(const RunOptions& opt, const Context& context) {
   if (opt.images) fs::create_directories(images_dir);
 
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
-  json runs_json = json::array();
+  // trajectory.json is streamed run by run, so memory does not grow with --count; the whole
+  // folder is still only moved into place once complete.
+  const fs::path trajectory_file = out.path() / "trajectory.json";
+  std::ofstream trajectory(trajectory_file, std::ios::binary);
+  trajectory << "{\n \"world\": " << json(opt.world).dump() << ",\n \"seed\": " << world.seed << ",\n \"runs\": [";
   std::vector<std::string> images;
   long moves = 0, ticks = 0, revealed = 0;
   for (int first = 0; first < opt.count; first += batch_robots) {
@@ -151,7 +159,7 @@ void run_command(const RunOptions& opt, const Context& context) {
     const std::vector<learn::RolloutRecord> records = engine.run(batch_floors, starts, policy);
     for (int i = 0; i < n; ++i) {
       const learn::RolloutRecord& rec = records[i];
-      runs_json.push_back(run_json(runs[first + i], rec, floors));
+      trajectory << (first + i == 0 ? "\n  " : ",\n  ") << run_json(runs[first + i], rec, floors);
       for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
@@ -162,11 +170,9 @@ void run_command(const RunOptions& opt, const Context& context) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  json trajectory;
-  trajectory["world"] = opt.world;
-  trajectory["seed"] = world.seed;
-  trajectory["runs"] = std::move(runs_json);
-  write_file_atomic(out.path() / "trajectory.json", trajectory.dump(1) + "\n");
+  trajectory << "\n ]\n}\n";
+  trajectory.close();
+  if (!trajectory) throw InputError(trajectory_file.string() + ": cannot write");
   json manifest = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
   manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
   write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
