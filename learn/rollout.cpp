@@ -70,7 +70,8 @@ void RolloutEngine::observe(int count) {
   static_assert(sizeof(render::PixelPose) == 2 * sizeof(int));
   std::vector<render::PixelPose>& poses = pixel_poses_;
   for (int i = 0; i < count; ++i) poses[i] = {state_.pose[i].x(), state_.pose[i].y()};
-  camera_->capture(std::span(poses.data(), count), patches_);
+  const std::size_t patch_bytes = static_cast<std::size_t>(state_.patch_px) * state_.patch_px;
+  camera_->capture(std::span(poses.data(), count), std::span(patches_.data(), patch_bytes * count));
   timing_.render_s += seconds_since(t0);
 
   t0 = Clock::now();

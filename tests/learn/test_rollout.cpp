@@ -198,6 +198,17 @@ TEST(RandomPolicy, GoalsCoverTheFloorUniformlyAndAxesAreFair) {
   EXPECT_NEAR(double(vertical) / total, 0.5, 0.01);
 }
 
+TEST(RolloutEngine, RunsBatchesSmallerThanItsCapacity) {
+  // A command's last batch is usually partial (e.g. 5,000 runs = 20 x 240 + 200).
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 8);
+  const Batch b = random_batch(8, 3);
+  const auto full = run_batch(b, 8, engine);
+  const auto partial = run_batch(b, 5, engine);
+  ASSERT_EQ(partial.size(), 5u);
+  for (int i = 0; i < 5; ++i) expect_same_trajectory(full[i], partial[i]);
+}
+
 TEST(RolloutEngine, RefusesBadBatches) {
   const worlds::World world = preset_world();
   RolloutEngine engine(world, kFloor, 4);
