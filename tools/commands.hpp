@@ -13,6 +13,14 @@ struct Context {
   std::vector<std::string> argv;   ///< the command line, for manifests
 };
 
+/// Thrown between units of work after SIGINT or SIGTERM, so that output folders are cleaned up
+/// by unwinding; main() exits with status 130.
+struct Interrupted {};
+/// Installs the SIGINT / SIGTERM handler (once, from main).
+void install_interrupt_handler();
+/// Throws Interrupted if a signal has arrived.
+void throw_if_interrupted();
+
 void add_run_command(CLI::App& app, const Context& context);
 void add_data_command(CLI::App& app, const Context& context);
 void add_bench_command(CLI::App& app, const Context& context);

@@ -1,5 +1,6 @@
 // scout: the command-line program. Exit status: 0 success, 1 error (bad input, a file, the data),
-// 2 bad command line, 3 internal error (a bug: please report it).
+// 2 bad command line, 3 internal error (a bug: please report it), 130 interrupted.
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <string>
@@ -20,7 +21,20 @@ std::string one_line(std::string text) {
   return text;
 }
 
+volatile std::sig_atomic_t interrupted = 0;
+
+extern "C" void on_signal(int) { interrupted = 1; }
+
 }  // namespace
+
+void scout::tools::install_interrupt_handler() {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
+void scout::tools::throw_if_interrupted() {
+  if (interrupted) throw Interrupted{};
+}
 
 int main(int argc, char** argv) {
   scout::tools::Context context{scout::tools::command_line(argc, argv)};
@@ -37,14 +51,18 @@ int main(int argc, char** argv) {
     }
     return "scout: usage error: " + one_line(e.what()) + " (see " + path + " --help)\n";
   });
-  app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error.");
+  app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error, 130 interrupted.");
   scout::tools::add_run_command(app, context);
   scout::tools::add_data_command(app, context);
   scout::tools::add_bench_command(app, context);
+  scout::tools::install_interrupt_handler();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  } catch (const scout::tools::Interrupted&) {
+    std::fprintf(stderr, "scout: interrupted; nothing was written\n");
+    return 130;
   } catch (const scout::InputError& e) {
     std::fprintf(stderr, "scout: error: %s\n", one_line(e.what()).c_str());
     return 1;

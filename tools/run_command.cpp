@@ -145,6 +145,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   std::vector<std::string> images;
   long moves = 0, ticks = 0, revealed = 0;
   for (int first = 0; first < opt.count; first += batch_robots) {
+    throw_if_interrupted();
     const int n = std::min(batch_robots, opt.count - first);
     std::vector<std::uint8_t> batch_floors(area * n);
     std::vector<sim::Cell> starts(n);
@@ -163,9 +164,11 @@ void run_command(const RunOptions& opt, const Context& context) {
       for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
-      if (opt.images)
+      if (opt.images) {
+        throw_if_interrupted();
         write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
                      opt.scale, images);
+      }
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

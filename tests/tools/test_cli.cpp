@@ -1,7 +1,9 @@
 // The `scout` program end to end: real world files, real data, real Box2D and OSMesa.
 #include <gtest/gtest.h>
 
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -234,6 +236,37 @@ TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
   const Result direct = scout("run " + world("mnist.yaml") + " --data " + path("data") + "/mnist --out " + path("out2"));
   ASSERT_EQ(direct.status, 0) << direct.output;
   EXPECT_EQ(read_json(path("out2") + "/trajectory.json")["runs"], read_json(path("out") + "/trajectory.json")["runs"]);
+}
+
+TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
+  // A run far too long to finish, interrupted once it is writing: exit 130, no --out folder, no
+  // staging folder.
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const std::string world_file = world("fashion.yaml"), out = path("out");
+    std::freopen("/dev/null", "w", stderr);
+    std::freopen("/dev/null", "w", stdout);
+    execl(SCOUT_BINARY, SCOUT_BINARY, "run", world_file.c_str(), "--out", out.c_str(), "--count", "1000000",
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Wait until the staging folder has images in it, then interrupt.
+  bool writing = false;
+  for (int k = 0; k < 200 && !writing; ++k) {
+    usleep(50 * 1000);
+    for (const auto& entry : fs::directory_iterator(dir_))
+      if (entry.path().filename().string().find(".out.partial") == 0 && fs::exists(entry.path() / "images"))
+        writing = !fs::is_empty(entry.path() / "images");
+  }
+  EXPECT_TRUE(writing);
+  kill(child, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_FALSE(fs::exists(path("out")));
+  EXPECT_TRUE(fs::is_empty(dir_)) << "a staging folder was left behind";
 }
 
 TEST_F(Cli, HelpVersionAndUsageErrors) {
