@@ -24,19 +24,54 @@ namespace scout::tools {
 
 namespace fs = std::filesystem;
 
-OutputDir::OutputDir(fs::path target, bool overwrite) : target_(std::move(target)), overwrite_(overwrite) {
-  if (target_.empty()) throw InputError("--out: expected a folder path, got an empty one");
-  if (fs::exists(target_) && !overwrite_)
-    throw InputError("--out: " + target_.string() + " already exists (give --overwrite to replace it)");
-  if (fs::exists(target_) && !fs::is_directory(target_))
-    throw InputError("--out: " + target_.string() + " exists and is not a folder");
-  const fs::path parent = fs::absolute(target_).parent_path();
+namespace {
+
+// True when `inner` is `outer` or lies inside it (both absolute and normal).
+bool is_within(const fs::path& inner, const fs::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i) {
+    if (o->empty()) continue;  // a trailing separator
+    if (i == inner.end() || *i != *o) return false;
+  }
+  return true;
+}
+
+std::string unique_suffix() {
+  std::random_device rd;
+  return fmt::format("{:08x}", rd());
+}
+
+}  // namespace
+
+OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path>& keep)
+    : display_(target.string()), overwrite_(overwrite) {
+  if (target.empty()) throw InputError("--out: expected a folder path, got an empty one");
+  // One spelling of the folder: absolute, normal, and without a trailing separator.
+  target_ = fs::absolute(target).lexically_normal();
+  if (!target_.has_filename()) target_ = target_.parent_path();
+  if (target_ == target_.root_path())
+    throw InputError("--out: refusing to write the output over " + target_.string());
+  // Replacing a folder that holds the caller's own work, or the inputs, would destroy it.
+  std::vector<fs::path> guarded = {fs::current_path()};
+  for (const fs::path& k : keep) guarded.push_back(fs::absolute(k).lexically_normal());
+  for (const fs::path& g : guarded)
+    if (is_within(g, target_))
+      throw InputError("--out: refusing to write the output over " + display_ + ": it contains " + g.string());
+
   std::error_code ec;
+  if (fs::exists(target_, ec)) {
+    if (!fs::is_directory(target_, ec)) throw InputError("--out: " + display_ + " exists and is not a folder");
+    if (!overwrite_) throw InputError("--out: " + display_ + " already exists (give --overwrite to replace it)");
+    // --overwrite replaces earlier output, never an arbitrary folder.
+    if (!fs::is_empty(target_, ec) && !fs::exists(target_ / "manifest.json", ec))
+      throw InputError("--out: " + display_ +
+                       " is not empty and holds no manifest.json, so it is not a Scout output folder; not replaced");
+  }
+  const fs::path parent = target_.parent_path();
   fs::create_directories(parent, ec);
   if (ec) throw InputError("--out: cannot create " + parent.string() + ": " + ec.message());
   // A staging folder beside the target (same file system, so the final rename is atomic).
-  std::random_device rd;
-  staging_ = parent / fmt::format(".{}.partial-{:08x}", fs::absolute(target_).filename().string(), rd());
+  staging_ = parent / fmt::format(".{}.partial-{}", target_.filename().string(), unique_suffix());
   fs::create_directory(staging_, ec);
   if (ec) throw InputError("--out: cannot create " + staging_.string() + ": " + ec.message());
 }
@@ -50,14 +85,25 @@ OutputDir::~OutputDir() {
 
 void OutputDir::commit() {
   std::error_code ec;
-  if (fs::exists(target_)) {
-    if (!overwrite_) throw InputError("--out: " + target_.string() + " appeared while running; not replaced");
-    fs::remove_all(target_, ec);
-    if (ec) throw InputError("--out: cannot replace " + target_.string() + ": " + ec.message());
+  if (!fs::exists(target_, ec)) {
+    fs::rename(staging_, target_, ec);
+    if (ec) throw InputError("--out: cannot move the results to " + display_ + ": " + ec.message());
+    committed_ = true;
+    return;
   }
+  if (!overwrite_) throw InputError("--out: " + display_ + " appeared while running; not replaced");
+  // Old output aside, new output in, old output gone: at every moment one complete folder exists.
+  const fs::path old = target_.parent_path() / fmt::format(".{}.old-{}", target_.filename().string(), unique_suffix());
+  fs::rename(target_, old, ec);
+  if (ec) throw InputError("--out: cannot replace " + display_ + ": " + ec.message());
   fs::rename(staging_, target_, ec);
-  if (ec) throw InputError("--out: cannot move results to " + target_.string() + ": " + ec.message());
+  if (ec) {
+    std::error_code restore;
+    fs::rename(old, target_, restore);
+    throw InputError("--out: cannot move the results to " + display_ + ": " + ec.message());
+  }
   committed_ = true;
+  fs::remove_all(old, ec);
 }
 
 void write_file_atomic(const fs::path& file, const std::string& text) {

@@ -13,17 +13,21 @@ namespace scout::tools {
 /// place (replacing an old one only when overwriting was allowed).
 class OutputDir {
  public:
-  /// Refuses (InputError) an existing `target` unless `overwrite`.
-  OutputDir(std::filesystem::path target, bool overwrite);
+  /// Refuses (InputError) an existing `target` unless `overwrite`, and with `overwrite` refuses a
+  /// non-empty folder that holds no manifest.json (not Scout's output). Never writes over the
+  /// current folder or a folder holding any of `keep` (the inputs).
+  OutputDir(std::filesystem::path target, bool overwrite, const std::vector<std::filesystem::path>& keep = {});
   ~OutputDir();
   OutputDir(const OutputDir&) = delete;
   OutputDir& operator=(const OutputDir&) = delete;
 
   const std::filesystem::path& path() const { return staging_; }
-  const std::filesystem::path& target() const { return target_; }
+  /// The folder as the user named it (for messages).
+  const std::string& target() const { return display_; }
   void commit();
 
  private:
+  std::string display_;
   std::filesystem::path target_;
   std::filesystem::path staging_;
   bool overwrite_;

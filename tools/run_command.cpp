@@ -127,7 +127,9 @@ void run_command(const RunOptions& opt, const Context& context) {
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
   const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
-  OutputDir out(opt.out, opt.overwrite);  // refuses an existing folder before any work is done
+  std::vector<fs::path> inputs = floors.files;
+  inputs.push_back(opt.world);
+  OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
@@ -184,8 +186,8 @@ void run_command(const RunOptions& opt, const Context& context) {
   fmt::print("{} run{} of {} ({} moves, {:.1f} ticks per move, {:.1f} px revealed per run) in {:.2f} s\n", opt.count,
              opt.count == 1 ? "" : "s", opt.world, moves, moves ? double(ticks) / moves : 0.0,
              double(revealed) / opt.count, seconds);
-  fmt::print("trajectory: {}\n", (out.target() / "trajectory.json").string());
-  if (opt.images) fmt::print("images:     {} ({} PNG files)\n", (out.target() / "images").string(), images.size());
+  fmt::print("trajectory: {}\n", (fs::path(out.target()) / "trajectory.json").string());
+  if (opt.images) fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
 }
 
 }  // namespace

@@ -26,6 +26,8 @@ namespace fs = std::filesystem;
 
 constexpr const char* kImagesKind = "-images-idx3-ubyte";
 constexpr const char* kLabelsKind = "-labels-idx1-ubyte";
+// D = 10 classes (METHOD.md): the classifier has ten outputs, so any other label is refused.
+constexpr int kLabelClasses = 10;
 
 std::string expected_names() {
   return fmt::format(
@@ -53,6 +55,10 @@ LabeledImages load_pair(const fs::path& folder, const std::string& prefix) {
   const fs::path labels_file = require_idx(folder, prefix, kLabelsKind);
   out.images = read_idx_images(images_file);
   out.labels = read_idx_labels(labels_file);
+  for (std::size_t i = 0; i < out.labels.size(); ++i)
+    if (out.labels[i] >= kLabelClasses)
+      throw InputError(fmt::format("{}: label {} at index {} is not a class 0..{}", labels_file.string(),
+                                   static_cast<int>(out.labels[i]), i, kLabelClasses - 1));
   if (out.labels.size() != static_cast<std::size_t>(out.images.count))
     throw InputError(fmt::format("count mismatch: {} has {} images but {} has {} labels", images_file.string(),
                                  out.images.count, labels_file.string(), out.labels.size()));

@@ -11,6 +11,11 @@
 
 namespace scout::worlds {
 
+/// The largest floor, in pixels per side: render::PatchCamera's limit (its constructor refuses
+/// floors wider or taller than 512 px; kMaxFloorPx in render/camera.cpp, keep the two equal).
+/// load_floors refuses larger floors with a world-file message instead.
+inline constexpr int kMaxFloorPx = 512;
+
 /// Candidate floor images, all the same size.
 struct FloorSet {
   ImageSet images;                             ///< the floors, row 0 = top of the floor
@@ -25,8 +30,11 @@ struct FloorSet {
 };
 
 /// Loads the world's floors: its data set's split (from `data_root` for "mnist"), or its PNG
-/// read as grayscale. Checks the floor-dependent fields (patch size, start, index) and throws
-/// InputError naming the world file's line.
+/// read as grayscale (the file's bytes must start with the PNG signature; libpng and OpenCV
+/// print nothing while it is decoded). Refuses floors larger than kMaxFloorPx on a side, checks
+/// the floor-dependent fields (patch size, start, index) and throws InputError with one line
+/// naming the world file's line and field ("w.yaml:3: floor.image: expected ...",
+/// "w.yaml:2: floor.dataset: <the data set's own message>").
 FloorSet load_floors(const World& world, const std::filesystem::path& data_root);
 
 }  // namespace scout::worlds
