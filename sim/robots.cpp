@@ -4,6 +4,7 @@
 
 #include <box2d/box2d.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -12,15 +13,22 @@ namespace scout::sim {
 
 namespace {
 
+// Box2D's tolerances (slop, skin, largest step) are fixed lengths, tuned for bodies of 0.1 to 10
+// of its units. So Box2D does not run in metres but in units of a tenth of a floor pixel,
+// whatever pixel_size_m is: a robot behaves the same in pixels at any floor scale, and contact
+// tolerances stay a small fraction of a pixel. (With the paper's 0.1 m per pixel, one unit is
+// one metre.) Speeds and sizes are converted on the way in, poses on the way out.
+constexpr double kUnitsPerPx = 0.1;
+
 // Where the walls stand. Box2D keeps a disc at rest against an edge at a centre distance of
 // radius + polygon skin - slop, within a few slops. We put the edge so that this resting
 // distance falls two slops *beyond* the border pixel's centre: a normal move onto a border cell
 // then settles without touching the wall, and a push into the wall stops the centre at most
-// ~0.1 px (0.01 m) past the border centre — on the border pixel, never off the floor.
-constexpr float kWallClearance_m = 2.0f * b2_linearSlop;
+// ~0.1 px past the border centre: on the border pixel, never off the floor.
+constexpr float kWallClearance_u = 2.0f * b2_linearSlop;
 
-float wall_offset_m(double radius_m) {
-  return static_cast<float>(radius_m) + b2_polygonRadius - b2_linearSlop + kWallClearance_m;
+float wall_offset_u(double radius_u) {
+  return static_cast<float>(radius_u) + b2_polygonRadius - b2_linearSlop + kWallClearance_u;
 }
 
 }  // namespace
@@ -49,7 +57,7 @@ RobotParams RobotParams::from_world(const worlds::World& world) {
   return p;
 }
 
-double RobotBatch::wall_margin_px(const FloorFrame& frame) { return kWallClearance_m / frame.pixel_size_m; }
+double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
 
 RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int count, int threads)
     : frame_(frame), params_(params), robots_(new Robot[count > 0 ? count : 0]), count_(count),
@@ -60,21 +68,23 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
 
   // The rectangle the centre may reach: border pixels' centres, in metres (floor frame, y down;
   // Box2D does not care about handedness without gravity or rotation).
-  const float px = static_cast<float>(frame.pixel_size_m);
+  const float px = static_cast<float>(kUnitsPerPx);
+  const double units_per_m = kUnitsPerPx / frame.pixel_size_m;
+  const double radius_u = params.radius_m * units_per_m;
   const float min_x = 0.5f * px, max_x = (frame.width_px - 0.5f) * px;
   const float min_y = 0.5f * px, max_y = (frame.height_px - 0.5f) * px;
-  const float off = wall_offset_m(params.radius_m);
+  const float off = wall_offset_u(radius_u);
   // A chain collides on one side only, the right of each edge: wind it so that the right
   // side faces the floor.
   const b2Vec2 corners[4] = {{min_x - off, min_y - off}, {min_x - off, max_y + off},
                              {max_x + off, max_y + off}, {max_x + off, min_y - off}};
-  const float density = static_cast<float>(params.mass_kg / (M_PI * params.radius_m * params.radius_m));
+  const float density = static_cast<float>(params.mass_kg / (M_PI * radius_u * radius_u));
 
   // Continuous collision (time of impact) costs about half of a tick here. It is needed only when
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  const bool continuous = params.max_speed_mps * params.dt_s > 0.25 * params.radius_m;
+  const bool continuous = params.max_speed_mps * params.dt_s > 0.25 * params.radius_m;  // same ratio in units
   for (int i = 0; i < count; ++i) {
     Robot& r = robots_[i];
     r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
@@ -94,7 +104,7 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
     body_def.position.Set(min_x, min_y);
     r.body = r.world->CreateBody(&body_def);
     b2CircleShape disc;
-    disc.m_radius = static_cast<float>(params.radius_m);
+    disc.m_radius = static_cast<float>(radius_u);
     b2FixtureDef fixture;
     fixture.shape = &disc;
     fixture.density = density;
@@ -113,17 +123,21 @@ const RobotParams& RobotBatch::params() const { return params_; }
 
 void RobotBatch::place(int robot, const Cell& cell) {
   Robot& r = robots_[robot];
-  const Eigen::Vector2d m = frame_.px_to_m(frame_.cell_centre_px(cell));
-  r.body->SetTransform(b2Vec2(static_cast<float>(m.x()), static_cast<float>(m.y())), 0.0f);
+  const Eigen::Vector2d u = frame_.cell_centre_px(cell) * kUnitsPerPx;
+  r.body->SetTransform(b2Vec2(static_cast<float>(u.x()), static_cast<float>(u.y())), 0.0f);
   r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
 }
 
-Eigen::Vector2d RobotBatch::position_m(int robot) const {
+Eigen::Vector2d RobotBatch::position_px(int robot) const {
   const b2Vec2 p = robots_[robot].body->GetPosition();
-  return {p.x, p.y};
+  return Eigen::Vector2d(p.x, p.y) / kUnitsPerPx;
 }
 
-Eigen::Vector2d RobotBatch::position_px(int robot) const { return frame_.m_to_px(position_m(robot)); }
+Eigen::Vector2d RobotBatch::position_m(int robot) const {
+  // One multiplication by metres per unit (exactly 1 at 0.1 m per pixel), not two conversions.
+  const b2Vec2 p = robots_[robot].body->GetPosition();
+  return Eigen::Vector2d(p.x, p.y) * (frame_.pixel_size_m / kUnitsPerPx);
+}
 
 Cell RobotBatch::grid_pose(int robot) const { return frame_.grid_pose(position_px(robot)); }
 
@@ -139,8 +153,9 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
                                 std::to_string(count_) + " robots and " + std::to_string(results.size()) +
                                 " results");
   const float dt = static_cast<float>(params_.dt_s);
-  const double tolerance_m = params_.tolerance_px * frame_.pixel_size_m;
-  const double max_speed = params_.max_speed_mps;
+  const double units_per_m = kUnitsPerPx / frame_.pixel_size_m;
+  const double tolerance_u = params_.tolerance_px * kUnitsPerPx;
+  const double max_speed_u = params_.max_speed_mps * units_per_m;
   const double kp = params_.kp_per_s;
   const int n = static_cast<int>(commands.size());
 
@@ -151,26 +166,32 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
     MoveResult& out = results[i];
     out = MoveResult{};
     const Cell target_cell = grid_pose(i) + commands[i];
-    const Eigen::Vector2d target = frame_.px_to_m(frame_.cell_centre_px(target_cell));
+    const Eigen::Vector2d target = frame_.cell_centre_px(target_cell) * kUnitsPerPx;
+    double peak_speed_u = 0.0;
     for (;;) {
       const b2Vec2 p = r.body->GetPosition();
       const Eigen::Vector2d error(target.x() - p.x, target.y() - p.y);
       const double distance = error.norm();
-      if (distance <= tolerance_m) {
+      if (distance <= tolerance_u) {
         out.settled = true;
         break;
       }
       if (out.ticks >= params_.max_ticks_per_move) break;
       // Saturated P-control of velocity: the body still collides, so a wall stops it.
-      const double speed = std::min(max_speed, kp * distance);
+      const double speed = std::min(max_speed_u, kp * distance);
       const Eigen::Vector2d v = error * (speed / distance);
       r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
       r.world->Step(dt, params_.velocity_iterations, params_.position_iterations);
       ++out.ticks;
-      const b2Vec2 reached = r.body->GetLinearVelocity();
-      out.peak_speed_mps = std::max(out.peak_speed_mps, static_cast<double>(reached.Length()));
+      // The speed reached is the distance actually travelled in the tick (a contact that stops
+      // the body mid-tick leaves zero velocity behind, but not zero travel), or the velocity
+      // left, whichever is larger.
+      const b2Vec2 now = r.body->GetPosition();
+      const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
+      peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(r.body->GetLinearVelocity().Length())});
       if (!out.touched_wall) out.touched_wall = touching_wall(i);
     }
+    out.peak_speed_mps = peak_speed_u / units_per_m;
     // The robot comes to rest on its cell (or where the wall stopped it) before the next move.
     r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
   });

@@ -69,7 +69,7 @@ class RobotBatch {
 
   /// Closest approach of the robot's centre to the floor's border-pixel centres: the walls
   /// stop the centre `wall_margin_px()` beyond them (Box2D's contact skin), never further.
-  static double wall_margin_px(const FloorFrame& frame);
+  static double wall_margin_px();
 
  private:
   struct Robot;

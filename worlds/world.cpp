@@ -8,6 +8,7 @@
 // pipeline that could otherwise exhaust the stack.
 #include "worlds/world.hpp"
 
+#include <fmt/format.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
@@ -528,7 +529,7 @@ void Loader::read_controller(const YAML::Node& section) {
 
 void Loader::read_camera(const YAML::Node& section) {
   for (const Field& f : fields_of(section, "camera", {"patch_px"})) {
-    world_.camera.patch_px = read_int(f, 1, 512);
+    world_.camera.patch_px = read_int(f, 1, kMaxPatchPx);
   }
 }
 
@@ -605,6 +606,19 @@ void Loader::read(const YAML::Node& root) {
   }
   if (!floor_seen) world_.floor.dataset = "mnist";  // no floor section: the paper's floor
 
+  // The robot's size in pixels: Box2D runs in tenths of a pixel and is tuned for bodies of 0.1 to
+  // 10 of its units, so a radius of 0.5 to 100 pixels.
+  const double radius_px = world_.robot.radius_m / world_.floor.pixel_size_m;
+  if (radius_px < 0.5 || radius_px > 100.0) {
+    const auto it = world_.lines.find("robot.radius_m");
+    const int line = it != world_.lines.end() ? it->second : world_.lines.count("floor.pixel_size_m") ? world_.lines.at("floor.pixel_size_m") : 1;
+    fail_field(line, "robot.radius_m",
+               "a radius of 0.5 to 100 pixels (" + format_double(0.5 * world_.floor.pixel_size_m) + " to " +
+                   format_double(100.0 * world_.floor.pixel_size_m) + " m at pixel_size_m " +
+                   format_double(world_.floor.pixel_size_m) + ")",
+               format_double(world_.robot.radius_m) + " m = " + fmt::format("{:.3g}", radius_px) + " px");
+  }
+
   // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
   // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
@@ -642,6 +656,13 @@ int field_line(const World& world, const std::string& field, const std::string& 
 }
 
 }  // namespace
+
+std::string field_location(const World& world, const std::string& field) {
+  const std::string section = field.substr(0, field.find('.'));
+  const bool known = world.lines.count(field) != 0 || world.lines.count(section) != 0;
+  const std::string where = known ? ":" + std::to_string(field_line(world, field, section)) : "";
+  return one_line(world.file.string()) + where + ": " + field;
+}
 
 World parse_world(std::string_view text, const std::filesystem::path& origin) {
   World world;

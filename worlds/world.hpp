@@ -40,9 +40,12 @@ struct ControllerSpec {
   double tolerance_px = 0.05;      ///< a move has settled when the centre is this close to the cell centre, pixels
 };
 
+/// The largest camera patch the renderer draws (render::PatchCamera's limit), pixels.
+inline constexpr int kMaxPatchPx = 64;
+
 /// The downward camera.
 struct CameraSpec {
-  int patch_px = 6;                ///< m: the camera sees an m x m pixel window
+  int patch_px = 6;                ///< m: the camera sees an m x m pixel window, 1 .. kMaxPatchPx
 };
 
 /// The active-perception task.
@@ -79,6 +82,10 @@ World load_world(const std::filesystem::path& file);
 
 /// Parses world-file text; `origin` names it in error messages and is the base for relative paths.
 World parse_world(std::string_view text, const std::filesystem::path& origin);
+
+/// "file:line: field" for a field of the world (its line if the file gave it, else its
+/// section's, else none), the start of every error message about that field.
+std::string field_location(const World& world, const std::string& field);
 
 /// Checks the fields that depend on the floor's size (patch larger than the floor, start off
 /// the floor). Throws InputError naming the field's line.

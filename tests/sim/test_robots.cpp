@@ -94,13 +94,38 @@ TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
     EXPECT_EQ(r.ticks, preset().max_ticks_per_move);
     // The centre stays on the floor's border pixels: within the wall margin of their centres.
     const Eigen::Vector2d at = batch.position_px(0);
-    const double margin = RobotBatch::wall_margin_px(kFloor) + 0.05;
+    const double margin = RobotBatch::wall_margin_px() + 0.05;
     EXPECT_GE(at.x(), 0.5 - margin);
     EXPECT_LE(at.x(), 27.5 + margin);
     EXPECT_GE(at.y(), 0.5 - margin);
     EXPECT_LE(at.y(), 27.5 + margin);
     const Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27), std::clamp(c.start.y() + c.command.y(), 0, 27)};
     EXPECT_EQ(batch.grid_pose(0), expected);
+  }
+}
+
+TEST(RobotBatch, BehavesTheSameInPixelsAtAnyFloorScale) {
+  // Box2D's tolerances are fixed lengths; the robots must still land on cells and stay on the
+  // floor whether a pixel is 5 mm or 5 m (sizes and speeds scale with the pixel).
+  for (double pixel_size_m : {0.005, 0.01, 0.03, 0.1, 1.0, 5.0}) {
+    const FloorFrame floor{28, 28, pixel_size_m};
+    RobotParams params = preset();
+    params.radius_m = 2.5 * pixel_size_m;
+    params.max_speed_mps = 20.0 * pixel_size_m;  // 20 px/s, 1/3 px per tick
+    RobotBatch batch(floor, params, 1);
+    batch.place(0, {1, 14});
+    MoveResult r = move_one(batch, 0, {2, 0});
+    EXPECT_TRUE(r.settled) << pixel_size_m;
+    EXPECT_EQ(r.ticks, 6) << pixel_size_m;
+    EXPECT_EQ(batch.grid_pose(0), Cell(3, 14));
+    EXPECT_NEAR(r.peak_speed_mps, params.max_speed_mps, 1e-4 * params.max_speed_mps);
+    r = move_one(batch, 0, {-8, 0});  // 5 px past the edge
+    EXPECT_TRUE(r.touched_wall) << pixel_size_m;
+    EXPECT_FALSE(r.settled) << pixel_size_m;
+    const Eigen::Vector2d at = batch.position_px(0);
+    EXPECT_GE(at.x(), 0.5 - RobotBatch::wall_margin_px() - 0.05) << pixel_size_m;
+    EXPECT_EQ(batch.grid_pose(0), Cell(0, 14));
+    EXPECT_NEAR(batch.position_m(0).x(), at.x() * pixel_size_m, 1e-6 * pixel_size_m);
   }
 }
 

@@ -188,9 +188,9 @@ TEST(WorldFile, MissingFieldsTakeTheDefaultsAndEmptySectionsAreAllowed) {
 TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
   const World w = parse_world(
       "floor: {pixel_size_m: 10, index: 2147483647, split: validation}\n"
-      "robot: {radius_m: 1e-3, mass_kg: 1e4, max_speed_mps: 1000, start: [0, 0]}\n"
+      "robot: {radius_m: 10, mass_kg: 1e4, max_speed_mps: 1000, start: [0, 0]}\n"
       "controller: {kp_per_s: 1.99, tolerance_px: 0.499}\n"
-      "camera: {patch_px: 512}\n"
+      "camera: {patch_px: 64}\n"
       "task: {episodes: 1000, steps: 1, step_px: 512}\n"
       "physics: {dt_s: 1, velocity_iterations: 100, position_iterations: 1, max_ticks_per_move: 100000}\n"
       "seed: 18446744073709551615\n",
@@ -198,7 +198,7 @@ TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
   EXPECT_EQ(w.floor.split, Split::Validation);
   EXPECT_EQ(w.floor.index, std::numeric_limits<int>::max());
   EXPECT_EQ(w.robot.start, std::make_pair(0, 0));
-  EXPECT_EQ(w.camera.patch_px, 512);
+  EXPECT_EQ(w.camera.patch_px, 64);
   EXPECT_EQ(w.task.episodes, 1000);
   EXPECT_EQ(w.physics.max_ticks_per_move, 100000);
   EXPECT_EQ(w.seed, std::numeric_limits<std::uint64_t>::max());
@@ -208,6 +208,13 @@ TEST(WorldFile, AcceptsBoundaryValuesAndFlowStyle) {
 TEST(WorldFile, TheGainMayBeHighWhenTheTickIsShort) {
   const World w = parse_world("controller: {kp_per_s: 1e6}\nphysics: {dt_s: 1e-6}\n", "w.yaml");
   EXPECT_EQ(w.controller.kp_per_s, 1e6);
+}
+
+TEST(WorldFile, TheRobotMustBeHalfAPixelToAHundredPixelsInRadius) {
+  EXPECT_EQ(parse_world("floor: {pixel_size_m: 0.002}\nrobot: {radius_m: 1e-3}\n", "w.yaml").robot.radius_m, 1e-3);
+  expect_error("floor: {pixel_size_m: 0.1}\nrobot: {radius_m: 0.04}\n",
+               "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels (0.05 to 10 m at pixel_size_m 0.1), got 0.04 m = 0.4 px");
+  expect_error("floor:\n  pixel_size_m: 0.001\n", "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels");
 }
 
 TEST(WorldFile, AGainThatCannotSettleIsRefused) {
@@ -251,25 +258,25 @@ const BadCase kBadCases[] = {
     {"DuplicateSection", "seed: 1\ncamera: {}\nseed: 2\n", "w.yaml:3: seed: expected each section once"},
     {"StringForNumber", "robot:\n  mass_kg: heavy\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got heavy"},
     {"QuotedNumber", "camera:\n  patch_px: \"6\"\n",
-     "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got the string \"6\""},
-    {"TaggedNumber", "camera:\n  patch_px: !!str 6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got a value tagged !!str"},
-    {"MapForScalar", "camera:\n  patch_px: {a: 1}\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got a map"},
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got the string \"6\""},
+    {"TaggedNumber", "camera:\n  patch_px: !!str 6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a value tagged !!str"},
+    {"MapForScalar", "camera:\n  patch_px: {a: 1}\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a map"},
     {"SequenceForScalar", "physics:\n  dt_s: [0.1]\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got a sequence of 1 element"},
     {"NothingForScalar", "physics:\n  dt_s:\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got nothing"},
     {"ScalarForSection", "robot: fast\n", "w.yaml:1: robot: expected a map of radius_m, mass_kg, max_speed_mps, start, got fast"},
     {"FloatForInteger", "seed: 1\ncamera:\n  patch_px: 6.5\n",
-     "w.yaml:3: camera.patch_px: expected an integer in [1, 512], got 6.5"},
+     "w.yaml:3: camera.patch_px: expected an integer in [1, 64], got 6.5"},
     {"FloatWithZeroFractionForInteger", "task:\n  steps: 5.0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 5.0"},
     {"ExponentForInteger", "physics:\n  max_ticks_per_move: 1e3\n",
      "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 1e3"},
-    {"HexForInteger", "camera:\n  patch_px: 0x10\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 0x10"},
-    {"PatchBelowRange", "camera:\n  patch_px: 0\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 0"},
-    {"PatchAboveRange", "camera:\n  patch_px: 513\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got 513"},
+    {"HexForInteger", "camera:\n  patch_px: 0x10\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 0x10"},
+    {"PatchBelowRange", "camera:\n  patch_px: 0\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 0"},
+    {"PatchAboveRange", "camera:\n  patch_px: 65\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 65"},
     {"EpisodesZero", "task:\n  episodes: 0\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 0"},
     {"EpisodesAboveRange", "task:\n  episodes: 1001\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 1001"},
     {"StepsZero", "task:\n  steps: 0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 0"},
     {"StepPxAboveRange", "task:\n  step_px: 513\n", "w.yaml:2: task.step_px: expected an integer in [1, 512], got 513"},
-    {"NegativePatch", "camera:\n  patch_px: -6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 512], got -6"},
+    {"NegativePatch", "camera:\n  patch_px: -6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got -6"},
     {"NegativeRadius", "robot:\n  radius_m: -0.25\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0.25"},
     {"NegativeZeroRadius", "robot:\n  radius_m: -0\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0"},
     {"RadiusAboveRange", "robot:\n  radius_m: 10.5\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got 10.5"},
@@ -428,7 +435,7 @@ TEST(WorldFile, LoadReportsTheLineInTheFile) {
     load_world(file);
     FAIL() << "accepted patch_px 6.5";
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()), file.string() + ":5: camera.patch_px: expected an integer in [1, 512], got 6.5");
+    EXPECT_EQ(std::string(e.what()), file.string() + ":5: camera.patch_px: expected an integer in [1, 64], got 6.5");
   }
 }
 
@@ -515,7 +522,7 @@ TEST(WorldFile, ToYamlRoundTripsEveryFieldExactly) {
   const TempDir dir;
   const fs::path file = dir.write("w.yaml",
                                   "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
-                                  "robot: {radius_m: 0.1, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+                                  "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
                                   "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
                                   "camera: {patch_px: 9}\n"
                                   "task: {episodes: 7, steps: 3, step_px: 4}\n"
