@@ -25,7 +25,7 @@ const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's oran
 const cv::Scalar kTextColour(230, 230, 230);
 
 constexpr int kMaxScale = 64;
-constexpr int kMaxSidePx = 16384;
+constexpr int kMaxSidePx = kMaxPictureSidePx;
 
 // Unseen pixels keep a faint trace of the image under a blue-grey tint. Blue always exceeds red
 // by at least 25, so an unseen pixel can never look like any seen (gray) one, black included.

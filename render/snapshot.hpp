@@ -11,6 +11,9 @@
 
 namespace scout::render {
 
+/// The largest picture side draw_snapshot makes (floor side x scale), pixels.
+inline constexpr int kMaxPictureSidePx = 16384;
+
 /// Everything one snapshot shows.
 struct Snapshot {
   const std::uint8_t* floor = nullptr;     ///< floor image, width * height bytes

@@ -1,5 +1,6 @@
 // scout: the command-line program. Exit status: 0 success, 1 error (bad input, a file, the data),
 // 2 bad command line, 3 internal error (a bug: please report it), 130 interrupted.
+#include <charconv>
 #include <csignal>
 #include <cstdio>
 #include <exception>
@@ -26,6 +27,28 @@ volatile std::sig_atomic_t interrupted = 0;
 extern "C" void on_signal(int) { interrupted = 1; }
 
 }  // namespace
+
+std::uint64_t scout::tools::parse_seed(const std::string& text) {
+  std::uint64_t value = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  if (text.empty() || ec != std::errc() || ptr != end)
+    throw scout::InputError("--seed: expected an integer in [0, 18446744073709551615], got '" + text + "'");
+  return value;
+}
+
+CLI::Validator scout::tools::seed_validator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        try {
+          parse_seed(text);
+          return {};
+        } catch (const scout::InputError&) {
+          return "expected an integer in [0, 18446744073709551615], got '" + text + "'";
+        }
+      },
+      "UINT64");
+}
 
 void scout::tools::install_interrupt_handler() {
   std::signal(SIGINT, on_signal);

@@ -31,15 +31,14 @@ struct RunOptions {
   std::string world;
   std::string out;
   std::string data_root;
-  std::uint64_t seed = 0;
-  bool seed_given = false;
+  std::string seed;  // empty: the world file's
   int count = 1;
   bool overwrite = false;
   bool images = true;
   int scale = 10;
 };
 
-/// One rollout to do: its seed fixes its digit (for `index: random`), its start and its choices.
+/// One rollout to do: its digit, and its seed, which fixes its start and its choices.
 struct PlannedRun {
   std::uint64_t seed;
   int index;
@@ -47,17 +46,26 @@ struct PlannedRun {
 };
 
 // Streams derived from a run's seed, so that drawing one thing never shifts another.
-enum Stream : std::uint64_t { kIndexStream = 1, kStartStream = 2, kPolicyStream = 3 };
+enum Stream : std::uint64_t { kStartStream = 2, kPolicyStream = 3 };
+// The command's digit order: a stream of the command's seed that no run number reaches.
+constexpr std::uint64_t kDigitOrderStream = ~std::uint64_t{0};
 
 std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
                                   const sim::FloorFrame& frame, std::uint64_t seed, int count) {
+  // With `index: random`, runs walk a seeded permutation of the split: up to the split's size
+  // every run has its own digit, and run k's digit depends on the seed and k, not on --count.
+  std::vector<int> digit_order;
+  if (!world.floor.index) {
+    digit_order.resize(static_cast<std::size_t>(floors.size()));
+    for (int i = 0; i < floors.size(); ++i) digit_order[i] = i;
+    std::mt19937_64 order_rng(worlds::derive_seed(seed, kDigitOrderStream));
+    worlds::shuffle(digit_order, order_rng);
+  }
   std::vector<PlannedRun> runs(count);
   for (int k = 0; k < count; ++k) {
     PlannedRun& r = runs[k];
     r.seed = worlds::derive_seed(seed, static_cast<std::uint64_t>(k));
-    std::mt19937_64 index_rng(worlds::derive_seed(r.seed, kIndexStream));
-    r.index = world.floor.index ? *world.floor.index
-                                : static_cast<int>(worlds::uniform_below(index_rng, static_cast<std::uint64_t>(floors.size())));
+    r.index = world.floor.index ? *world.floor.index : digit_order[static_cast<std::size_t>(k) % digit_order.size()];
     std::mt19937_64 start_rng(worlds::derive_seed(r.seed, kStartStream));
     r.start = learn::draw_start(world, frame, start_rng);
   }
@@ -123,10 +131,14 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
 void run_command(const RunOptions& opt, const Context& context) {
   if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
   worlds::World world = worlds::load_world(opt.world);
-  if (opt.seed_given) world.seed = opt.seed;
+  if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
   const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  if (opt.images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
+    throw InputError(fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
+                                 render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
+                                 frame.height_px, render::kMaxPictureSidePx, opt.scale));
   std::vector<fs::path> inputs = floors.files;
   inputs.push_back(opt.world);
   OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
@@ -198,9 +210,8 @@ void add_run_command(CLI::App& app, const Context& context) {
                                         "actions) and export trajectory.json, images and manifest.json.");
   cmd->add_option("world", opt->world, "World file (YAML), e.g. worlds/mnist.yaml")->required();
   cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")->required();
-  cmd->add_option("--seed", opt->seed, "Seed (overrides the world file's)")->each([opt](const std::string&) {
-    opt->seed_given = true;
-  });
+  cmd->add_option("--seed", opt->seed, "Seed, an integer in [0, 2^64 - 1] (overrides the world file's)")
+      ->check(seed_validator());
   cmd->add_option("--count", opt->count, "Number of rollouts (each on its own digit with index: random)")
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");

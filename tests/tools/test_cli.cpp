@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -197,6 +198,10 @@ TEST_F(Cli, ARunIsTheSameAloneAndInsideABatchOf240) {
   ASSERT_EQ(many["runs"].size(), 240u);
   EXPECT_EQ(one["runs"][0], many["runs"][0]);  // every field, poses bit for bit (JSON keeps 17 digits)
   EXPECT_NE(many["runs"][0]["steps"], many["runs"][1]["steps"]);
+  // With `index: random` each run has its own digit.
+  std::set<int> digits;
+  for (const json& run : many["runs"]) digits.insert(run["index"].get<int>());
+  EXPECT_EQ(digits.size(), 240u);
 }
 
 TEST_F(Cli, TheSeedDecidesTheRun) {
@@ -208,6 +213,14 @@ TEST_F(Cli, TheSeedDecidesTheRun) {
   EXPECT_EQ(a["runs"], b["runs"]);
   EXPECT_NE(a["runs"], c["runs"]);
   EXPECT_EQ(c["seed"], 8);
+  // The largest seed is a seed; anything else that is not a 64-bit unsigned integer is a usage error.
+  EXPECT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("d") + " --seed 18446744073709551615 --no-images").status, 0);
+  for (const char* bad : {"-1", "18446744073709551616", "1e3", "0x10", "seven"}) {
+    const Result r = scout("run " + world("fashion.yaml") + " --out " + path("e") + " --seed " + bad);
+    EXPECT_EQ(r.status, 2) << bad;
+    EXPECT_EQ(r.output.rfind("scout: usage error: --seed: expected an integer in [0, 18446744073709551615]", 0), 0u) << r.output;
+    EXPECT_FALSE(fs::exists(path("e")));
+  }
 }
 
 // One line on stderr, exit status 1, naming the file, the line and the field.
@@ -250,6 +263,13 @@ TEST_F(Cli, APngFloorWorks) {
   const cv::Mat png = cv::imread(path("out") + "/images/run000_final.png");
   EXPECT_EQ(png.cols, 320);
   EXPECT_EQ(png.rows, 200);
+  // Pictures are at most 16384 px a side: a scale beyond that is refused before any work.
+  cv::Mat wide(20, 300, CV_8UC1, cv::Scalar(0));
+  ASSERT_TRUE(cv::imwrite(path("floor.png"), wide));
+  const Result big = scout("run " + path("png.yaml") + " --out " + path("big") + " --scale 64");
+  EXPECT_EQ(big.status, 1);
+  EXPECT_EQ(big.output.rfind("scout: error: --scale: expected at most 54 for a 300 x 20 floor", 0), 0u) << big.output;
+  EXPECT_FALSE(fs::exists(path("big")));
 }
 
 TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
