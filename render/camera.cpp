@@ -3,6 +3,8 @@
 // explains the choices (point sprites, texture array, R8, LP_NUM_THREADS=0).
 #include "render/camera.hpp"
 
+#include "worlds/floors.hpp"
+
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
 #include <GL/glext.h>
@@ -23,6 +25,9 @@ namespace {
 
 constexpr int kMaxPatchPx = 64;
 constexpr int kMaxFloorPx = 512;
+// World files are validated against these limits before a camera is ever made.
+static_assert(kMaxPatchPx == worlds::kMaxPatchPx && kMaxFloorPx == worlds::kMaxFloorPx,
+              "the world-file limits must be the camera's");
 constexpr int kMaxRobots = 4096;
 
 // One vertex per robot: its pose as two ints, straight from the caller's PixelPose span.

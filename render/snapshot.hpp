@@ -41,7 +41,4 @@ Picture draw_snapshot(const Snapshot& snapshot);
 /// Writes a picture as PNG atomically (temporary file, then rename). Throws std::runtime_error.
 void write_png(const std::filesystem::path& file, const Picture& picture);
 
-/// "OpenCV 4.6.0": the image library in use (for manifests).
-std::string image_library_version();
-
 }  // namespace scout::render

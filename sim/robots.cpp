@@ -38,11 +38,6 @@ struct RobotBatch::Robot {
   b2Body* body = nullptr;
 };
 
-std::string physics_library_version() {
-  return "Box2D " + std::to_string(b2_version.major) + "." + std::to_string(b2_version.minor) + "." +
-         std::to_string(b2_version.revision);
-}
-
 RobotParams RobotParams::from_world(const worlds::World& world) {
   RobotParams p;
   p.radius_m = world.robot.radius_m;

@@ -80,7 +80,4 @@ class RobotBatch {
   std::unique_ptr<class WorkerPool> pool_;
 };
 
-/// "Box2D 2.4.1": the physics library in use (for manifests).
-std::string physics_library_version();
-
 }  // namespace scout::sim

@@ -15,13 +15,6 @@
 
 namespace {
 
-// Messages are one line: a multi-line message from a library is folded.
-std::string one_line(std::string text) {
-  for (char& c : text)
-    if (c == '\n' || c == '\r') c = ' ';
-  return text;
-}
-
 volatile std::sig_atomic_t interrupted = 0;
 
 extern "C" void on_signal(int) { interrupted = 1; }
@@ -72,7 +65,7 @@ int main(int argc, char** argv) {
       a = a->get_subcommands().front();
       path += " " + a->get_name();
     }
-    return "scout: usage error: " + one_line(e.what()) + " (see " + path + " --help)\n";
+    return "scout: usage error: " + scout::one_line(e.what()) + " (see " + path + " --help)\n";
   });
   app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error, 130 interrupted.");
   scout::tools::add_run_command(app, context);
@@ -87,10 +80,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "scout: interrupted; nothing was written\n");
     return 130;
   } catch (const scout::InputError& e) {
-    std::fprintf(stderr, "scout: error: %s\n", one_line(e.what()).c_str());
+    std::fprintf(stderr, "scout: error: %s\n", scout::one_line(e.what()).c_str());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "scout: internal error: %s\n", one_line(e.what()).c_str());
+    std::fprintf(stderr, "scout: internal error: %s\n", scout::one_line(e.what()).c_str());
     return 3;
   }
   return 0;

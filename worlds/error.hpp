@@ -4,6 +4,7 @@
 /// Thrown by loaders, caught once in the CLI, printed as one line with exit status 1.
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace scout {
 
@@ -12,5 +13,9 @@ class InputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// Makes any text safe inside a one-line message: ASCII control characters (newlines above all,
+/// e.g. in a file name or a library's message) become visible escapes; other bytes pass through.
+std::string one_line(std::string_view text);
 
 }  // namespace scout

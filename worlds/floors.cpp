@@ -25,41 +25,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// "file:line: field", or "file: field" when the field's line is unknown (a default).
-// TODO(lead): replace with field_location from worlds/world.hpp once it exists; same result.
-std::string field_location_local(const World& world, const std::string& field) {
-  const auto it = world.lines.find(field);
-  const std::string file = world.file.string();
-  return it == world.lines.end() ? file + ": " + field : file + ":" + std::to_string(it->second) + ": " + field;
-}
-
-// ASCII control characters (a newline in a path above all) become visible escapes, so that a
-// message stays one line; other bytes, UTF-8 included, pass through. As in world.cpp.
-std::string one_line(std::string_view text) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  out.reserve(text.size());
-  for (char c : text) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '\n') {
-      out += "\\n";
-    } else if (c == '\r') {
-      out += "\\r";
-    } else if (c == '\t') {
-      out += "\\t";
-    } else if (u < 0x20 || u == 0x7f) {
-      out += "\\x";
-      out += kHex[u >> 4];
-      out += kHex[u & 0xf];
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
-
 [[noreturn]] void fail(const World& world, const std::string& field, const std::string& message) {
-  throw InputError(one_line(field_location_local(world, field) + ": " + message));
+  throw InputError(one_line(field_location(world, field) + ": " + message));
 }
 
 void check_floor_size(const World& world, const std::string& field, long long width_px, long long height_px) {

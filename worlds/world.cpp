@@ -55,31 +55,6 @@ constexpr std::string_view kYamlTagPrefix = "tag:yaml.org,2002:";
 // ---------------------------------------------------------------------------------------------
 // Messages
 
-/// Makes any text safe to sit inside a one-line message: ASCII control characters (newlines
-/// above all) become visible escapes; other bytes, UTF-8 included, pass through.
-std::string one_line(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (char c : text) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '\n') {
-      out += "\\n";
-    } else if (c == '\r') {
-      out += "\\r";
-    } else if (c == '\t') {
-      out += "\\t";
-    } else if (u < 0x20 || u == 0x7f) {
-      static constexpr char kHex[] = "0123456789abcdef";
-      out += "\\x";
-      out += kHex[u >> 4];
-      out += kHex[u & 0xf];
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
-
 std::string clip(std::string_view text) {
   if (text.size() <= kMaxQuoted) return std::string(text);
   return std::string(text.substr(0, kMaxQuoted)) + "...";

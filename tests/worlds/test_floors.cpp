@@ -1,0 +1,321 @@
+// Floors: PNG files (folders, missing files, wrong formats, truncated and corrupt images, the
+// camera's size limit, pixels read back) and data set floors (errors named by the world file's
+// floor.dataset line, labels outside 0..9). Every refusal is one line, and libpng / OpenCV
+// print nothing to stderr on the way.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <atomic>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "worlds/error.hpp"
+#include "worlds/floors.hpp"
+#include "worlds/idx.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::worlds {
+namespace {
+
+namespace fs = std::filesystem;
+using Bytes = std::vector<std::uint8_t>;
+
+/// A fresh folder per test, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("scout_floors_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+void write_bytes(const fs::path& file, const Bytes& bytes) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << file;
+}
+
+/// Everything written to fd 2 while it lives goes to a file; text() stops the capture.
+class StderrCapture {
+ public:
+  explicit StderrCapture(const fs::path& file) : file_(file) {
+    std::fflush(stderr);
+    saved_ = ::dup(STDERR_FILENO);
+    const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    EXPECT_GE(saved_, 0);
+    EXPECT_GE(fd, 0);
+    ::dup2(fd, STDERR_FILENO);
+    ::close(fd);
+  }
+  ~StderrCapture() { stop(); }
+  StderrCapture(const StderrCapture&) = delete;
+  StderrCapture& operator=(const StderrCapture&) = delete;
+
+  std::string text() {
+    stop();
+    std::ifstream in(file_, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+
+ private:
+  void stop() {
+    if (saved_ < 0) return;
+    std::fflush(stderr);
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+    saved_ = -1;
+  }
+  fs::path file_;
+  int saved_ = -1;
+};
+
+/// A world file "w.yaml" in the temporary folder with `yaml` as its text (parsed in memory).
+World world_in(const TempDir& dir, const std::string& yaml) { return parse_world(yaml, dir.path() / "w.yaml"); }
+
+struct Refusal {
+  std::string message;
+  std::string stderr_text;  ///< what reached fd 2 during the call: must stay empty
+};
+
+/// load_floors' message for `world` (fails the test if it accepts it), and what reached stderr.
+Refusal refusal_of(const TempDir& dir, const World& world, const fs::path& data_root = "/nonexistent") {
+  Refusal out;
+  StderrCapture capture(dir.path() / "stderr.txt");
+  try {
+    load_floors(world, data_root);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    out.message = e.what();
+  }
+  out.stderr_text = capture.text();
+  return out;
+}
+
+void expect_one_line_with_prefix(const Refusal& r, const std::string& prefix) {
+  EXPECT_EQ(r.message.substr(0, prefix.size()), prefix) << "full message: " << r.message;
+  EXPECT_EQ(r.message.find('\n'), std::string::npos) << r.message;
+  EXPECT_EQ(r.message.find('\r'), std::string::npos) << r.message;
+  EXPECT_EQ(r.stderr_text, "") << "written to stderr during load_floors";
+}
+
+/// A w x h grayscale image with distinct-looking pixels.
+cv::Mat pattern(int w, int h) {
+  cv::Mat img(h, w, CV_8UC1);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) img.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>((r * 7 + c * 3) % 256);
+  return img;
+}
+
+Bytes png_bytes(const cv::Mat& img) {
+  Bytes out;
+  EXPECT_TRUE(cv::imencode(".png", img, out));
+  return out;
+}
+
+const std::string kPngWorld = "floor:\n  image: x.png\n";
+
+std::string png_prefix(const TempDir& dir) { return (dir.path() / "w.yaml").string() + ":2: floor.image: "; }
+std::string quoted_png(const TempDir& dir) { return "'" + (dir.path() / "x.png").string() + "'"; }
+
+TEST(PngFloor, FolderNamedPngIsRefused) {
+  TempDir dir;
+  fs::create_directories(dir.path() / "x.png");
+  const Refusal r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, png_prefix(dir) + "expected a PNG file, got " + quoted_png(dir) + " (a folder)");
+}
+
+TEST(PngFloor, MissingPngIsRefused) {
+  TempDir dir;
+  const Refusal r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, png_prefix(dir) + "expected a PNG file, got " + quoted_png(dir) + " (no such file)");
+}
+
+TEST(PngFloor, JpegBytesNamedPngAreRefusedBySignature) {
+  TempDir dir;
+  const std::string jpeg = "\xFF\xD8\xFF\xE0 junk that is not a PNG";
+  write_bytes(dir.path() / "x.png", Bytes(jpeg.begin(), jpeg.end()));
+  const Refusal r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, png_prefix(dir) + "expected a PNG file, got " + quoted_png(dir) + " (not a PNG: bad signature)");
+
+  // A real JPEG says the same, and so does an empty file (its own reason).
+  Bytes real_jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", pattern(16, 16), real_jpeg));
+  write_bytes(dir.path() / "x.png", real_jpeg);
+  EXPECT_EQ(refusal_of(dir, world_in(dir, kPngWorld)).message,
+            png_prefix(dir) + "expected a PNG file, got " + quoted_png(dir) + " (not a PNG: bad signature)");
+  write_bytes(dir.path() / "x.png", {});
+  const Refusal empty = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(empty, png_prefix(dir) + "expected a PNG file, got " + quoted_png(dir) + " (not a PNG");
+}
+
+TEST(PngFloor, TruncatedPngIsOneLineAndNothingReachesStderr) {
+  TempDir dir;
+  const Bytes full = png_bytes(pattern(64, 64));
+  const std::string expected =
+      png_prefix(dir) + "expected a readable PNG image, got " + quoted_png(dir) + " (corrupt or truncated)";
+  const auto level = cv::utils::logging::getLogLevel();
+
+  // Cut in half: libpng reports "Read Error" on stderr unless load_floors silences it.
+  write_bytes(dir.path() / "x.png", Bytes(full.begin(), full.begin() + static_cast<std::ptrdiff_t>(full.size() / 2)));
+  Refusal r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, expected);
+
+  // Only the signature and part of IHDR; then the whole header but no image data.
+  write_bytes(dir.path() / "x.png", Bytes(full.begin(), full.begin() + 20));
+  r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, expected);
+  write_bytes(dir.path() / "x.png", Bytes(full.begin(), full.begin() + 33));
+  r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, expected);
+
+  // Full length, but the image data overwritten (its CRC no longer matches).
+  Bytes corrupt = full;
+  for (std::size_t i = 40; i < corrupt.size() - 12; ++i) corrupt[i] = static_cast<std::uint8_t>(corrupt[i] ^ 0x5a);
+  write_bytes(dir.path() / "x.png", corrupt);
+  r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message, expected);
+
+  // stderr and OpenCV's log level are back as they were.
+  EXPECT_EQ(cv::utils::logging::getLogLevel(), level);
+  StderrCapture capture(dir.path() / "after.txt");
+  std::fputs("still here\n", stderr);
+  EXPECT_EQ(capture.text(), "still here\n");
+}
+
+TEST(PngFloor, LargerThanTheCameraLimitIsRefused) {
+  TempDir dir;
+  write_bytes(dir.path() / "x.png", png_bytes(pattern(600, 600)));
+  Refusal r = refusal_of(dir, world_in(dir, kPngWorld));
+  expect_one_line_with_prefix(r, png_prefix(dir) + "expected");
+  EXPECT_EQ(r.message,
+            png_prefix(dir) + "expected a floor of at most 512 x 512 pixels (the camera's limit), got 600 x 600");
+  // One side is enough.
+  write_bytes(dir.path() / "x.png", png_bytes(pattern(513, 40)));
+  r = refusal_of(dir, world_in(dir, kPngWorld));
+  EXPECT_EQ(r.message,
+            png_prefix(dir) + "expected a floor of at most 512 x 512 pixels (the camera's limit), got 513 x 40");
+  static_assert(kMaxFloorPx == 512);
+}
+
+TEST(PngFloor, ValidPngIsReadAsGrayscale) {
+  TempDir dir;
+  const cv::Mat img = pattern(40, 30);
+  write_bytes(dir.path() / "x.png", png_bytes(img));
+  StderrCapture capture(dir.path() / "stderr.txt");
+  const FloorSet set = load_floors(world_in(dir, kPngWorld), "/nonexistent");
+  EXPECT_EQ(capture.text(), "");
+  EXPECT_EQ(set.size(), 1);
+  EXPECT_EQ(set.width_px(), 40);
+  EXPECT_EQ(set.height_px(), 30);
+  ASSERT_EQ(set.images.pixels.size(), 40u * 30u);
+  for (int r = 0; r < 30; ++r)
+    for (int c = 0; c < 40; ++c)
+      ASSERT_EQ(set.images.pixels[static_cast<std::size_t>(r) * 40 + c], img.at<std::uint8_t>(r, c)) << r << "," << c;
+  EXPECT_EQ(set.labels, std::vector<int>{-1});
+  EXPECT_EQ(set.source, (dir.path() / "x.png").string());
+  EXPECT_EQ(set.files, std::vector<fs::path>{dir.path() / "x.png"});
+  EXPECT_FALSE(set.split.has_value());
+
+  // The limit itself is fine; a colour PNG is read as gray.
+  write_bytes(dir.path() / "x.png", png_bytes(pattern(512, 512)));
+  EXPECT_EQ(load_floors(world_in(dir, kPngWorld), "/nonexistent").width_px(), 512);
+  write_bytes(dir.path() / "x.png", png_bytes(cv::Mat(8, 9, CV_8UC3, cv::Scalar(100, 100, 100))));
+  const FloorSet colour = load_floors(world_in(dir, kPngWorld), "/nonexistent");
+  EXPECT_EQ(colour.width_px(), 9);
+  EXPECT_EQ(colour.height_px(), 8);
+  for (std::uint8_t p : colour.images.pixels) EXPECT_EQ(p, 100);
+}
+
+// An IDX folder: train and t10k pairs of `count` w x h images with labels `labels`.
+void write_idx_folder(const fs::path& folder, int count, int w, int h, const Bytes& labels) {
+  fs::create_directories(folder);
+  ImageSet images;
+  images.count = count;
+  images.rows = h;
+  images.cols = w;
+  images.pixels.assign(static_cast<std::size_t>(count) * w * h, 128);
+  for (const char* prefix : {"train", "t10k"}) {
+    write_idx_images(folder / (std::string(prefix) + "-images-idx3-ubyte"), images);
+    write_idx_labels(folder / (std::string(prefix) + "-labels-idx1-ubyte"), labels);
+  }
+}
+
+std::string dataset_prefix(const TempDir& dir) { return (dir.path() / "w.yaml").string() + ":2: floor.dataset: "; }
+
+TEST(DatasetFloor, MissingFolderIsNamedByTheWorldFileLine) {
+  TempDir dir;
+  const Refusal r = refusal_of(dir, world_in(dir, "floor:\n  dataset: nowhere\n  split: test\n"));
+  expect_one_line_with_prefix(r, dataset_prefix(dir));
+  // Then the data set's own message, naming the folder.
+  EXPECT_EQ(r.message.substr(dataset_prefix(dir).size()).rfind((dir.path() / "nowhere").string() + ": no such folder", 0),
+            0u)
+      << r.message;
+
+  // The default "mnist" (no floor section): the field has no line, the file is still named.
+  const Refusal mnist = refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\n"), dir.path() / "no-data");
+  expect_one_line_with_prefix(mnist, (dir.path() / "w.yaml").string() + ": floor.dataset: ");
+  EXPECT_NE(mnist.message.find("scout data"), std::string::npos) << mnist.message;
+  // With a floor section but no dataset key, the section's line.
+  const Refusal section = refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\nfloor:\n  split: test\n"),
+                                     dir.path() / "no-data");
+  expect_one_line_with_prefix(section, (dir.path() / "w.yaml").string() + ":3: floor.dataset: ");
+}
+
+TEST(DatasetFloor, LabelsBeyondNineAreRefused) {
+  TempDir dir;
+  Bytes labels = {0, 1, 2, 3, 4, 11, 6, 7};
+  write_idx_folder(dir.path() / "idx", 8, 28, 28, labels);
+  const Refusal r = refusal_of(dir, world_in(dir, "floor:\n  dataset: idx\n  split: test\n"));
+  expect_one_line_with_prefix(r, dataset_prefix(dir));
+  EXPECT_EQ(r.message, dataset_prefix(dir) + (dir.path() / "idx" / "t10k-labels-idx1-ubyte").string() +
+                           ": label 11 at index 5 is not a class 0..9");
+
+  labels[5] = 9;
+  write_idx_folder(dir.path() / "idx", 8, 28, 28, labels);
+  const FloorSet set = load_floors(world_in(dir, "floor:\n  dataset: idx\n  split: test\n"), "/nonexistent");
+  EXPECT_EQ(set.size(), 8);
+  EXPECT_EQ(set.labels[5], 9);
+}
+
+TEST(DatasetFloor, LargerThanTheCameraLimitIsRefused) {
+  TempDir dir;
+  write_idx_folder(dir.path() / "big", 1, 600, 520, {3});
+  const Refusal r = refusal_of(dir, world_in(dir, "floor:\n  dataset: big\n  split: test\n"));
+  expect_one_line_with_prefix(r, dataset_prefix(dir));
+  EXPECT_EQ(r.message,
+            dataset_prefix(dir) + "expected a floor of at most 512 x 512 pixels (the camera's limit), got 600 x 520");
+}
+
+}  // namespace
+}  // namespace scout::worlds
