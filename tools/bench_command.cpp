@@ -59,12 +59,13 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   const int moves_per_rollout = world.task.episodes * world.task.steps;
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
 
-  // The batch: n different digits and starts, as a training batch would have.
+  // The batch: n different digits (or the world's one) and starts, as a training batch would have.
   std::mt19937_64 rng(world.seed);
   std::vector<std::uint8_t> batch_floors(area * n);
   std::vector<sim::Cell> starts(n);
   for (int i = 0; i < n; ++i) {
-    const auto index = static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
+    const int index = world.floor.index ? *world.floor.index
+                                        : static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
     std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
     starts[i] = learn::draw_start(world, frame, rng);
   }

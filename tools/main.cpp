@@ -52,6 +52,33 @@ void scout::tools::throw_if_interrupted() {
   if (interrupted) throw Interrupted{};
 }
 
+namespace {
+
+// CLI11 reports a mistyped command as "A subcommand is required"; name the word instead.
+// Returns the one-line message for a word that is not a command, or "" when all are.
+std::string check_command_words(const CLI::App& app, int argc, char** argv) {
+  const CLI::App* at = &app;
+  std::string path = app.get_name();
+  for (int i = 1; i < argc && argv[i][0] != '-'; ++i) {
+    const std::string word = argv[i];
+    auto named = const_cast<CLI::App*>(at)->get_subcommands([&](const CLI::App* sub) { return sub->check_name(word); });
+    if (!named.empty()) {
+      at = named.front();
+      path += " " + at->get_name();
+      continue;
+    }
+    auto all = const_cast<CLI::App*>(at)->get_subcommands([](const CLI::App*) { return true; });
+    if (all.empty()) return {};  // a positional argument, e.g. the world file
+    std::string names;
+    for (const CLI::App* sub : all) names += (names.empty() ? "" : ", ") + sub->get_name();
+    return "scout: usage error: unknown command '" + scout::one_line(word) + "' (commands: " + names + "; see " + path +
+           " --help)";
+  }
+  return {};
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   scout::tools::Context context{scout::tools::command_line(argc, argv)};
   CLI::App app{"Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.", "scout"};
@@ -72,6 +99,10 @@ int main(int argc, char** argv) {
   scout::tools::add_data_command(app, context);
   scout::tools::add_bench_command(app, context);
   scout::tools::install_interrupt_handler();
+  if (const std::string unknown = check_command_words(app, argc, argv); !unknown.empty()) {
+    std::fprintf(stderr, "%s\n", unknown.c_str());
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -34,7 +34,7 @@ struct RunOptions {
   std::string seed;  // empty: the world file's
   int count = 1;
   bool overwrite = false;
-  bool images = true;
+  bool no_images = false;
   int scale = 10;
 };
 
@@ -135,7 +135,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
   const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
-  if (opt.images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
+  if (!opt.no_images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
     throw InputError(fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
                                  render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
                                  frame.height_px, render::kMaxPictureSidePx, opt.scale));
@@ -148,7 +148,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   const int batch_robots = std::min(opt.count, kBatchRobots);
   learn::RolloutEngine engine(world, frame, batch_robots);
   const fs::path images_dir = out.path() / "images";
-  if (opt.images) fs::create_directories(images_dir);
+  if (!opt.no_images) fs::create_directories(images_dir);
 
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
   // trajectory.json is streamed run by run, so memory does not grow with --count; the whole
@@ -178,7 +178,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
-      if (opt.images) {
+      if (!opt.no_images) {
         throw_if_interrupted();
         write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
                      opt.scale, images);
@@ -199,7 +199,7 @@ void run_command(const RunOptions& opt, const Context& context) {
              opt.count == 1 ? "" : "s", opt.world, moves, moves ? double(ticks) / moves : 0.0,
              double(revealed) / opt.count, seconds);
   fmt::print("trajectory: {}\n", (fs::path(out.target()) / "trajectory.json").string());
-  if (opt.images) fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
+  if (!opt.no_images) fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
 }
 
 }  // namespace
@@ -217,7 +217,7 @@ void add_run_command(CLI::App& app, const Context& context) {
   cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
   cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->check(CLI::Range(1, 64));
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing --out folder");
-  cmd->add_flag("!--no-images", opt->images, "Skip the PNG snapshots");
+  cmd->add_flag("--no-images", opt->no_images, "Skip the PNG snapshots");
   cmd->callback([opt, &context] { run_command(*opt, context); });
 }
 

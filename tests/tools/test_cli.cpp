@@ -337,7 +337,9 @@ TEST_F(Cli, HelpVersionAndUsageErrors) {
   const Result missing = scout("run");
   EXPECT_EQ(missing.status, 2);
   EXPECT_EQ(missing.output, "scout: usage error: world is required (see scout run --help)\n");
-  EXPECT_EQ(scout("frobnicate").status, 2);  // no such command
+  const Result unknown = scout("bench frobnicate");
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_EQ(unknown.output, "scout: usage error: unknown command 'frobnicate' (commands: sim; see scout bench --help)\n");
   const Result zero = scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0");
   EXPECT_EQ(zero.status, 2);
   EXPECT_EQ(zero.output.rfind("scout: usage error: --count", 0), 0u) << zero.output;
