@@ -120,8 +120,18 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   });
 
   const int robots_threads = robots.threads();
+  // The CPU crop of the same windows: the floor any renderer is measured against.
+  const auto crop_times = time_repeats(opt.repeats, [&](int) {
+    const int m = world.camera.patch_px;
+    for (int k = 0; k < moves_per_rollout; ++k)
+      for (int i = 0; i < n; ++i)
+        render::crop_patch(batch_floors.data() + area * i, frame.width_px, frame.height_px, m, poses[k][i],
+                           patches.data() + static_cast<std::size_t>(i) * m * m);
+  });
+
   const double steps = double(n) * moves_per_rollout;
-  const double t_all = median(together), t_phys = median(physics), t_cam = median(render_times);
+  const double t_all = median(together), t_phys = median(physics), t_cam = median(render_times),
+               t_crop = median(crop_times);
   fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} physics threads\n", n,
              moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats,
              robots_threads);
@@ -132,6 +142,8 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics alone", t_phys * 1e3, steps / t_phys);
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s)\n", "camera alone", t_cam * 1e3, steps / t_cam,
              steps / t_cam);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   (reference: the same patches cropped on the CPU)\n", "CPU crop",
+             t_crop * 1e3, steps / t_crop);
   fmt::print("  ticks per move: {:.2f} over all moves, {:.2f} over moves that drive ({} of {} moves are no-ops)\n",
              double(ticks) / all_moves, driven_moves ? double(ticks) / driven_moves : 0.0, all_moves - driven_moves,
              all_moves);
@@ -144,7 +156,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
     j["moves_per_rollout"] = moves_per_rollout;
     j["repeats"] = opt.repeats;
     j["threads"] = robots_threads;
-    j["median_ms"] = {{"physics_and_camera", t_all * 1e3}, {"physics", t_phys * 1e3}, {"camera", t_cam * 1e3}};
+    j["median_ms"] = {{"physics_and_camera", t_all * 1e3}, {"physics", t_phys * 1e3}, {"camera", t_cam * 1e3}, {"cpu_crop", t_crop * 1e3}};
     j["agent_steps_per_s"] = {{"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
     j["patches_per_s"] = steps / t_cam;
     j["ticks_per_move"] = double(ticks) / all_moves;
