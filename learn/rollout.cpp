@@ -39,7 +39,7 @@ void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std:
     if (need[i]) axes[i] = (rngs_[i]() >> 63) ? sim::Axis::Vertical : sim::Axis::Horizontal;
 }
 
-sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, std::mt19937_64& rng) {
+sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, worlds::Rng& rng) {
   if (world.robot.start) return {world.robot.start->first, world.robot.start->second};
   const auto pixel = static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
   return {pixel % frame.width_px, pixel / frame.width_px};

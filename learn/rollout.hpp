@@ -5,7 +5,6 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
-#include <random>
 #include <string>
 #include <span>
 #include <vector>
@@ -13,6 +12,7 @@
 #include "render/camera.hpp"
 #include "sim/grid.hpp"
 #include "sim/robots.hpp"
+#include "worlds/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -52,7 +52,7 @@ class RandomPolicy final : public Policy {
   void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) override;
 
  private:
-  std::vector<std::mt19937_64> rngs_;
+  std::vector<worlds::Rng> rngs_;
 };
 
 /// One move of one robot, as trajectory.json reports it.
@@ -136,6 +136,6 @@ class RolloutEngine {
 };
 
 /// The start cell of a rollout: the world file's, or uniform over the floor from `rng`.
-sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, std::mt19937_64& rng);
+sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, worlds::Rng& rng);
 
 }  // namespace scout::learn

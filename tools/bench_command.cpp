@@ -60,7 +60,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
 
   // The batch: n different digits (or the world's one) and starts, as a training batch would have.
-  std::mt19937_64 rng(world.seed);
+  worlds::Rng rng(world.seed);
   std::vector<std::uint8_t> batch_floors(area * n);
   std::vector<sim::Cell> starts(n);
   for (int i = 0; i < n; ++i) {

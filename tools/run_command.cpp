@@ -58,7 +58,7 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
   if (!world.floor.index) {
     digit_order.resize(static_cast<std::size_t>(floors.size()));
     for (int i = 0; i < floors.size(); ++i) digit_order[i] = i;
-    std::mt19937_64 order_rng(worlds::derive_seed(seed, kDigitOrderStream));
+    worlds::Rng order_rng(worlds::derive_seed(seed, kDigitOrderStream));
     worlds::shuffle(digit_order, order_rng);
   }
   std::vector<PlannedRun> runs(count);
@@ -66,7 +66,7 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
     PlannedRun& r = runs[k];
     r.seed = worlds::derive_seed(seed, static_cast<std::uint64_t>(k));
     r.index = world.floor.index ? *world.floor.index : digit_order[static_cast<std::size_t>(k) % digit_order.size()];
-    std::mt19937_64 start_rng(worlds::derive_seed(r.seed, kStartStream));
+    worlds::Rng start_rng(worlds::derive_seed(r.seed, kStartStream));
     r.start = learn::draw_start(world, frame, start_rng);
   }
   return runs;

@@ -21,9 +21,41 @@ constexpr std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
   return mix_seed(mix_seed(seed) ^ mix_seed(stream + 0x632BE59BD9B4E019ull));
 }
 
-/// An unbiased integer in [0, n), n > 0: draws below 2^64 mod n are rejected, since they would
-/// favour the smallest residues.
-inline std::uint64_t uniform_below(std::mt19937_64& rng, std::uint64_t n) {
+/// A small, fast generator (xoshiro256**, 32 bytes of state) for the many per-robot streams:
+/// constructing one is four SplitMix64 steps, where an mt19937_64 fills 2.5 KB.
+class Rng {
+ public:
+  using result_type = std::uint64_t;
+  explicit Rng(std::uint64_t seed) {
+    for (std::uint64_t& word : state_) {
+      seed += 0x9E3779B97F4A7C15ull;
+      word = mix_seed(seed);
+    }
+  }
+  static constexpr result_type min() { return 0; }
+  static constexpr result_type max() { return ~result_type{0}; }
+  result_type operator()() {
+    const std::uint64_t result = rotl(state_[1] * 5, 7) * 9;
+    const std::uint64_t t = state_[1] << 17;
+    state_[2] ^= state_[0];
+    state_[3] ^= state_[1];
+    state_[1] ^= state_[2];
+    state_[0] ^= state_[3];
+    state_[2] ^= t;
+    state_[3] = rotl(state_[3], 45);
+    return result;
+  }
+
+ private:
+  static constexpr std::uint64_t rotl(std::uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+  std::uint64_t state_[4];
+};
+
+/// An unbiased integer in [0, n), n > 0, from a generator of uniform 64-bit words (Rng or
+/// std::mt19937_64): draws below 2^64 mod n are rejected, since they would favour the smallest
+/// residues.
+template <typename Generator>
+std::uint64_t uniform_below(Generator& rng, std::uint64_t n) {
   const std::uint64_t reject_below = (0 - n) % n;
   std::uint64_t x;
   do x = rng();
@@ -32,8 +64,8 @@ inline std::uint64_t uniform_below(std::mt19937_64& rng, std::uint64_t n) {
 }
 
 /// Fisher-Yates shuffle, written out because std::shuffle's sequence is unspecified.
-template <typename T>
-void shuffle(std::vector<T>& v, std::mt19937_64& rng) {
+template <typename T, typename Generator>
+void shuffle(std::vector<T>& v, Generator& rng) {
   for (std::size_t i = v.size(); i > 1; --i) std::swap(v[i - 1], v[uniform_below(rng, i)]);
 }
 

@@ -31,7 +31,7 @@ struct Batch {
 Batch random_batch(int count, std::uint64_t seed) {
   Batch b;
   b.floors = random_floors(count, seed);
-  std::mt19937_64 rng(seed + 1);
+  worlds::Rng rng(seed + 1);
   const worlds::World world = preset_world();
   for (int i = 0; i < count; ++i) {
     b.starts.push_back(draw_start(world, kFloor, rng));
