@@ -61,7 +61,7 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
   if (frame.width_px <= 0 || frame.height_px <= 0 || frame.pixel_size_m <= 0)
     throw std::invalid_argument("RobotBatch: the floor must have a positive size");
 
-  // The rectangle the centre may reach: border pixels' centres, in metres (floor frame, y down;
+  // The rectangle the centre may reach: border pixels' centres, in Box2D units (floor frame, y down;
   // Box2D does not care about handedness without gravity or rotation).
   const float px = static_cast<float>(kUnitsPerPx);
   const double units_per_m = kUnitsPerPx / frame.pixel_size_m;
@@ -184,6 +184,9 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
       const b2Vec2 now = r.body->GetPosition();
       const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
       peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(r.body->GetLinearVelocity().Length())});
+      const double x = now.x / kUnitsPerPx, y = now.y / kUnitsPerPx;
+      out.beyond_border_px = std::max({out.beyond_border_px, 0.5 - x, x - (frame_.width_px - 0.5), 0.5 - y,
+                                       y - (frame_.height_px - 0.5)});
       if (!out.touched_wall) out.touched_wall = touching_wall(i);
     }
     out.peak_speed_mps = peak_speed_u / units_per_m;

@@ -33,6 +33,7 @@ struct MoveResult {
   bool settled = false;            ///< ended within tolerance of the commanded cell's centre
   bool touched_wall = false;       ///< touched a wall during the move
   double peak_speed_mps = 0.0;     ///< highest speed reached during the move, metres per second
+  double beyond_border_px = 0.0;   ///< farthest the centre got past the border pixels' centres during the move, pixels (0: never)
 };
 
 /// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical

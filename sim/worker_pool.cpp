@@ -19,11 +19,18 @@ WorkerPool::~WorkerPool() {
 }
 
 void WorkerPool::run_chunks() {
-  for (;;) {
-    const int first = next_.fetch_add(chunk_, std::memory_order_relaxed);
-    if (first >= n_) return;
-    const int last = std::min(first + chunk_, n_);
-    for (int i = first; i < last; ++i) (*body_)(i);
+  try {
+    for (;;) {
+      const int first = next_.fetch_add(chunk_, std::memory_order_relaxed);
+      if (first >= n_) return;
+      const int last = std::min(first + chunk_, n_);
+      for (int i = first; i < last; ++i) call_(context_, i);
+    }
+  } catch (...) {
+    // Keep the first error and let the other threads run out of work quickly.
+    next_.store(n_, std::memory_order_relaxed);
+    std::lock_guard lock(mutex_);
+    if (!error_) error_ = std::current_exception();
   }
 }
 
@@ -44,26 +51,33 @@ void WorkerPool::work() {
   }
 }
 
-void WorkerPool::parallel_for(int n, int chunk, const std::function<void(int)>& body) {
+void WorkerPool::run(int n, int chunk, void* context, Trampoline call) {
   if (n <= 0) return;
   if (workers_.empty() || n <= chunk) {
-    for (int i = 0; i < n; ++i) body(i);
+    for (int i = 0; i < n; ++i) call(context, i);
     return;
   }
   {
     std::lock_guard lock(mutex_);
-    body_ = &body;
+    context_ = context;
+    call_ = call;
     n_ = n;
     chunk_ = std::max(1, chunk);
     next_.store(0, std::memory_order_relaxed);
     busy_ = static_cast<int>(workers_.size());
+    error_ = nullptr;
     ++generation_;
   }
   wake_.notify_all();
   run_chunks();
-  std::unique_lock lock(mutex_);
-  done_.wait(lock, [&] { return busy_ == 0; });
-  body_ = nullptr;
+  std::exception_ptr error;
+  {
+    std::unique_lock lock(mutex_);
+    done_.wait(lock, [&] { return busy_ == 0; });
+    context_ = nullptr;
+    std::swap(error, error_);
+  }
+  if (error) std::rethrow_exception(error);
 }
 
 }  // namespace scout::sim

@@ -6,9 +6,10 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
-#include <functional>
+#include <exception>
 #include <mutex>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace scout::sim {
@@ -24,10 +25,16 @@ class WorkerPool {
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
 
   /// Calls body(i) for every i in [0, n), in chunks of `chunk`, on all threads; returns when all
-  /// are done. The body must not throw.
-  void parallel_for(int n, int chunk, const std::function<void(int)>& body);
+  /// are done. If a call throws, the loop still waits for every thread, then rethrows the first
+  /// exception. No allocation: the body is called through a plain function pointer.
+  template <typename Body>
+  void parallel_for(int n, int chunk, Body&& body) {
+    run(n, chunk, &body, [](void* context, int i) { (*static_cast<std::remove_reference_t<Body>*>(context))(i); });
+  }
 
  private:
+  using Trampoline = void (*)(void* context, int i);
+  void run(int n, int chunk, void* context, Trampoline call);
   void work();
   void run_chunks();
 
@@ -38,10 +45,12 @@ class WorkerPool {
   std::uint64_t generation_ = 0;   // bumped for each loop; workers wait for a new one
   int busy_ = 0;                   // workers still in the current loop
   bool stop_ = false;
-  const std::function<void(int)>* body_ = nullptr;
+  void* context_ = nullptr;
+  Trampoline call_ = nullptr;
   int n_ = 0;
   int chunk_ = 1;
   std::atomic<int> next_{0};
+  std::exception_ptr error_;       // the first exception of the current loop
 };
 
 }  // namespace scout::sim

@@ -16,6 +16,10 @@ const FloorFrame kFloor{28, 28, 0.1};
 // The paper preset: 2 m/s at 0.1 m/px and dt = 1/60 s is 1/3 px per tick.
 RobotParams preset() { return RobotParams{}; }
 
+// How far past the border pixels' centres the centre may get while hitting a wall: the wall
+// margin plus one tick's travel, and always less than half a pixel (it stays on the border pixel).
+const double kImpactBound_px = RobotBatch::wall_margin_px() + 1.0 / 3.0 + 0.01;
+
 MoveResult move_one(RobotBatch& batch, int robot, const Cell& command) {
   std::vector<Cell> commands(static_cast<std::size_t>(robot) + 1, Cell(0, 0));
   commands[robot] = command;
@@ -56,6 +60,32 @@ TEST(RobotBatch, MovesLandOnTheCommandedCellInAllFourDirections) {
   }
 }
 
+TEST(RobotBatch, MovesOntoAndAwayFromEachBorder) {
+  // For each border: onto it by 1 and by 2 pixels, then away from it by 2, and along it.
+  struct Case { Cell start, onto1, onto2, away, along; };
+  const Case cases[] = {
+      {{2, 10}, {-1, 0}, {-1, 0}, {2, 0}, {0, 2}},     // left: 2 -> 1 -> 0 -> 2
+      {{25, 10}, {1, 0}, {1, 0}, {-2, 0}, {0, -2}},    // right: 25 -> 26 -> 27 -> 25
+      {{10, 2}, {0, -1}, {0, -1}, {0, 2}, {2, 0}},     // top
+      {{10, 25}, {0, 1}, {0, 1}, {0, -2}, {-2, 0}},    // bottom
+      {{25, 25}, {0, 2}, {2, 0}, {-2, -2}, {0, 0}},    // onto the corner by 2 on each axis
+  };
+  for (const Case& c : cases) {
+    RobotBatch batch(kFloor, preset(), 1);
+    batch.place(0, c.start);
+    Cell expected = c.start;
+    for (const Cell& step : {c.onto1, c.onto2, c.away, c.along}) {
+      const MoveResult r = move_one(batch, 0, step);
+      expected += step;
+      ASSERT_TRUE(kFloor.contains(expected));
+      EXPECT_TRUE(r.settled) << "to " << expected.transpose();
+      EXPECT_FALSE(r.touched_wall) << "to " << expected.transpose();
+      EXPECT_EQ(r.beyond_border_px, 0.0);
+      expect_on_cell_centre(batch, 0, expected);
+    }
+  }
+}
+
 TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
   // Drive along all four borders, and from near each border onto it.
   RobotBatch batch(kFloor, preset(), 1);
@@ -81,6 +111,7 @@ TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
 }
 
 TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
+  ASSERT_LT(kImpactBound_px, 0.5);  // the bound itself keeps the centre on the border pixel
   const struct { Cell start, command; } cases[] = {
       {{0, 14}, {-2, 0}}, {{1, 14}, {-5, 0}}, {{27, 3}, {2, 0}}, {{14, 0}, {0, -2}},
       {{14, 27}, {0, 2}}, {{27, 27}, {3, 3}}, {{26, 1}, {40, -40}}};
@@ -90,6 +121,10 @@ TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
     const MoveResult r = move_one(batch, 0, c.command);
     EXPECT_TRUE(r.touched_wall) << c.start.transpose();
     EXPECT_TRUE(batch.touching_wall(0));
+    // At no tick did the centre leave the border pixel: during the impact it may sink one tick's
+    // travel (1/3 px) into the wall's contact skin before the contact pushes it back.
+    EXPECT_GT(r.beyond_border_px, 0.0);
+    EXPECT_LE(r.beyond_border_px, kImpactBound_px) << c.start.transpose();
     EXPECT_FALSE(r.settled);  // the target is unreachable
     EXPECT_EQ(r.ticks, preset().max_ticks_per_move);
     // The centre stays on the floor's border pixels: within the wall margin of their centres.
@@ -142,11 +177,9 @@ TEST(RobotBatch, AFastRobotDoesNotTunnelThroughTheWall) {
     const MoveResult r = move_one(batch, 0, command);
     EXPECT_TRUE(r.touched_wall);
     EXPECT_GT(r.peak_speed_mps, 10.0);
-    const Eigen::Vector2d at = batch.position_px(0);
-    EXPECT_GT(at.x(), 0.0);
-    EXPECT_LT(at.x(), 28.0);
-    EXPECT_GT(at.y(), 0.0);
-    EXPECT_LT(at.y(), 28.0);
+    // Continuous collision stops it at the wall within the tick: never off the floor, at any tick.
+    EXPECT_LT(r.beyond_border_px, 0.5) << command.transpose();
+    EXPECT_LE(r.beyond_border_px, RobotBatch::wall_margin_px() + 0.05) << command.transpose();
   }
 }
 
@@ -160,6 +193,7 @@ TEST(RobotBatch, NeverLeavesTheFloorUnderRandomPushes) {
     for (Cell& c : commands) c = Cell(static_cast<int>(rng() % 41) - 20, static_cast<int>(rng() % 41) - 20);
     batch.move(commands, results);
     for (int i = 0; i < 8; ++i) {
+      ASSERT_LE(results[i].beyond_border_px, kImpactBound_px);
       const Eigen::Vector2d at = batch.position_px(i);
       ASSERT_GT(at.x(), 0.0);
       ASSERT_LT(at.x(), 28.0);

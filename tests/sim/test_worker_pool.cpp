@@ -1,0 +1,41 @@
+// The worker pool under the robot batch: every index once, any thread count, errors carried home.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <vector>
+
+#include "sim/worker_pool.hpp"
+
+namespace scout::sim {
+namespace {
+
+TEST(WorkerPool, CallsEveryIndexExactlyOnce) {
+  for (int threads : {1, 2, 3}) {
+    WorkerPool pool(threads);
+    EXPECT_EQ(pool.threads(), threads);
+    for (int n : {0, 1, 7, 8, 9, 240, 1001}) {
+      std::vector<std::atomic<int>> calls(static_cast<std::size_t>(n));
+      pool.parallel_for(n, 8, [&](int i) { calls[i].fetch_add(1); });
+      for (int i = 0; i < n; ++i) ASSERT_EQ(calls[i].load(), 1) << "n " << n << " index " << i;
+    }
+  }
+}
+
+TEST(WorkerPool, RethrowsTheErrorAfterAllThreadsStopped) {
+  WorkerPool pool(2);
+  std::atomic<int> after{0};
+  EXPECT_THROW(pool.parallel_for(1000, 4,
+                                 [&](int i) {
+                                   if (i == 500) throw std::runtime_error("robot 500");
+                                   after.fetch_add(1);
+                                 }),
+               std::runtime_error);
+  // The pool is still usable, and the failed loop's error does not leak into the next one.
+  std::atomic<int> count{0};
+  pool.parallel_for(100, 4, [&](int) { count.fetch_add(1); });
+  EXPECT_EQ(count.load(), 100);
+}
+
+}  // namespace
+}  // namespace scout::sim
