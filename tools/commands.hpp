@@ -2,10 +2,14 @@
 // The subcommands of `scout`. Each adds itself to the CLI and runs when chosen; errors are
 // thrown (InputError for what the user can fix) and reported once by main().
 #include <cstdint>
+#include <memory>
 #include <string>
 
+#include <CLI/Error.hpp>
 #include <CLI/Validators.hpp>
 #include <vector>
+
+#include "learn/rollout.hpp"
 
 namespace CLI { class App; }
 
@@ -19,7 +23,8 @@ struct Context {
 /// Thrown between units of work after SIGINT or SIGTERM, so that output folders are cleaned up
 /// by unwinding; main() exits with status 130.
 struct Interrupted {};
-/// Installs the SIGINT / SIGTERM handler (once, from main).
+/// Installs the SIGINT / SIGTERM handler, for commands that check throw_if_interrupted() between
+/// units of work; other commands keep the default (the process ends at once).
 void install_interrupt_handler();
 /// Throws Interrupted if a signal has arrived.
 void throw_if_interrupted();
@@ -28,6 +33,13 @@ void throw_if_interrupted();
 std::uint64_t parse_seed(const std::string& text);
 /// CLI11 check for --seed, so that a bad seed is a usage error (exit 2).
 CLI::Validator seed_validator();
+/// CLI11 check for an integer option: plain decimal digits (CLI11 itself would read 010 as
+/// octal and 0x2 as hexadecimal) in [lo, hi].
+CLI::Validator decimal_in(long long lo, long long hi);
+
+/// The rollout engine for a world, with a camera failure (no OSMesa context: an environment
+/// problem, not a bug) reported as an error of exit status 1.
+std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const sim::FloorFrame& frame, int robots);
 
 void add_run_command(CLI::App& app, const Context& context);
 void add_data_command(CLI::App& app, const Context& context);

@@ -43,6 +43,20 @@ CLI::Validator scout::tools::seed_validator() {
       "UINT64");
 }
 
+CLI::Validator scout::tools::decimal_in(long long lo, long long hi) {
+  const std::string expected = "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+  return CLI::Validator(
+      [lo, hi, expected](std::string& text) -> std::string {
+        long long value = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+        const bool plain = !text.empty() && ptr == end && ec == std::errc() && (text.size() == 1 || text[0] != '0');
+        if (!plain || value < lo || value > hi) return expected + ", got '" + text + "'";
+        return {};
+      },
+      "INT in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+}
+
 void scout::tools::install_interrupt_handler() {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -1,5 +1,7 @@
 #include "tools/output.hpp"
 
+#include "tools/commands.hpp"
+
 #include <unistd.h>
 
 #include <chrono>
@@ -90,6 +92,8 @@ void OutputDir::commit() {
     return;
   }
   if (!overwrite_) throw InputError("--out: " + display_ + " appeared while running; not replaced");
+  if (!fs::is_empty(target_, ec) && !fs::exists(target_ / "manifest.json", ec))
+    throw InputError("--out: " + display_ + " changed while running and holds no manifest.json; not replaced");
   // Old output aside, new output in, old output gone: at every moment one complete folder exists.
   const fs::path old = target_.parent_path() / fmt::format(".{}.old-{}", target_.filename().string(), unique_suffix());
   fs::rename(target_, old, ec);
@@ -102,6 +106,15 @@ void OutputDir::commit() {
   }
   committed_ = true;
   fs::remove_all(old, ec);
+}
+
+std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const sim::FloorFrame& frame,
+                                                 int robots) {
+  try {
+    return std::make_unique<learn::RolloutEngine>(world, frame, robots);
+  } catch (const std::runtime_error& e) {
+    throw InputError(std::string("the camera cannot start: ") + e.what());
+  }
 }
 
 void write_file_atomic(const fs::path& file, const std::string& text) {

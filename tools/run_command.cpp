@@ -146,7 +146,8 @@ void run_command(const RunOptions& opt, const Context& context) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
   const int batch_robots = std::min(opt.count, kBatchRobots);
-  learn::RolloutEngine engine(world, frame, batch_robots);
+  const auto engine_owner = make_engine(world, frame, batch_robots);
+  learn::RolloutEngine& engine = *engine_owner;
   const fs::path images_dir = out.path() / "images";
   if (!opt.no_images) fs::create_directories(images_dir);
 
@@ -213,12 +214,15 @@ void add_run_command(CLI::App& app, const Context& context) {
   cmd->add_option("--seed", opt->seed, "Seed, an integer in [0, 2^64 - 1] (overrides the world file's)")
       ->check(seed_validator());
   cmd->add_option("--count", opt->count, "Number of rollouts (each on its own digit with index: random)")
-      ->check(CLI::Range(1, 1000000));
+      ->check(decimal_in(1, 1000000));
   cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
-  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->check(CLI::Range(1, 64));
+  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->check(decimal_in(1, 64));
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing --out folder");
   cmd->add_flag("--no-images", opt->no_images, "Skip the PNG snapshots");
-  cmd->callback([opt, &context] { run_command(*opt, context); });
+  cmd->callback([opt, &context] {
+    install_interrupt_handler();
+    run_command(*opt, context);
+  });
 }
 
 }  // namespace scout::tools

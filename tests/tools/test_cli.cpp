@@ -293,6 +293,26 @@ TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
   EXPECT_EQ(read_json(path("out2") + "/trajectory.json")["runs"], read_json(path("out") + "/trajectory.json")["runs"]);
 }
 
+TEST_F(Cli, AnInterruptedBenchWritesNoReport) {
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const std::string world_file = world("fashion.yaml"), report = path("b.json");
+    std::freopen("/dev/null", "w", stderr);
+    std::freopen("/dev/null", "w", stdout);
+    execl(SCOUT_BINARY, SCOUT_BINARY, "bench", "sim", "--world", world_file.c_str(), "--repeats", "10000", "--json",
+          report.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  usleep(1500 * 1000);  // well into the timing loops (10,000 repeats take minutes)
+  kill(child, SIGTERM);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_FALSE(fs::exists(path("b.json")));
+}
+
 TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   // A run far too long to finish, interrupted once it is writing: exit 130, no --out folder, no
   // staging folder.
@@ -322,6 +342,24 @@ TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   EXPECT_EQ(WEXITSTATUS(status), 130);
   EXPECT_FALSE(fs::exists(path("out")));
   EXPECT_TRUE(fs::is_empty(dir_)) << "a staging folder was left behind";
+}
+
+TEST_F(Cli, BenchReportsItsFiguresAsJson) {
+  const Result r = scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 3 --json " + path("b.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("physics + camera"), std::string::npos) << r.output;
+  const json b = read_json(path("b.json"));
+  EXPECT_EQ(b["robots"], 8);
+  EXPECT_EQ(b["moves_per_rollout"], 20);
+  for (const char* part : {"physics_and_camera", "physics", "camera", "cpu_crop"}) {
+    EXPECT_GT(b["median_ms"][part].get<double>(), 0.0) << part;
+  }
+  // Driven, not teleported: a 1- or 2-px move at 1/3 px per tick takes 3 to 6 ticks.
+  EXPECT_GE(b["ticks_per_driving_move"].get<double>(), 3.0);
+  EXPECT_LE(b["ticks_per_driving_move"].get<double>(), 6.5);
+  EXPECT_GT(b["peak_speed_mps"].get<double>(), 1.9);
+  EXPECT_LE(b["peak_speed_mps"].get<double>(), 2.0 + 1e-4);
+  EXPECT_FALSE(b["manifest"]["git_commit"].get<std::string>().empty());
 }
 
 TEST_F(Cli, HelpVersionAndUsageErrors) {
