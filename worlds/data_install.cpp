@@ -49,6 +49,17 @@ constexpr std::array<const char*, 6> kIdxFiles = {
     "train-images-idx3-ubyte",      "train-labels-idx1-ubyte", "validation-images-idx3-ubyte",
     "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte",  "t10k-labels-idx1-ubyte"};
 
+// The SHA-256 of each file above as this project defines them: an index must always name the
+// same digit, on every machine and after every change to the code, or results stop being
+// comparable. A change to the conversion or the split that alters them fails the install.
+constexpr std::array<const char*, 6> kPinnedSha256 = {
+    "8d5b4cf05c51074183119965519e14028e0ef5e18308bfb0d49e4bcbd9417300",
+    "7a3b1a76051a5d0af5221c9ce902b65e492b54242ee2af273d773422ce0d72bf",
+    "43505cab763d80350ccc71c5b1445cdaeedd06ac500c302da11b7f90383c4560",
+    "79e9993bc1fb4c089a37bd31665125623c2fe81186f66b0470c1d7d48fb17b7e",
+    "8bfb7371a4e67d437a6cff635345b4a6d2db593b444dbb204eca42222b1fb70e",
+    "19cc5a78096d7b24cdf3cc4f6882c7f72bf91fcdc530c40936f1115581c9ae55"};
+
 // A private folder under data_root (same file system as the output) that is removed on every
 // exit path, failures included.
 class TempDir {
@@ -303,9 +314,11 @@ bool installed_unchecked(const fs::path& folder, DataInstallReport& report) {
     return false;
   if (!doc.contains("files") || !doc["files"].is_object()) return false;
   const json& files = doc["files"];
-  for (const char* name : kIdxFiles) {
-    if (!files.contains(name) || !files[name].is_string()) return false;
-    if (sha256_file(folder / name) != files[name].get<std::string>()) return false;
+  for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
+    const char* name = kIdxFiles[k];
+    if (!files.contains(name) || !files[name].is_string() || files[name].get<std::string>() != kPinnedSha256[k])
+      return false;
+    if (sha256_file(folder / name) != kPinnedSha256[k]) return false;
   }
   report.train = static_cast<int>(read_idx_labels(folder / "train-labels-idx1-ubyte").size());
   report.validation = static_cast<int>(read_idx_labels(folder / "validation-labels-idx1-ubyte").size());
@@ -431,7 +444,14 @@ DataInstallReport install(const fs::path& data_root) {
   write_split(report.folder, "t10k", digits, held_out[1]);
 
   json files = json::object();
-  for (const char* name : kIdxFiles) files[name] = sha256_file(report.folder / name);
+  for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
+    const std::string digest = sha256_file(report.folder / kIdxFiles[k]);
+    if (digest != kPinnedSha256[k])
+      throw InputError(fmt::format("{}: SHA-256 {} differs from the project's pinned {}: the conversion or the split "
+                                   "changed, so indices would name other digits",
+                                   (report.folder / kIdxFiles[k]).string(), digest, kPinnedSha256[k]));
+    files[kIdxFiles[k]] = digest;
+  }
   const json source = {
       {"package", kPackage},
       {"integrity", kIntegrity},
