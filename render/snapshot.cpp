@@ -27,12 +27,9 @@ const cv::Scalar kTextColour(230, 230, 230);
 constexpr int kMaxScale = 64;
 constexpr int kMaxSidePx = kMaxPictureSidePx;
 
-// Unseen pixels keep a faint trace of the image under a blue-grey tint. Blue always exceeds red
-// by at least 25, so an unseen pixel can never look like any seen (gray) one, black included.
-cv::Vec3b unseen_colour(std::uint8_t gray) {
-  return {static_cast<std::uint8_t>(70 + gray / 4), static_cast<std::uint8_t>(52 + gray / 5),
-          static_cast<std::uint8_t>(45 + gray / 7)};
-}
+// Unseen pixels are one flat blue-grey: the picture shows what the robot knows and nothing
+// more. Blue exceeds red, so an unseen pixel never looks like a seen (gray) one, black included.
+cv::Vec3b unseen_colour(std::uint8_t /*gray*/) { return {70, 52, 45}; }
 
 // Draws the outline of a floor window (columns x - floor(m/2) .. + m - 1, same rows), clipped to
 // the floor, as bands `thickness` output pixels wide lying inside the window, so that the

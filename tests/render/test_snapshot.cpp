@@ -92,6 +92,9 @@ TEST(DrawSnapshot, SeenPixelsAreTheirGrayValueAndUnseenOnesAreShaded) {
           } else {
             EXPECT_FALSE(is_gray(c, value)) << "unseen (" << x << ", " << y << ")";
             EXPECT_GT(c.b, c.r) << "unseen (" << x << ", " << y << ") is tinted blue-grey";
+            // ... and flat: nothing of the hidden image shows through.
+            const Bgr corner = pixel(picture, Scene::kWidth * s - 1, 0);  // another unseen pixel
+            EXPECT_TRUE(c.b == corner.b && c.g == corner.g && c.r == corner.r) << "unseen (" << x << ", " << y << ")";
           }
         }
       }
