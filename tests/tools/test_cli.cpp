@@ -1,6 +1,8 @@
 // The `scout` program end to end: real world files, real data, real Box2D and OSMesa.
 #include <gtest/gtest.h>
 
+#include "tests/support/temp_dir.hpp"
+
 #include <cstdlib>
 
 #include <signal.h>
@@ -44,12 +46,8 @@ Result scout(const std::string& args) {
 
 class Cli : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("scout_cli_" + std::to_string(rd()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  scout::testing::TempDir temp_{"scout_cli"};
+  const fs::path dir_ = temp_.path();
 
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   std::string world(const std::string& name) const { return std::string(SCOUT_SOURCE_DIR) + "/worlds/" + name; }
@@ -72,7 +70,6 @@ class Cli : public ::testing::Test {
     return json::parse(in);
   }
 
-  fs::path dir_;
 };
 
 TEST_F(Cli, RunWritesTrajectoryImagesAndManifest) {

@@ -4,6 +4,8 @@
 // Fashion-MNIST.
 #include <gtest/gtest.h>
 
+#include "tests/support/temp_dir.hpp"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -36,17 +38,8 @@ constexpr std::array<int, 10> kMnistClassCounts = {1001, 1127, 991, 1032, 980, 8
 
 class TempFolder : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("scout-dataset-" + std::string(info->name()) + "-" + std::to_string(std::random_device{}()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  fs::path dir_;
+  scout::testing::TempDir temp_{"scout_dataset"};
+  const fs::path dir_ = temp_.path();
 };
 
 Bytes mnist_like_labels() {

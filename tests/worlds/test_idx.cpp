@@ -1,6 +1,8 @@
 // IDX reading and writing against real files: round trips (raw and gzip) and every kind of bad
 // file, each of which must give one InputError line naming the file and the problem.
 #include <gtest/gtest.h>
+
+#include "tests/support/temp_dir.hpp"
 #include <zlib.h>
 
 #include <cstdint>
@@ -23,17 +25,8 @@ using Bytes = std::vector<std::uint8_t>;
 // A fresh folder per test under the system's temporary directory, removed afterwards.
 class IdxFiles : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("scout-idx-" + std::string(info->name()) + "-" + std::to_string(std::random_device{}()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  fs::path dir_;
+  scout::testing::TempDir temp_{"scout_idx"};
+  const fs::path dir_ = temp_.path();
 };
 
 ImageSet sample_images(int count, int rows, int cols, unsigned seed) {

@@ -2,6 +2,8 @@
 // prefix, floor-size checks, path resolution and the to_yaml round trip.
 #include <gtest/gtest.h>
 
+#include "tests/support/temp_dir.hpp"
+
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -19,35 +21,7 @@ namespace fs = std::filesystem;
 
 const fs::path kSource = SCOUT_SOURCE_DIR;
 
-/// A fresh folder per test, removed afterwards: real files where a file path matters.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("scout_world_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  const fs::path& path() const { return path_; }
-
-  fs::path write(const fs::path& relative, const std::string& text) const {
-    const fs::path file = path_ / relative;
-    fs::create_directories(file.parent_path());
-    std::ofstream(file, std::ios::binary) << text;
-    return file;
-  }
-
- private:
-  fs::path path_;
-};
+using scout::testing::TempDir;
 
 /// The message parse_world throws for `text`; fails the test if it accepts it.
 std::string error_of(const std::string& text, const fs::path& origin = "w.yaml") {
