@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
-#include <string>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "render/camera.hpp"
@@ -21,11 +21,11 @@ namespace scout::learn {
 struct BatchState {
   sim::FloorFrame frame;
   int patch_px = 0;
-  int count = 0;                          ///< robots in this rollout batch
-  std::vector<sim::Cell> pose;            ///< grid pose of the actual position, per robot
-  std::vector<sim::Cell> goal;            ///< current goal per robot
-  std::vector<sim::RevealMask> seen;      ///< pixels seen so far, per robot (h = 1 - seen)
-  std::vector<std::uint8_t> observed;     ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
+  int count = 0;                       ///< robots in this rollout batch
+  std::vector<sim::Cell> pose;         ///< grid pose of the actual position, per robot
+  std::vector<sim::Cell> goal;         ///< current goal per robot
+  std::vector<sim::RevealMask> seen;   ///< pixels seen so far, per robot (h = 1 - seen)
+  std::vector<std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
 
   const std::uint8_t* observed_image(int robot) const {
     return observed.data() + static_cast<std::size_t>(robot) * frame.area_px();
@@ -60,22 +60,22 @@ struct StepRecord {
   int episode = 0;
   int step = 0;
   sim::Cell goal;
-  sim::Axis axis = sim::Axis::None;       ///< the axis moved along (None: at the goal, no move)
-  bool sampled = false;                   ///< the axis was chosen by the policy (chi = 1)
-  sim::Cell command;                      ///< commanded move, pixels
-  sim::MoveResult result;                 ///< ticks, settled, wall contact, peak speed
-  Eigen::Vector2d pose_m;                 ///< actual centre after the move, metres (floor frame)
-  sim::Cell grid_pose;                    ///< grid pose after the move
-  int revealed_px = 0;                    ///< pixels seen so far, cumulative
+  sim::Axis axis = sim::Axis::None;  ///< the axis moved along (None: at the goal, no move)
+  bool sampled = false;              ///< the axis was chosen by the policy (chi = 1)
+  sim::Cell command;                 ///< commanded move, pixels
+  sim::MoveResult result;            ///< ticks, settled, wall contact, peak speed
+  Eigen::Vector2d pose_m;            ///< actual centre after the move, metres (floor frame)
+  sim::Cell grid_pose;               ///< grid pose after the move
+  int revealed_px = 0;               ///< pixels seen so far, cumulative
 };
 
 /// The state shown by one trajectory image.
 struct SnapshotRecord {
-  int episode = 0;                        ///< episode about to start (E for the final image)
+  int episode = 0;  ///< episode about to start (E for the final image)
   sim::Cell robot;
   std::optional<sim::Cell> goal;
-  std::vector<std::uint8_t> seen;         ///< H * W, 1 where seen
-  std::size_t path_length = 0;            ///< poses of RolloutRecord::path visited so far
+  std::vector<std::uint8_t> seen;  ///< H * W, 1 where seen
+  std::size_t path_length = 0;     ///< poses of RolloutRecord::path visited so far
 };
 
 /// Everything one robot did in one rollout.
@@ -91,8 +91,8 @@ struct RolloutTiming {
   double physics_s = 0;
   double render_s = 0;
   double other_s = 0;
-  long moves = 0;                          ///< agent-steps: moves x robots
-  long ticks = 0;                          ///< Box2D ticks summed over robots
+  long moves = 0;  ///< agent-steps: moves x robots
+  long ticks = 0;  ///< Box2D ticks summed over robots
   double peak_speed_mps = 0;
 };
 
@@ -126,8 +126,8 @@ class RolloutEngine {
   BatchState state_;
   std::unique_ptr<sim::RobotBatch> robots_;
   std::unique_ptr<render::PatchCamera> camera_;
-  std::vector<std::uint8_t> patches_;      // camera read-back
-  std::vector<sim::Cell> commands_;        // per-move scratch, sized once per batch
+  std::vector<std::uint8_t> patches_;  // camera read-back
+  std::vector<sim::Cell> commands_;    // per-move scratch, sized once per batch
   std::vector<sim::MoveResult> results_;
   std::vector<std::uint8_t> need_;
   std::vector<sim::Axis> axes_;

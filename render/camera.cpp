@@ -137,8 +137,7 @@ GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const 
   if (ok != GL_TRUE) {
     std::string log = shader_log(shader);
     glDeleteShader(shader);
-    throw std::runtime_error(std::string("PatchCamera: the ") + name +
-                             " shader does not compile: " + log);
+    throw std::runtime_error(std::string("PatchCamera: the ") + name + " shader does not compile: " + log);
   }
   return shader;
 }
@@ -146,6 +145,10 @@ GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const 
 void require(bool condition, const std::string& message) {
   if (!condition) throw std::invalid_argument("PatchCamera: " + message);
 }
+
+// For the per-call checks: the message is only built when the check fails, so that a capture
+// that passes them allocates nothing.
+[[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("PatchCamera: " + message); }
 
 }  // namespace
 
@@ -232,19 +235,16 @@ struct PatchCamera::Impl {
     GLint ok = GL_FALSE;
     glGetProgramiv(program, GL_LINK_STATUS, &ok);
     if (ok != GL_TRUE) {
-      throw std::runtime_error("PatchCamera: the shader program does not link: " +
-                               program_log(program));
+      throw std::runtime_error("PatchCamera: the shader program does not link: " + program_log(program));
     }
     glUseProgram(program);
     glUniform1i(glGetUniformLocation(program, "tile_columns"), tile_columns);
     glUniform1i(glGetUniformLocation(program, "patch_px"), patch_px);
-    glUniform2f(glGetUniformLocation(program, "framebuffer_px"),
-                static_cast<float>(framebuffer_width_px),
+    glUniform2f(glGetUniformLocation(program, "framebuffer_px"), static_cast<float>(framebuffer_width_px),
                 static_cast<float>(framebuffer_height_px));
     // Unused uniforms are optimised away; glUniform* at location -1 is a no-op.
     glUniform2i(glGetUniformLocation(program, "floor_px"), floor_width_px, floor_height_px);
-    glUniform2f(glGetUniformLocation(program, "inverse_floor_px"),
-                1.0f / static_cast<float>(floor_width_px),
+    glUniform2f(glGetUniformLocation(program, "inverse_floor_px"), 1.0f / static_cast<float>(floor_width_px),
                 1.0f / static_cast<float>(floor_height_px));
     glUniform1i(glGetUniformLocation(program, "floors_per_layer"), floors_per_layer);
     glUniform1i(glGetUniformLocation(program, "floors"), 0);
@@ -255,8 +255,7 @@ struct PatchCamera::Impl {
     glBindVertexArray(vertex_array);
     glGenBuffers(1, &pose_buffer);
     glBindBuffer(GL_ARRAY_BUFFER, pose_buffer);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose), nullptr,
-                 GL_STREAM_DRAW);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose), nullptr, GL_STREAM_DRAW);
     glEnableVertexAttribArray(0);
     glVertexAttribIPointer(0, 2, GL_INT, sizeof(PixelPose), nullptr);
 
@@ -269,14 +268,12 @@ struct PatchCamera::Impl {
     layers = (max_robots + floors_per_layer - 1) / floors_per_layer;
     if (static_cast<long long>(floors_per_layer) * floor_height_px > max_texture_px) {
       throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " floors of " +
-                               std::to_string(floor_height_px) +
-                               " rows do not fit the GL texture limits");
+                               std::to_string(floor_height_px) + " rows do not fit the GL texture limits");
     }
     glActiveTexture(GL_TEXTURE0);
     glGenTextures(1, &floor_texture);
     glBindTexture(GL_TEXTURE_2D_ARRAY, floor_texture);
-    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, floor_width_px,
-                   floor_height_px * floors_per_layer, layers);
+    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, floor_width_px, floor_height_px * floors_per_layer, layers);
     // Nearest at texel centres is the exact crop; the zero border is the off-floor black.
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
@@ -288,9 +285,8 @@ struct PatchCamera::Impl {
     GLint max_renderbuffer_px = 0;
     glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
     if (framebuffer_width_px > max_renderbuffer_px || framebuffer_height_px > max_renderbuffer_px) {
-      throw std::runtime_error(
-          "PatchCamera: a tile grid of " + std::to_string(framebuffer_width_px) + " x " +
-          std::to_string(framebuffer_height_px) + " px exceeds the GL renderbuffer limit");
+      throw std::runtime_error("PatchCamera: a tile grid of " + std::to_string(framebuffer_width_px) + " x " +
+                               std::to_string(framebuffer_height_px) + " px exceeds the GL renderbuffer limit");
     }
     glGenRenderbuffers(1, &colour_buffer);
     glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
@@ -335,17 +331,13 @@ struct PatchCamera::Impl {
 PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots)
     : impl_(std::make_unique<Impl>()) {
   require(floor_width_px > 0 && floor_width_px <= kMaxFloorPx,
-          "floor width must be 1.." + std::to_string(kMaxFloorPx) + " px, got " +
-              std::to_string(floor_width_px));
+          "floor width must be 1.." + std::to_string(kMaxFloorPx) + " px, got " + std::to_string(floor_width_px));
   require(floor_height_px > 0 && floor_height_px <= kMaxFloorPx,
-          "floor height must be 1.." + std::to_string(kMaxFloorPx) + " px, got " +
-              std::to_string(floor_height_px));
-  require(patch_px > 0 && patch_px <= kMaxPatchPx, "patch size must be 1.." +
-                                                       std::to_string(kMaxPatchPx) + " px, got " +
-                                                       std::to_string(patch_px));
-  require(max_robots > 0 && max_robots <= kMaxRobots, "max_robots must be 1.." +
-                                                          std::to_string(kMaxRobots) + ", got " +
-                                                          std::to_string(max_robots));
+          "floor height must be 1.." + std::to_string(kMaxFloorPx) + " px, got " + std::to_string(floor_height_px));
+  require(patch_px > 0 && patch_px <= kMaxPatchPx,
+          "patch size must be 1.." + std::to_string(kMaxPatchPx) + " px, got " + std::to_string(patch_px));
+  require(max_robots > 0 && max_robots <= kMaxRobots,
+          "max_robots must be 1.." + std::to_string(kMaxRobots) + ", got " + std::to_string(max_robots));
   Impl& impl = *impl_;
   impl.floor_width_px = floor_width_px;
   impl.floor_height_px = floor_height_px;
@@ -362,8 +354,7 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
     impl.create_buffers();
     impl.create_program();
     if (GLenum error = glGetError(); error != GL_NO_ERROR) {
-      throw std::runtime_error("PatchCamera: GL error " + std::to_string(error) +
-                               " while setting up");
+      throw std::runtime_error("PatchCamera: GL error " + std::to_string(error) + " while setting up");
     }
   } catch (...) {
     impl.release();
@@ -377,50 +368,45 @@ PatchCamera::~PatchCamera() {
 
 void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
   Impl& impl = *impl_;
-  require(count > 0 && count <= impl.max_robots, "load_floors: count must be 1.." +
-                                                     std::to_string(impl.max_robots) + ", got " +
-                                                     std::to_string(count));
-  const std::size_t floor_bytes = static_cast<std::size_t>(impl.floor_width_px) *
-                                  static_cast<std::size_t>(impl.floor_height_px);
-  require(floors.size() == floor_bytes * static_cast<std::size_t>(count),
-          "load_floors: expected " + std::to_string(count) + " floors of " +
-              std::to_string(impl.floor_width_px) + " x " + std::to_string(impl.floor_height_px) +
-              " = " + std::to_string(floor_bytes * static_cast<std::size_t>(count)) +
-              " bytes, got " + std::to_string(floors.size()));
+  if (!(count > 0 && count <= impl.max_robots))
+    fail("load_floors: count must be 1.." + std::to_string(impl.max_robots) + ", got " + std::to_string(count));
+  const std::size_t floor_bytes =
+      static_cast<std::size_t>(impl.floor_width_px) * static_cast<std::size_t>(impl.floor_height_px);
+  if (!(floors.size() == floor_bytes * static_cast<std::size_t>(count)))
+    fail("load_floors: expected " + std::to_string(count) + " floors of " + std::to_string(impl.floor_width_px) +
+         " x " + std::to_string(impl.floor_height_px) + " = " +
+         std::to_string(floor_bytes * static_cast<std::size_t>(count)) + " bytes, got " +
+         std::to_string(floors.size()));
   impl.make_current();
   // Floors stacked in a layer are contiguous in memory, so whole layers go up in one call; only
   // a final, partly filled layer (possible when floors_per_layer > 1) needs a second.
   const int whole_layers = count / impl.floors_per_layer;
   const int rest = count % impl.floors_per_layer;
   if (whole_layers > 0) {
-    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, impl.floor_width_px,
-                    impl.floor_height_px * impl.floors_per_layer, whole_layers, GL_RED,
-                    GL_UNSIGNED_BYTE, floors.data());
+    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, impl.floor_width_px, impl.floor_height_px * impl.floors_per_layer,
+                    whole_layers, GL_RED, GL_UNSIGNED_BYTE, floors.data());
   }
   if (rest > 0) {
-    const std::size_t offset = floor_bytes * static_cast<std::size_t>(whole_layers) *
-                               static_cast<std::size_t>(impl.floors_per_layer);
-    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px,
-                    impl.floor_height_px * rest, 1, GL_RED, GL_UNSIGNED_BYTE,
-                    floors.data() + offset);
+    const std::size_t offset =
+        floor_bytes * static_cast<std::size_t>(whole_layers) * static_cast<std::size_t>(impl.floors_per_layer);
+    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest, 1,
+                    GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
   }
   impl.floors_loaded = count;
 }
 
 void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches) {
   Impl& impl = *impl_;
-  const std::size_t patch_bytes =
-      static_cast<std::size_t>(impl.patch_px) * static_cast<std::size_t>(impl.patch_px);
-  require(poses.size() <= static_cast<std::size_t>(impl.max_robots),
-          "capture: " + std::to_string(poses.size()) + " poses exceed max_robots " +
-              std::to_string(impl.max_robots));
-  require(poses.size() <= static_cast<std::size_t>(impl.floors_loaded),
-          "capture: " + std::to_string(poses.size()) + " poses but only " +
-              std::to_string(impl.floors_loaded) + " floors loaded");
-  require(patches.size() == poses.size() * patch_bytes,
-          "capture: patches must hold " + std::to_string(poses.size() * patch_bytes) + " bytes (" +
-              std::to_string(poses.size()) + " patches of " + std::to_string(impl.patch_px) +
-              " x " + std::to_string(impl.patch_px) + "), got " + std::to_string(patches.size()));
+  const std::size_t patch_bytes = static_cast<std::size_t>(impl.patch_px) * static_cast<std::size_t>(impl.patch_px);
+  if (!(poses.size() <= static_cast<std::size_t>(impl.max_robots)))
+    fail("capture: " + std::to_string(poses.size()) + " poses exceed max_robots " + std::to_string(impl.max_robots));
+  if (!(poses.size() <= static_cast<std::size_t>(impl.floors_loaded)))
+    fail("capture: " + std::to_string(poses.size()) + " poses but only " + std::to_string(impl.floors_loaded) +
+         " floors loaded");
+  if (!(patches.size() == poses.size() * patch_bytes))
+    fail("capture: patches must hold " + std::to_string(poses.size() * patch_bytes) + " bytes (" +
+         std::to_string(poses.size()) + " patches of " + std::to_string(impl.patch_px) + " x " +
+         std::to_string(impl.patch_px) + "), got " + std::to_string(patches.size()));
   if (poses.empty()) return;
   impl.make_current();
 
@@ -431,16 +417,14 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
   // Only the tile rows that hold drawn tiles are read.
   const int used_tile_rows = (robots + impl.tile_columns - 1) / impl.tile_columns;
   const int width = impl.framebuffer_width_px;
-  glReadPixels(0, 0, width, used_tile_rows * impl.patch_px, GL_RED, GL_UNSIGNED_BYTE,
-               impl.read_back.data());
+  glReadPixels(0, 0, width, used_tile_rows * impl.patch_px, GL_RED, GL_UNSIGNED_BYTE, impl.read_back.data());
 
   const std::size_t m = static_cast<std::size_t>(impl.patch_px);
   std::uint8_t* out = patches.data();
   for (int robot = 0; robot < robots; ++robot) {
     const std::size_t tile_x = static_cast<std::size_t>(robot % impl.tile_columns) * m;
     const std::size_t tile_y = static_cast<std::size_t>(robot / impl.tile_columns) * m;
-    const std::uint8_t* tile =
-        impl.read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
+    const std::uint8_t* tile = impl.read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
     for (std::size_t row = 0; row < m; ++row) {
       std::memcpy(out, tile + row * static_cast<std::size_t>(width), m);
       out += m;
@@ -454,8 +438,8 @@ int PatchCamera::max_robots() const { return impl_->max_robots; }
 
 std::string PatchCamera::gl_description() const { return impl_->description; }
 
-void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px,
-                PixelPose pose, std::uint8_t* patch_out) {
+void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px, PixelPose pose,
+                std::uint8_t* patch_out) {
   // 64-bit so that any int pose is safe; off-floor pixels are 0.
   const long long left = static_cast<long long>(pose.x) - patch_px / 2;
   const long long top = static_cast<long long>(pose.y) - patch_px / 2;
@@ -464,8 +448,7 @@ void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_
     for (int column = 0; column < patch_px; ++column) {
       const long long x = left + column;
       const bool on_floor = x >= 0 && x < floor_width_px && y >= 0 && y < floor_height_px;
-      patch_out[row * patch_px + column] =
-          on_floor ? floor[y * floor_width_px + x] : std::uint8_t{0};
+      patch_out[row * patch_px + column] = on_floor ? floor[y * floor_width_px + x] : std::uint8_t{0};
     }
   }
 }

@@ -45,7 +45,7 @@ class PatchCamera {
 };
 
 /// The CPU reference: the same window cropped from an image in memory (off-floor pixels 0).
-void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px,
-                PixelPose pose, std::uint8_t* patch_out);
+void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px, PixelPose pose,
+                std::uint8_t* patch_out);
 
 }  // namespace scout::render

@@ -34,15 +34,12 @@ cv::Vec3b unseen_colour(std::uint8_t /*gray*/) { return {70, 52, 45}; }
 // Draws the outline of a floor window (columns x - floor(m/2) .. + m - 1, same rows), clipped to
 // the floor, as bands `thickness` output pixels wide lying inside the window, so that the
 // outline covers exactly the window's border pixels and nothing outside.
-void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int thickness,
-                 const cv::Scalar& colour) {
+void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int thickness, const cv::Scalar& colour) {
   const long long half = snapshot.patch_px / 2;
   const long long x0 = std::max<long long>(0, centre.x - half);
   const long long y0 = std::max<long long>(0, centre.y - half);
-  const long long x1 =
-      std::min<long long>(snapshot.width_px - 1, centre.x - half + snapshot.patch_px - 1);
-  const long long y1 =
-      std::min<long long>(snapshot.height_px - 1, centre.y - half + snapshot.patch_px - 1);
+  const long long x1 = std::min<long long>(snapshot.width_px - 1, centre.x - half + snapshot.patch_px - 1);
+  const long long y1 = std::min<long long>(snapshot.height_px - 1, centre.y - half + snapshot.patch_px - 1);
   if (x0 > x1 || y0 > y1) return;  // the window is wholly off the floor
   const int s = snapshot.scale;
   const int left = static_cast<int>(x0) * s;
@@ -56,9 +53,7 @@ void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int
   cv::rectangle(image, cv::Rect(right - t, top, t, bottom - top), colour, cv::FILLED);
 }
 
-cv::Point pixel_centre(PixelPose pose, int scale) {
-  return {pose.x * scale + scale / 2, pose.y * scale + scale / 2};
-}
+cv::Point pixel_centre(PixelPose pose, int scale) { return {pose.x * scale + scale / 2, pose.y * scale + scale / 2}; }
 
 // One horizontal bar per class, labelled with its index; the most probable class highlighted.
 void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
@@ -84,8 +79,8 @@ void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
                     is_best ? kBestBarColour : kBarColour, cv::FILLED);
     }
     const int baseline_y = (top + bottom) / 2 + static_cast<int>(std::lround(font_scale * 10));
-    cv::putText(panel, std::to_string(c), cv::Point(4, baseline_y), cv::FONT_HERSHEY_SIMPLEX,
-                font_scale, is_best ? kBestBarColour : kTextColour, 1, cv::LINE_AA);
+    cv::putText(panel, std::to_string(c), cv::Point(4, baseline_y), cv::FONT_HERSHEY_SIMPLEX, font_scale,
+                is_best ? kBestBarColour : kTextColour, 1, cv::LINE_AA);
   }
 }
 
@@ -94,23 +89,21 @@ void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
 Picture draw_snapshot(const Snapshot& snapshot) {
   if (snapshot.floor == nullptr) throw std::invalid_argument("draw_snapshot: floor is null");
   if (snapshot.width_px <= 0 || snapshot.height_px <= 0) {
-    throw std::invalid_argument("draw_snapshot: floor size must be positive, got " +
-                                std::to_string(snapshot.width_px) + " x " +
-                                std::to_string(snapshot.height_px));
+    throw std::invalid_argument("draw_snapshot: floor size must be positive, got " + std::to_string(snapshot.width_px) +
+                                " x " + std::to_string(snapshot.height_px));
   }
   if (snapshot.scale < 1 || snapshot.scale > kMaxScale) {
-    throw std::invalid_argument("draw_snapshot: scale must be 1.." + std::to_string(kMaxScale) +
-                                ", got " + std::to_string(snapshot.scale));
+    throw std::invalid_argument("draw_snapshot: scale must be 1.." + std::to_string(kMaxScale) + ", got " +
+                                std::to_string(snapshot.scale));
   }
   if (snapshot.patch_px < 1) {
-    throw std::invalid_argument("draw_snapshot: patch_px must be positive, got " +
-                                std::to_string(snapshot.patch_px));
+    throw std::invalid_argument("draw_snapshot: patch_px must be positive, got " + std::to_string(snapshot.patch_px));
   }
   const long long map_width = static_cast<long long>(snapshot.width_px) * snapshot.scale;
   const long long map_height = static_cast<long long>(snapshot.height_px) * snapshot.scale;
   if (map_width > kMaxSidePx || map_height > kMaxSidePx) {
-    throw std::invalid_argument("draw_snapshot: the picture would exceed " +
-                                std::to_string(kMaxSidePx) + " px per side");
+    throw std::invalid_argument("draw_snapshot: the picture would exceed " + std::to_string(kMaxSidePx) +
+                                " px per side");
   }
   const int s = snapshot.scale;
   const int width = static_cast<int>(map_width);
@@ -136,8 +129,8 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   const int line_px = std::max(1, s / 6);
   const int dot_radius_px = std::max(1, s / 5);
   for (std::size_t i = 1; i < snapshot.path.size(); ++i) {
-    cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s),
-             kPathColour, line_px, cv::LINE_AA);
+    cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s), kPathColour, line_px,
+             cv::LINE_AA);
   }
   for (const PixelPose& pose : snapshot.path) {
     cv::circle(map, pixel_centre(pose, s), dot_radius_px, kPathColour, cv::FILLED, cv::LINE_AA);
@@ -164,13 +157,11 @@ void write_png(const std::filesystem::path& file, const Picture& picture) {
   if (picture.width <= 0 || picture.height <= 0 ||
       picture.bgr.size() != static_cast<std::size_t>(picture.width) * picture.height * 3) {
     throw std::runtime_error("write_png: " + name + ": the picture is empty or its size (" +
-                             std::to_string(picture.width) + " x " +
-                             std::to_string(picture.height) + ") does not match its " +
-                             std::to_string(picture.bgr.size()) + " bytes");
+                             std::to_string(picture.width) + " x " + std::to_string(picture.height) +
+                             ") does not match its " + std::to_string(picture.bgr.size()) + " bytes");
   }
   // OpenCV takes a non-const pointer but only reads it.
-  const cv::Mat image(picture.height, picture.width, CV_8UC3,
-                      const_cast<std::uint8_t*>(picture.bgr.data()));
+  const cv::Mat image(picture.height, picture.width, CV_8UC3, const_cast<std::uint8_t*>(picture.bgr.data()));
   std::vector<std::uint8_t> encoded;
   if (!cv::imencode(".png", image, encoded)) {
     throw std::runtime_error("write_png: " + name + ": PNG encoding failed");
@@ -181,8 +172,7 @@ void write_png(const std::filesystem::path& file, const Picture& picture) {
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error("write_png: cannot open " + temporary.string());
-    out.write(reinterpret_cast<const char*>(encoded.data()),
-              static_cast<std::streamsize>(encoded.size()));
+    out.write(reinterpret_cast<const char*>(encoded.data()), static_cast<std::streamsize>(encoded.size()));
     out.close();
     if (!out) {
       std::error_code ignored;
@@ -195,8 +185,7 @@ void write_png(const std::filesystem::path& file, const Picture& picture) {
   if (error) {
     std::error_code ignored;
     std::filesystem::remove(temporary, ignored);
-    throw std::runtime_error("write_png: cannot rename " + temporary.string() + " to " + name +
-                             ": " + error.message());
+    throw std::runtime_error("write_png: cannot rename " + temporary.string() + " to " + name + ": " + error.message());
   }
 }
 

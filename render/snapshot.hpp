@@ -16,16 +16,16 @@ inline constexpr int kMaxPictureSidePx = 16384;
 
 /// Everything one snapshot shows.
 struct Snapshot {
-  const std::uint8_t* floor = nullptr;     ///< floor image, width * height bytes
+  const std::uint8_t* floor = nullptr;  ///< floor image, width * height bytes
   int width_px = 0;
   int height_px = 0;
-  const std::uint8_t* revealed = nullptr;  ///< width * height, non-zero where seen so far
-  int patch_px = 6;                        ///< m: size of the robot's and the goal's squares
-  PixelPose robot;                         ///< current grid pose (blue square: the camera window)
-  std::optional<PixelPose> goal;           ///< current goal (green square), if any
-  std::vector<PixelPose> path;             ///< grid poses visited so far, in order (drawn as a line)
+  const std::uint8_t* revealed = nullptr;      ///< width * height, non-zero where seen so far
+  int patch_px = 6;                            ///< m: size of the robot's and the goal's squares
+  PixelPose robot;                             ///< current grid pose (blue square: the camera window)
+  std::optional<PixelPose> goal;               ///< current goal (green square), if any
+  std::vector<PixelPose> path;                 ///< grid poses visited so far, in order (drawn as a line)
   std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
-  int scale = 10;                          ///< output pixels per floor pixel
+  int scale = 10;                              ///< output pixels per floor pixel
 };
 
 /// Draws the snapshot: revealed pixels as the image, unseen pixels shaded, the path, the robot's

@@ -27,9 +27,12 @@ Window camera_window(const Cell& pose, int patch_px, const FloorFrame& frame) {
 
 const char* to_string(Axis axis) {
   switch (axis) {
-    case Axis::Horizontal: return "h";
-    case Axis::Vertical: return "v";
-    case Axis::None: break;
+    case Axis::Horizontal:
+      return "h";
+    case Axis::Vertical:
+      return "v";
+    case Axis::None:
+      break;
   }
   return "none";
 }
@@ -47,9 +50,12 @@ Cell move_command(const Cell& p, const Cell& g, Axis axis, int step_px) {
     return d >= 0 ? std::min(d, step_px) : -std::min(-d, step_px);
   };
   switch (axis) {
-    case Axis::Horizontal: return {toward(p.x(), g.x()), 0};
-    case Axis::Vertical: return {0, toward(p.y(), g.y())};
-    case Axis::None: break;
+    case Axis::Horizontal:
+      return {toward(p.x(), g.x()), 0};
+    case Axis::Vertical:
+      return {0, toward(p.y(), g.y())};
+    case Axis::None:
+      break;
   }
   return {0, 0};
 }

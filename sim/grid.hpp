@@ -2,10 +2,9 @@
 /// Frames, grid poses, camera windows, the action protocol and the exact grid model
 /// (METHOD.md § Frames and coordinates, § One rollout). Pure pixel arithmetic, no physics:
 /// the reference that the Box2D world is tested against.
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace scout::sim {
 
@@ -15,9 +14,9 @@ using Cell = Eigen::Vector2i;
 /// The floor frame: pixel units, origin at the image's top-left corner, y down; metres are the
 /// same frame times pixel_size_m.
 struct FloorFrame {
-  int width_px = 28;           ///< floor width, pixels
-  int height_px = 28;          ///< floor height, pixels
-  double pixel_size_m = 0.1;   ///< metres per pixel
+  int width_px = 28;          ///< floor width, pixels
+  int height_px = 28;         ///< floor height, pixels
+  double pixel_size_m = 0.1;  ///< metres per pixel
 
   /// Centre of a cell, pixels.
   Eigen::Vector2d cell_centre_px(const Cell& cell) const { return cell.cast<double>().array() + 0.5; }

@@ -1,13 +1,13 @@
 #include "sim/robots.hpp"
 
-#include "sim/worker_pool.hpp"
-
 #include <box2d/box2d.h>
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include "sim/worker_pool.hpp"
 
 namespace scout::sim {
 
@@ -55,7 +55,10 @@ RobotParams RobotParams::from_world(const worlds::World& world) {
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
 
 RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int count, int threads)
-    : frame_(frame), params_(params), robots_(new Robot[count > 0 ? count : 0]), count_(count),
+    : frame_(frame),
+      params_(params),
+      robots_(new Robot[count > 0 ? count : 0]),
+      count_(count),
       pool_(std::make_unique<WorkerPool>(threads)) {
   if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
   if (frame.width_px <= 0 || frame.height_px <= 0 || frame.pixel_size_m <= 0)
@@ -71,8 +74,8 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
   const float off = wall_offset_u(radius_u);
   // A chain collides on one side only, the right of each edge: wind it so that the right
   // side faces the floor.
-  const b2Vec2 corners[4] = {{min_x - off, min_y - off}, {min_x - off, max_y + off},
-                             {max_x + off, max_y + off}, {max_x + off, min_y - off}};
+  const b2Vec2 corners[4] = {
+      {min_x - off, min_y - off}, {min_x - off, max_y + off}, {max_x + off, max_y + off}, {max_x + off, min_y - off}};
   const float density = static_cast<float>(params.mass_kg / (M_PI * radius_u * radius_u));
 
   // Continuous collision (time of impact) costs about half of a tick here. It is needed only when
@@ -145,8 +148,7 @@ bool RobotBatch::touching_wall(int robot) const {
 void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> results) {
   if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size())
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(commands.size()) + " commands for " +
-                                std::to_string(count_) + " robots and " + std::to_string(results.size()) +
-                                " results");
+                                std::to_string(count_) + " robots and " + std::to_string(results.size()) + " results");
   const float dt = static_cast<float>(params_.dt_s);
   const double units_per_m = kUnitsPerPx / frame_.pixel_size_m;
   const double tolerance_u = params_.tolerance_px * kUnitsPerPx;
@@ -185,8 +187,8 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
       const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
       peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(r.body->GetLinearVelocity().Length())});
       const double x = now.x / kUnitsPerPx, y = now.y / kUnitsPerPx;
-      out.beyond_border_px = std::max({out.beyond_border_px, 0.5 - x, x - (frame_.width_px - 0.5), 0.5 - y,
-                                       y - (frame_.height_px - 0.5)});
+      out.beyond_border_px =
+          std::max({out.beyond_border_px, 0.5 - x, x - (frame_.width_px - 0.5), 0.5 - y, y - (frame_.height_px - 0.5)});
       if (!out.touched_wall) out.touched_wall = touching_wall(i);
     }
     out.peak_speed_mps = peak_speed_u / units_per_m;

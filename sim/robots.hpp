@@ -14,26 +14,26 @@ namespace scout::sim {
 
 /// Physical and controller parameters of every robot in a batch (from a world file).
 struct RobotParams {
-  double radius_m = 0.25;          ///< disc radius, metres
-  double mass_kg = 1.0;            ///< body mass, kilograms
-  double max_speed_mps = 2.0;      ///< controller speed limit, metres per second
-  double kp_per_s = 60.0;          ///< velocity = kp * position error, saturated; kp * dt = 1 lands in one tick when in reach
-  double tolerance_px = 0.05;      ///< settled when the centre is this close to the target cell's centre, pixels
-  double dt_s = 1.0 / 60.0;        ///< tick, seconds
-  int velocity_iterations = 8;     ///< Box2D solver iterations per tick
-  int position_iterations = 3;     ///< Box2D solver iterations per tick
-  int max_ticks_per_move = 120;    ///< a move ends after this many ticks even if not settled
+  double radius_m = 0.25;        ///< disc radius, metres
+  double mass_kg = 1.0;          ///< body mass, kilograms
+  double max_speed_mps = 2.0;    ///< controller speed limit, metres per second
+  double kp_per_s = 60.0;        ///< velocity = kp * error, saturated; kp * dt = 1 lands in one tick
+  double tolerance_px = 0.05;    ///< settled when the centre is this close to the target cell's centre, pixels
+  double dt_s = 1.0 / 60.0;      ///< tick, seconds
+  int velocity_iterations = 8;   ///< Box2D solver iterations per tick
+  int position_iterations = 3;   ///< Box2D solver iterations per tick
+  int max_ticks_per_move = 120;  ///< a move ends after this many ticks even if not settled
 
   static RobotParams from_world(const worlds::World& world);
 };
 
 /// What one robot did during one move.
 struct MoveResult {
-  int ticks = 0;                   ///< world steps taken (0 for a no-op move already on target)
-  bool settled = false;            ///< ended within tolerance of the commanded cell's centre
-  bool touched_wall = false;       ///< touched a wall during the move
-  double peak_speed_mps = 0.0;     ///< highest speed reached during the move, metres per second
-  double beyond_border_px = 0.0;   ///< farthest the centre got past the border pixels' centres during the move, pixels (0: never)
+  int ticks = 0;                  ///< world steps taken (0 for a no-op move already on target)
+  bool settled = false;           ///< ended within tolerance of the commanded cell's centre
+  bool touched_wall = false;      ///< touched a wall during the move
+  double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
+  double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
 };
 
 /// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical

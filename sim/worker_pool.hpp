@@ -42,15 +42,15 @@ class WorkerPool {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable done_;
-  std::uint64_t generation_ = 0;   // bumped for each loop; workers wait for a new one
-  int busy_ = 0;                   // workers still in the current loop
+  std::uint64_t generation_ = 0;  // bumped for each loop; workers wait for a new one
+  int busy_ = 0;                  // workers still in the current loop
   bool stop_ = false;
   void* context_ = nullptr;
   Trampoline call_ = nullptr;
   int n_ = 0;
   int chunk_ = 1;
   std::atomic<int> next_{0};
-  std::exception_ptr error_;       // the first exception of the current loop
+  std::exception_ptr error_;  // the first exception of the current loop
 };
 
 }  // namespace scout::sim

@@ -1,21 +1,21 @@
 // scout bench sim: agent-steps per second of the simulation (physics + camera), and of each alone.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <memory>
-#include <random>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "learn/rollout.hpp"
 #include "render/camera.hpp"
-#include "worlds/random.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
+#include "worlds/random.hpp"
 
 namespace scout::tools {
 
@@ -74,14 +74,16 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   std::vector<std::uint8_t> batch_floors(area * n);
   std::vector<sim::Cell> starts(n);
   for (int i = 0; i < n; ++i) {
-    const int index = world.floor.index ? *world.floor.index
-                                        : static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
+    const int index = world.floor.index
+                          ? *world.floor.index
+                          : static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
     std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
     starts[i] = learn::draw_start(world, frame, rng);
   }
   auto seeds_for = [n](int repeat) {
     std::vector<std::uint64_t> seeds(n);
-    for (int i = 0; i < n; ++i) seeds[i] = worlds::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
+    for (int i = 0; i < n; ++i)
+      seeds[i] = worlds::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
     return seeds;
   };
 
@@ -172,8 +174,12 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
     j["moves_per_rollout"] = moves_per_rollout;
     j["repeats"] = opt.repeats;
     j["threads"] = robots_threads;
-    j["median_ms"] = {{"physics_and_camera", t_all * 1e3}, {"physics", t_phys * 1e3}, {"camera", t_cam * 1e3}, {"cpu_crop", t_crop * 1e3}};
-    j["agent_steps_per_s"] = {{"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
+    j["median_ms"] = {{"physics_and_camera", t_all * 1e3},
+                      {"physics", t_phys * 1e3},
+                      {"camera", t_cam * 1e3},
+                      {"cpu_crop", t_crop * 1e3}};
+    j["agent_steps_per_s"] = {
+        {"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
     j["patches_per_s"] = steps / t_cam;
     j["ticks_per_move"] = double(ticks) / all_moves;
     j["ticks_per_driving_move"] = driven_moves ? double(ticks) / driven_moves : 0.0;
@@ -189,12 +195,17 @@ void add_bench_command(CLI::App& app, const Context& context) {
   auto* bench = app.add_subcommand("bench", "Benchmarks (medians over repeated runs).");
   bench->require_subcommand(1);
   auto opt = std::make_shared<BenchOptions>();
-  auto* sim_cmd = bench->add_subcommand("sim", "Agent-steps/s of the simulation for a batch of robots driven by mode (i): "
-                                               "physics + camera, physics alone, camera alone.");
+  auto* sim_cmd = bench->add_subcommand("sim",
+                                        "Agent-steps/s of the simulation for a batch of robots driven by mode (i): "
+                                        "physics + camera, physics alone, camera alone.");
   sim_cmd->add_option("--world", opt->world, "World file")->capture_default_str();
   sim_cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
-  sim_cmd->add_option("--robots", opt->robots, "Robots in the batch")->capture_default_str()->check(decimal_in(1, 4096));
-  sim_cmd->add_option("--repeats", opt->repeats, "Timed repetitions")->capture_default_str()->check(decimal_in(1, 10000));
+  sim_cmd->add_option("--robots", opt->robots, "Robots in the batch")
+      ->capture_default_str()
+      ->check(decimal_in(1, 4096));
+  sim_cmd->add_option("--repeats", opt->repeats, "Timed repetitions")
+      ->capture_default_str()
+      ->check(decimal_in(1, 10000));
   sim_cmd->add_option("--json", opt->json_out, "Also write the figures to this JSON file");
   sim_cmd->callback([opt, &context] {
     install_interrupt_handler();

@@ -1,23 +1,24 @@
 #pragma once
 // The subcommands of `scout`. Each adds itself to the CLI and runs when chosen; errors are
 // thrown (InputError for what the user can fix) and reported once by main().
+#include <CLI/Error.hpp>
+#include <CLI/Validators.hpp>
 #include <cstdint>
 #include <memory>
 #include <string>
-
-#include <CLI/Error.hpp>
-#include <CLI/Validators.hpp>
 #include <vector>
 
 #include "learn/rollout.hpp"
 
-namespace CLI { class App; }
+namespace CLI {
+class App;
+}
 
 namespace scout::tools {
 
 /// Process-wide context the commands share.
 struct Context {
-  std::vector<std::string> argv;   ///< the command line, for manifests
+  std::vector<std::string> argv;  ///< the command line, for manifests
 };
 
 /// Thrown between units of work after SIGINT or SIGTERM, so that output folders are cleaned up

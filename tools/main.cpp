@@ -1,13 +1,13 @@
 // scout: the command-line program. Exit status: 0 success, 1 error (bad input, a file, the data),
 // 2 bad command line, 3 internal error (a bug: please report it), 130 interrupted.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
 #include <charconv>
 #include <csignal>
 #include <cstdio>
 #include <exception>
 #include <string>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
 
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
@@ -95,7 +95,9 @@ std::string check_command_words(const CLI::App& app, int argc, char** argv) {
 
 int main(int argc, char** argv) {
   scout::tools::Context context{scout::tools::command_line(argc, argv)};
-  CLI::App app{"Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.", "scout"};
+  CLI::App app{
+      "Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.",
+      "scout"};
   app.set_version_flag("--version", std::string("scout ") + SCOUT_VERSION);
   app.require_subcommand(1);
   // One line for a bad command line too (subcommands inherit this when they are added).
@@ -108,7 +110,8 @@ int main(int argc, char** argv) {
     }
     return "scout: usage error: " + scout::one_line(e.what()) + " (see " + path + " --help)\n";
   });
-  app.footer("Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error, 130 interrupted.");
+  app.footer(
+      "Exit status: 0 success, 1 error in the input or a file, 2 bad command line, 3 internal error, 130 interrupted.");
   scout::tools::add_run_command(app, context);
   scout::tools::add_data_command(app, context);
   scout::tools::add_bench_command(app, context);

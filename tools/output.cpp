@@ -1,18 +1,16 @@
 #include "tools/output.hpp"
 
-#include "tools/commands.hpp"
-
-#include <unistd.h>
-
-#include <chrono>
-#include <fstream>
-#include <random>
-
-#include <Eigen/Core>
 #include <fmt/chrono.h>
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
+#include <unistd.h>
 
+#include <Eigen/Core>
+#include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "tools/commands.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
 
@@ -49,8 +47,7 @@ OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path
   // One spelling of the folder: absolute, normal, and without a trailing separator.
   target_ = fs::absolute(target).lexically_normal();
   if (!target_.has_filename()) target_ = target_.parent_path();
-  if (target_ == target_.root_path())
-    throw InputError("--out: refusing to write the output over " + target_.string());
+  if (target_ == target_.root_path()) throw InputError("--out: refusing to write the output over " + target_.string());
   // Replacing a folder that holds the caller's own work, or the inputs, would destroy it.
   std::vector<fs::path> guarded = {fs::current_path()};
   for (const fs::path& k : keep) guarded.push_back(fs::absolute(k).lexically_normal());
@@ -109,7 +106,7 @@ void OutputDir::commit() {
 }
 
 std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const sim::FloorFrame& frame,
-                                                 int robots) {
+                                                  int robots) {
   try {
     return std::make_unique<learn::RolloutEngine>(world, frame, robots);
   } catch (const std::runtime_error& e) {
@@ -137,12 +134,13 @@ void write_file_atomic(const fs::path& file, const std::string& text) {
 std::vector<std::string> command_line(int argc, char** argv) { return {argv, argv + argc}; }
 
 nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
-                             const std::vector<fs::path>& data_files, const std::string& gl_description) {
+                                     const std::vector<fs::path>& data_files, const std::string& gl_description) {
   nlohmann::ordered_json m;
   m["command_line"] = argv;
   m["git_commit"] = git_commit();
   m["scout_version"] = SCOUT_VERSION;
-  m["created_utc"] = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", fmt::gmtime(std::chrono::system_clock::to_time_t(std::chrono::system_clock::now())));
+  m["created_utc"] = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}",
+                                 fmt::gmtime(std::chrono::system_clock::to_time_t(std::chrono::system_clock::now())));
   // Versions of the Debian packages found at configure time (Box2D 2.4.1's own b2_version still
   // says 2.4.0, so the package's version is the one to trust).
   nlohmann::ordered_json libs;
@@ -150,7 +148,8 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
   libs["opencv"] = SCOUT_OPENCV_VERSION;
   libs["eigen"] = fmt::format("{}.{}.{}", EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION);
   libs["yaml-cpp"] = SCOUT_YAML_CPP_VERSION;
-  libs["nlohmann_json"] = fmt::format("{}.{}.{}", NLOHMANN_JSON_VERSION_MAJOR, NLOHMANN_JSON_VERSION_MINOR, NLOHMANN_JSON_VERSION_PATCH);
+  libs["nlohmann_json"] =
+      fmt::format("{}.{}.{}", NLOHMANN_JSON_VERSION_MAJOR, NLOHMANN_JSON_VERSION_MINOR, NLOHMANN_JSON_VERSION_PATCH);
   libs["cli11"] = SCOUT_CLI11_VERSION;
   libs["fmt"] = fmt::format("{}.{}.{}", FMT_VERSION / 10000, FMT_VERSION / 100 % 100, FMT_VERSION % 100);
   libs["zlib"] = SCOUT_ZLIB_VERSION;

@@ -2,10 +2,9 @@
 // Output folders and files of the CLI: written to a staging folder and moved into place at the
 // end, so that a failed or interrupted command never leaves a half-written --out folder.
 #include <filesystem>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json_fwd.hpp>
 
 namespace scout::tools {
 
@@ -40,8 +39,8 @@ void write_file_atomic(const std::filesystem::path& file, const std::string& tex
 /// The manifest every output folder gets: command line, git commit, library versions, the
 /// resolved world (YAML text, may be empty) and the SHA-256 of each data file.
 nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,
-                             const std::vector<std::filesystem::path>& data_files,
-                             const std::string& gl_description);
+                                     const std::vector<std::filesystem::path>& data_files,
+                                     const std::string& gl_description);
 
 /// The command line as one string, for manifests.
 std::vector<std::string> command_line(int argc, char** argv);

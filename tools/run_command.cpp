@@ -1,21 +1,21 @@
 // scout run: headless rollouts of a world, with trajectory.json, images and manifest.json.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <memory>
-#include <random>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "learn/rollout.hpp"
 #include "render/snapshot.hpp"
-#include "worlds/random.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
+#include "worlds/random.hpp"
 
 namespace scout::tools {
 
@@ -106,9 +106,8 @@ std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, 
   return text + "\n  ]}";
 }
 
-void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record,
-                  const std::uint8_t* floor, const sim::FloorFrame& frame, int patch_px, int scale,
-                  std::vector<std::string>& written) {
+void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
+                  const sim::FloorFrame& frame, int patch_px, int scale, std::vector<std::string>& written) {
   for (const learn::SnapshotRecord& snap : record.snapshots) {
     render::Snapshot s;
     s.floor = floor;
@@ -136,9 +135,10 @@ void run_command(const RunOptions& opt, const Context& context) {
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
   const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
   if (!opt.no_images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
-    throw InputError(fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
-                                 render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
-                                 frame.height_px, render::kMaxPictureSidePx, opt.scale));
+    throw InputError(
+        fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
+                    render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
+                    frame.height_px, render::kMaxPictureSidePx, opt.scale));
   std::vector<fs::path> inputs = floors.files;
   inputs.push_back(opt.world);
   OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
@@ -200,15 +200,17 @@ void run_command(const RunOptions& opt, const Context& context) {
              opt.count == 1 ? "" : "s", opt.world, moves, moves ? double(ticks) / moves : 0.0,
              double(revealed) / opt.count, seconds);
   fmt::print("trajectory: {}\n", (fs::path(out.target()) / "trajectory.json").string());
-  if (!opt.no_images) fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
+  if (!opt.no_images)
+    fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
 }
 
 }  // namespace
 
 void add_run_command(CLI::App& app, const Context& context) {
   auto opt = std::make_shared<RunOptions>();
-  auto* cmd = app.add_subcommand("run", "Drive robots over a world headless (mode (i): i.i.d. random goals and "
-                                        "actions) and export trajectory.json, images and manifest.json.");
+  auto* cmd = app.add_subcommand("run",
+                                 "Drive robots over a world headless (mode (i): i.i.d. random goals and "
+                                 "actions) and export trajectory.json, images and manifest.json.");
   cmd->add_option("world", opt->world, "World file (YAML), e.g. worlds/mnist.yaml")->required();
   cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")->required();
   cmd->add_option("--seed", opt->seed, "Seed, an integer in [0, 2^64 - 1] (overrides the world file's)")

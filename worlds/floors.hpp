@@ -18,11 +18,11 @@ inline constexpr int kMaxFloorPx = 512;
 
 /// Candidate floor images, all the same size.
 struct FloorSet {
-  ImageSet images;                             ///< the floors, row 0 = top of the floor
-  std::vector<int> labels;                     ///< class per image; -1 where unknown (a PNG)
-  std::string source;                          ///< data set name or folder, or the PNG path
-  std::optional<Split> split;                  ///< the split, for a data set
-  std::vector<std::filesystem::path> files;    ///< files read (for the manifest's hashes)
+  ImageSet images;                           ///< the floors, row 0 = top of the floor
+  std::vector<int> labels;                   ///< class per image; -1 where unknown (a PNG)
+  std::string source;                        ///< data set name or folder, or the PNG path
+  std::optional<Split> split;                ///< the split, for a data set
+  std::vector<std::filesystem::path> files;  ///< files read (for the manifest's hashes)
 
   int width_px() const { return images.cols; }
   int height_px() const { return images.rows; }

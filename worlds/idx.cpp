@@ -38,8 +38,7 @@ constexpr std::uint64_t kMaxFileBytes = kMaxPayload + (std::uint64_t{1} << 20);
 }
 
 std::uint32_t read_be32(const std::uint8_t* p) {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
-         std::uint32_t{p[3]};
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]};
 }
 
 void put_be32(std::uint8_t* p, std::uint32_t v) {
@@ -64,8 +63,7 @@ struct Inflater {
 // Decompresses a whole gzip file, member after member (as gunzip does for `cat a.gz b.gz`).
 // The output grows with the data actually produced and stops past `max_out` bytes, so neither a
 // header nor the gzip trailer's size field decides an allocation.
-std::vector<std::uint8_t> gunzip(const std::vector<std::uint8_t>& in, std::size_t max_out,
-                                 const fs::path& origin) {
+std::vector<std::uint8_t> gunzip(const std::vector<std::uint8_t>& in, std::size_t max_out, const fs::path& origin) {
   Inflater inf;
   if (inflateInit2(&inf.zs, 16 + MAX_WBITS) != Z_OK) fail(origin, "cannot initialise zlib");
   inf.ready = true;
@@ -162,8 +160,8 @@ std::string magic_problem(std::uint32_t magic, std::uint32_t expected) {
 std::string size_problem(const std::string& header_says, std::uint64_t need, std::uint64_t have, bool gzipped) {
   const char* note = gzipped ? " (after decompression)" : "";
   if (have < need) return fmt::format("truncated: {} = {} bytes, file has {}{}", header_says, need, have, note);
-  return fmt::format("trailing garbage: {} = {} bytes, file has {}{} ({} extra bytes)", header_says, need, have,
-                     note, have - need);
+  return fmt::format("trailing garbage: {} = {} bytes, file has {}{} ({} extra bytes)", header_says, need, have, note,
+                     have - need);
 }
 
 void write_atomically(const fs::path& file, const std::uint8_t* header, std::size_t header_size,
@@ -202,7 +200,8 @@ ImageSet parse_idx_images(const std::vector<std::uint8_t>& bytes, const fs::path
   Content content = open_content(bytes, kImagesHeader, origin);
   const std::vector<std::uint8_t>& b = content.get();
   // The magic first: "this is a label file" says more than "the header is short".
-  if (b.size() >= 4 && read_be32(b.data()) != kImagesMagic) fail(origin, magic_problem(read_be32(b.data()), kImagesMagic));
+  if (b.size() >= 4 && read_be32(b.data()) != kImagesMagic)
+    fail(origin, magic_problem(read_be32(b.data()), kImagesMagic));
   if (b.size() < kImagesHeader)
     fail(origin, fmt::format("truncated header: {} bytes, an idx3-ubyte image file starts with a {}-byte header",
                              b.size(), kImagesHeader));
@@ -236,7 +235,8 @@ ImageSet parse_idx_images(const std::vector<std::uint8_t>& bytes, const fs::path
 std::vector<std::uint8_t> parse_idx_labels(const std::vector<std::uint8_t>& bytes, const fs::path& origin) {
   Content content = open_content(bytes, kLabelsHeader, origin);
   const std::vector<std::uint8_t>& b = content.get();
-  if (b.size() >= 4 && read_be32(b.data()) != kLabelsMagic) fail(origin, magic_problem(read_be32(b.data()), kLabelsMagic));
+  if (b.size() >= 4 && read_be32(b.data()) != kLabelsMagic)
+    fail(origin, magic_problem(read_be32(b.data()), kLabelsMagic));
   if (b.size() < kLabelsHeader)
     fail(origin, fmt::format("truncated header: {} bytes, an idx1-ubyte label file starts with a {}-byte header",
                              b.size(), kLabelsHeader));

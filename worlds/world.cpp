@@ -28,9 +28,12 @@ namespace scout::worlds {
 
 const char* to_string(Split split) {
   switch (split) {
-    case Split::Train: return "train";
-    case Split::Validation: return "validation";
-    case Split::Test: return "test";
+    case Split::Train:
+      return "train";
+    case Split::Validation:
+      return "validation";
+    case Split::Test:
+      return "test";
   }
   return "train";  // unreachable for valid enumerators; keeps -Wreturn-type quiet
 }
@@ -75,13 +78,16 @@ std::string short_tag(const std::string& tag) {
 std::string describe(const YAML::Node& node) {
   switch (node.Type()) {
     case YAML::NodeType::Undefined:
-    case YAML::NodeType::Null: return "nothing";
+    case YAML::NodeType::Null:
+      return "nothing";
     case YAML::NodeType::Sequence: {
       const std::size_t n = node.size();
       return "a sequence of " + std::to_string(n) + (n == 1 ? " element" : " elements");
     }
-    case YAML::NodeType::Map: return "a map";
-    case YAML::NodeType::Scalar: break;
+    case YAML::NodeType::Map:
+      return "a map";
+    case YAML::NodeType::Scalar:
+      break;
   }
   const std::string& tag = node.Tag();
   if (tag == "!") return "the string \"" + clip(node.Scalar()) + "\"";
@@ -117,9 +123,9 @@ class Loader {
  private:
   // One key of a section, with everything a field reader needs for its messages.
   struct Field {
-    std::string key;      // as written
-    std::string dotted;   // "camera.patch_px"
-    int line = 1;         // the key's line
+    std::string key;     // as written
+    std::string dotted;  // "camera.patch_px"
+    int line = 1;        // the key's line
     YAML::Node value;
   };
 
@@ -192,7 +198,7 @@ void Loader::check_text(std::string_view text) const {
       }
     }
 
-    char prev = ' ';  // the previous character on this row; a row starts like after a space
+    char prev = ' ';         // the previous character on this row; a row starts like after a space
     char prev_solid = '\0';  // the previous non-blank character on this row
     for (; pos < row.size(); ++pos) {
       const char c = row[pos];
@@ -238,7 +244,7 @@ void Loader::check_text(std::string_view text) const {
 /// A decimal integer as written: optional sign, digits only (no 0x, no 1e3, no 6.0).
 struct IntegerText {
   bool negative = false;
-  bool too_large = false;        // magnitude beyond 2^64 - 1
+  bool too_large = false;  // magnitude beyond 2^64 - 1
   std::uint64_t magnitude = 0;
 };
 
@@ -306,8 +312,7 @@ std::string int_range(long long lo, long long hi) {
 int Loader::read_int(const Field& f, int lo, int hi) const {
   const auto t = integer_text(f.value);
   const bool ok = t && !t->too_large && (!t->negative || t->magnitude == 0) &&
-                  t->magnitude >= static_cast<std::uint64_t>(lo) &&
-                  t->magnitude <= static_cast<std::uint64_t>(hi);
+                  t->magnitude >= static_cast<std::uint64_t>(lo) && t->magnitude <= static_cast<std::uint64_t>(hi);
   if (!ok) fail_field(f.line, f.dotted, int_range(lo, hi), describe(f.value));
   return static_cast<int>(t->magnitude);
 }
@@ -328,8 +333,7 @@ double Loader::read_number(const Field& f, double lo, double hi, bool hi_open) c
   // Written as !(in range) so that a NaN could never slip through.
   const bool ok = v && *v > lo && (hi_open ? *v < hi : *v <= hi);
   if (!ok) {
-    fail_field(f.line, f.dotted,
-               "a number in (" + format_double(lo) + ", " + format_double(hi) + (hi_open ? ")" : "]"),
+    fail_field(f.line, f.dotted, "a number in (" + format_double(lo) + ", " + format_double(hi) + (hi_open ? ")" : "]"),
                describe(f.value));
   }
   return *v;
@@ -423,8 +427,7 @@ void Loader::read_floor(const YAML::Node& section) {
         const auto t = integer_text(f.value);
         const auto hi = static_cast<std::uint64_t>(std::numeric_limits<int>::max());
         if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude > hi) {
-          fail_field(f.line, f.dotted, int_range(0, std::numeric_limits<int>::max()) + " or random",
-                     describe(f.value));
+          fail_field(f.line, f.dotted, int_range(0, std::numeric_limits<int>::max()) + " or random", describe(f.value));
         }
         floor.index = static_cast<int>(t->magnitude);
       }
@@ -522,8 +525,8 @@ void Loader::read_task(const YAML::Node& section) {
 
 void Loader::read_physics(const YAML::Node& section) {
   PhysicsSpec& physics = world_.physics;
-  for (const Field& f : fields_of(section, "physics",
-                                  {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"})) {
+  for (const Field& f :
+       fields_of(section, "physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"})) {
     if (f.key == "dt_s") {
       physics.dt_s = read_number(f, 0.0, 1.0, false);
     } else if (f.key == "velocity_iterations") {
@@ -538,14 +541,15 @@ void Loader::read_physics(const YAML::Node& section) {
 
 void Loader::read(const YAML::Node& root) {
   if (!root.IsMap()) fail(1, "expected a map of sections (floor, robot, ...)");
-  static constexpr std::array<std::string_view, 7> kSections = {
-      "floor", "robot", "controller", "camera", "task", "physics", "seed"};
+  static constexpr std::array<std::string_view, 7> kSections = {"floor", "robot",   "controller", "camera",
+                                                                "task",  "physics", "seed"};
   std::set<std::string> seen;
   bool floor_seen = false;
   for (const auto& entry : root) {
     const YAML::Node key = entry.first;
     const int line = line_of(key);
-    if (!key.IsScalar()) fail(line, "expected section names (" + join(kSections) + "), got " + describe(key) + " as a key");
+    if (!key.IsScalar())
+      fail(line, "expected section names (" + join(kSections) + "), got " + describe(key) + " as a key");
     const std::string name = key.Scalar();
     if (name == "perturbation") fail(line, "perturbation: not yet supported (slip and push are future work)");
     if (std::find(kSections.begin(), kSections.end(), name) == kSections.end()) {
@@ -586,7 +590,9 @@ void Loader::read(const YAML::Node& root) {
   const double radius_px = world_.robot.radius_m / world_.floor.pixel_size_m;
   if (radius_px < 0.5 || radius_px > 100.0) {
     const auto it = world_.lines.find("robot.radius_m");
-    const int line = it != world_.lines.end() ? it->second : world_.lines.count("floor.pixel_size_m") ? world_.lines.at("floor.pixel_size_m") : 1;
+    const int line = it != world_.lines.end()                   ? it->second
+                     : world_.lines.count("floor.pixel_size_m") ? world_.lines.at("floor.pixel_size_m")
+                                                                : 1;
     fail_field(line, "robot.radius_m",
                "a radius of 0.5 to 100 pixels (" + format_double(0.5 * world_.floor.pixel_size_m) + " to " +
                    format_double(100.0 * world_.floor.pixel_size_m) + " m at pixel_size_m " +
@@ -599,7 +605,9 @@ void Loader::read(const YAML::Node& root) {
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
   if (gain_per_tick >= 2.0) {
     const auto it = world_.lines.find("controller.kp_per_s");
-    const int line = it != world_.lines.end() ? it->second : world_.lines.count("physics.dt_s") ? world_.lines.at("physics.dt_s") : 1;
+    const int line = it != world_.lines.end()             ? it->second
+                     : world_.lines.count("physics.dt_s") ? world_.lines.at("physics.dt_s")
+                                                          : 1;
     fail_field(line, "controller.kp_per_s",
                "less than 2 / physics.dt_s = " + format_double(2.0 / world_.physics.dt_s) +
                    " (kp_per_s * dt_s = 1 lands in one tick; 2 or more never settles)",
@@ -708,8 +716,8 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
       const int line = field_line(world, "robot.start", "robot");
       throw InputError(one_line(origin + ":" + std::to_string(line) + ": robot.start: expected [x, y] with x in [0, " +
                                 std::to_string(floor_width_px - 1) + "] and y in [0, " +
-                                std::to_string(floor_height_px - 1) + "] (the floor is " + size +
-                                " pixels), got [" + std::to_string(x) + ", " + std::to_string(y) + "]"));
+                                std::to_string(floor_height_px - 1) + "] (the floor is " + size + " pixels), got [" +
+                                std::to_string(x) + ", " + std::to_string(y) + "]"));
     }
   }
 }

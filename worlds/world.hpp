@@ -19,25 +19,25 @@ const char* to_string(Split split);
 
 /// The floor: a data set image or a PNG file, and its physical scale.
 struct FloorSpec {
-  std::string dataset;             ///< "mnist", "fashion-mnist" or a folder path (absolute once loaded); empty when `image` is set
-  Split split = Split::Train;      ///< split of `dataset`
-  std::optional<int> index;        ///< image index within the split; nullopt means "random"
-  std::filesystem::path image;     ///< PNG file read as grayscale (absolute once loaded); empty when `dataset` is set
-  double pixel_size_m = 0.1;       ///< metres per floor pixel
+  std::string dataset;  ///< "mnist", "fashion-mnist" or a folder path (absolute once loaded); empty when `image` is set
+  Split split = Split::Train;   ///< split of `dataset`
+  std::optional<int> index;     ///< image index within the split; nullopt means "random"
+  std::filesystem::path image;  ///< PNG file read as grayscale (absolute once loaded); empty when `dataset` is set
+  double pixel_size_m = 0.1;    ///< metres per floor pixel
 };
 
 /// The robot body.
 struct RobotSpec {
-  double radius_m = 0.25;          ///< disc radius, metres
-  double mass_kg = 1.0;            ///< body mass, kilograms
-  double max_speed_mps = 2.0;      ///< controller speed limit, metres per second
+  double radius_m = 0.25;                    ///< disc radius, metres
+  double mass_kg = 1.0;                      ///< body mass, kilograms
+  double max_speed_mps = 2.0;                ///< controller speed limit, metres per second
   std::optional<std::pair<int, int>> start;  ///< start cell [x, y] in pixels; nullopt means "random"
 };
 
 /// The move controller: a saturated proportional velocity controller (sim/README in code).
 struct ControllerSpec {
-  double kp_per_s = 60.0;          ///< proportional gain on the position error, 1/s
-  double tolerance_px = 0.05;      ///< a move has settled when the centre is this close to the cell centre, pixels
+  double kp_per_s = 60.0;      ///< proportional gain on the position error, 1/s
+  double tolerance_px = 0.05;  ///< a move has settled when the centre is this close to the cell centre, pixels
 };
 
 /// The largest camera patch the renderer draws (render::PatchCamera's limit), pixels.
@@ -45,34 +45,34 @@ inline constexpr int kMaxPatchPx = 64;
 
 /// The downward camera.
 struct CameraSpec {
-  int patch_px = 6;                ///< m: the camera sees an m x m pixel window, 1 .. kMaxPatchPx
+  int patch_px = 6;  ///< m: the camera sees an m x m pixel window, 1 .. kMaxPatchPx
 };
 
 /// The active-perception task.
 struct TaskSpec {
-  int episodes = 4;                ///< E: goals per rollout
-  int steps = 5;                   ///< T: moves per episode
-  int step_px = 2;                 ///< s: the longest move, pixels
+  int episodes = 4;  ///< E: goals per rollout
+  int steps = 5;     ///< T: moves per episode
+  int step_px = 2;   ///< s: the longest move, pixels
 };
 
 /// Box2D stepping.
 struct PhysicsSpec {
-  double dt_s = 1.0 / 60.0;        ///< one tick, seconds
-  int velocity_iterations = 8;     ///< Box2D velocity solver iterations per tick
-  int position_iterations = 3;     ///< Box2D position solver iterations per tick
-  int max_ticks_per_move = 120;    ///< a move that has not settled after this many ticks ends where the robot is
+  double dt_s = 1.0 / 60.0;      ///< one tick, seconds
+  int velocity_iterations = 8;   ///< Box2D velocity solver iterations per tick
+  int position_iterations = 3;   ///< Box2D position solver iterations per tick
+  int max_ticks_per_move = 120;  ///< a move that has not settled after this many ticks ends where the robot is
 };
 
 /// A loaded, validated world file.
 struct World {
-  std::filesystem::path file;      ///< the file it was read from (as given)
+  std::filesystem::path file;  ///< the file it was read from (as given)
   FloorSpec floor;
   RobotSpec robot;
   ControllerSpec controller;
   CameraSpec camera;
   TaskSpec task;
   PhysicsSpec physics;
-  std::uint64_t seed = 0;          ///< run seed; the command line's --seed overrides it
+  std::uint64_t seed = 0;            ///< run seed; the command line's --seed overrides it
   std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
 };
 

@@ -58,7 +58,7 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
         // choose, the recorded axis; everything else it computes itself.
         const sim::Decision d = sim::decide(model.pose(), s.goal);
         ASSERT_EQ(s.sampled, d == sim::Decision::Choose);
-        sim::Axis axis = d == sim::Decision::Vertical ? sim::Axis::Vertical
+        sim::Axis axis = d == sim::Decision::Vertical     ? sim::Axis::Vertical
                          : d == sim::Decision::Horizontal ? sim::Axis::Horizontal
                                                           : sim::Axis::None;
         if (d == sim::Decision::Choose) {

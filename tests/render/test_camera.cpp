@@ -18,9 +18,7 @@ struct Floors {
   int height = 0;
   int count = 0;
   std::vector<std::uint8_t> bytes;  // count images, each width * height, row-major
-  const std::uint8_t* image(int i) const {
-    return bytes.data() + static_cast<std::size_t>(i) * width * height;
-  }
+  const std::uint8_t* image(int i) const { return bytes.data() + static_cast<std::size_t>(i) * width * height; }
 };
 
 // Random bytes over the whole 0..255 range, a different floor per robot.
@@ -33,8 +31,7 @@ Floors random_floors(int width, int height, int count, unsigned seed) {
   return floors;
 }
 
-std::vector<std::uint8_t> cpu_patches(const Floors& floors, int patch_px,
-                                      const std::vector<PixelPose>& poses) {
+std::vector<std::uint8_t> cpu_patches(const Floors& floors, int patch_px, const std::vector<PixelPose>& poses) {
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
   std::vector<std::uint8_t> patches(poses.size() * patch_bytes);
   for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -73,8 +70,7 @@ std::vector<PixelPose> random_poses(int count, int width, int height, unsigned s
                                         const std::vector<std::uint8_t>& actual, int patch_px,
                                         const std::vector<PixelPose>& poses) {
   if (expected.size() != actual.size()) {
-    return ::testing::AssertionFailure()
-           << "sizes differ: " << expected.size() << " vs " << actual.size();
+    return ::testing::AssertionFailure() << "sizes differ: " << expected.size() << " vs " << actual.size();
   }
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
   for (std::size_t i = 0; i < expected.size(); ++i) {
@@ -82,9 +78,9 @@ std::vector<PixelPose> random_poses(int count, int width, int height, unsigned s
       const std::size_t robot = i / patch_bytes;
       const std::size_t pixel = i % patch_bytes;
       return ::testing::AssertionFailure()
-             << "robot " << robot << " at pose (" << poses[robot].x << ", " << poses[robot].y
-             << "), m = " << patch_px << ", patch row " << pixel / patch_px << " column "
-             << pixel % patch_px << ": expected " << int{expected[i]} << ", got " << int{actual[i]};
+             << "robot " << robot << " at pose (" << poses[robot].x << ", " << poses[robot].y << "), m = " << patch_px
+             << ", patch row " << pixel / patch_px << " column " << pixel % patch_px << ": expected "
+             << int{expected[i]} << ", got " << int{actual[i]};
     }
   }
   return ::testing::AssertionSuccess();
@@ -148,8 +144,7 @@ TEST(PatchCamera, FewerPosesThanFloorsLoaded) {
   PatchCamera camera(n, n, m, 240);
   camera.load_floors(floors.bytes, 240);
   for (int batch : {1, 13, 239}) {
-    const std::vector<PixelPose> poses =
-        random_poses(batch, n, n, 12u + static_cast<unsigned>(batch));
+    const std::vector<PixelPose> poses = random_poses(batch, n, n, 12u + static_cast<unsigned>(batch));
     EXPECT_TRUE(same_patches(cpu_patches(floors, m, poses), gl_patches(camera, poses), m, poses));
   }
 }
@@ -171,9 +166,8 @@ TEST(PatchCamera, NonSquareFloorMatchesTheCpuCropAtEveryPose) {
 TEST(PatchCamera, PosesOffTheFloorGiveZerosLikeTheCpuCrop) {
   const int n = 28;
   const int m = 6;
-  const std::vector<PixelPose> poses = {{-1, -1},     {-3, 5},      {30, 10},
-                                        {27, 30},     {-4, -4},     {100, -100},
-                                        {INT_MAX, 0}, {0, INT_MIN}, {INT_MIN, INT_MAX}};
+  const std::vector<PixelPose> poses = {{-1, -1},    {-3, 5},      {30, 10},     {27, 30},          {-4, -4},
+                                        {100, -100}, {INT_MAX, 0}, {0, INT_MIN}, {INT_MIN, INT_MAX}};
   const int robots = static_cast<int>(poses.size());
   const Floors floors = random_floors(n, n, robots, 21);
   PatchCamera camera(n, n, m, robots);
@@ -199,10 +193,8 @@ TEST(PatchCamera, ASingleBrightPixelAppearsWhereTheWindowPutsIt) {
   floor[bright_y * width + bright_x] = 200;
   // Robot 0 centred on the pixel, robot 1 with the pixel in its top-right corner, robot 2 with it
   // in its bottom-left corner, robot 3 with it just outside (one column too far left).
-  const std::vector<PixelPose> poses = {{bright_x, bright_y},
-                                        {bright_x - 2, bright_y + 2},
-                                        {bright_x + 2, bright_y - 2},
-                                        {bright_x + 3, bright_y}};
+  const std::vector<PixelPose> poses = {
+      {bright_x, bright_y}, {bright_x - 2, bright_y + 2}, {bright_x + 2, bright_y - 2}, {bright_x + 3, bright_y}};
   const std::vector<std::pair<int, int>> expected_row_column = {{2, 2}, {0, 4}, {4, 0}, {-1, -1}};
   std::vector<std::uint8_t> all_floors;
   for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -221,8 +213,7 @@ TEST(PatchCamera, ASingleBrightPixelAppearsWhereTheWindowPutsIt) {
         const int expected = bright ? 200 : 0;
         EXPECT_EQ(patches[robot * m * m + row * m + column], expected)
             << "GL: robot " << robot << " row " << row << " column " << column;
-        EXPECT_EQ(cpu[row * m + column], expected)
-            << "CPU: robot " << robot << " row " << row << " column " << column;
+        EXPECT_EQ(cpu[row * m + column], expected) << "CPU: robot " << robot << " row " << row << " column " << column;
       }
     }
   }
@@ -325,8 +316,7 @@ TEST(PatchCamera, RejectsInvalidLoadsAndCaptures) {
 
   EXPECT_THROW(camera.load_floors(floors.bytes, 0), std::invalid_argument);
   EXPECT_THROW(camera.load_floors(floors.bytes, 5), std::invalid_argument);
-  EXPECT_THROW(camera.load_floors(std::span(floors.bytes).first(4 * n * n - 1), 4),
-               std::invalid_argument);
+  EXPECT_THROW(camera.load_floors(std::span(floors.bytes).first(4 * n * n - 1), 4), std::invalid_argument);
   EXPECT_THROW(camera.load_floors(floors.bytes, 3), std::invalid_argument);  // too many bytes
 
   camera.load_floors(std::span(floors.bytes).first(2 * n * n), 2);

@@ -203,8 +203,7 @@ TEST(DrawSnapshot, PathIsDrawnThroughPixelCentres) {
 
 TEST(DrawSnapshot, ClassPanelIsAppendedWithTheArgmaxHighlighted) {
   const Scene scene;
-  const std::array<float, 10> probabilities = {0.05f, 0.02f, 0.03f, 0.1f,  0.05f,
-                                               0.05f, 0.05f, 0.6f,  0.03f, 0.02f};
+  const std::array<float, 10> probabilities = {0.05f, 0.02f, 0.03f, 0.1f, 0.05f, 0.05f, 0.05f, 0.6f, 0.03f, 0.02f};
   Snapshot plain = scene.snapshot();
   plain.goal = PixelPose{9, 6};
   Snapshot with_panel = plain;
@@ -266,9 +265,8 @@ class WritePng : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    directory_ =
-        std::filesystem::temp_directory_path() /
-        (std::string("scout_render_test_") + info->name() + "_" + std::to_string(::getpid()));
+    directory_ = std::filesystem::temp_directory_path() /
+                 (std::string("scout_render_test_") + info->name() + "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(directory_);
     std::filesystem::create_directories(directory_);
   }
@@ -281,8 +279,7 @@ TEST_F(WritePng, WritesAFileThatReadsBackEqualAndLeavesNoTemporary) {
   Snapshot snapshot = scene.snapshot();
   snapshot.goal = PixelPose{9, 6};
   snapshot.path = {{1, 1}, {3, 3}};
-  const std::array<float, 10> probabilities = {0.1f, 0.1f, 0.1f, 0.1f, 0.1f,
-                                               0.1f, 0.1f, 0.1f, 0.1f, 0.1f};
+  const std::array<float, 10> probabilities = {0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f};
   snapshot.class_probabilities = probabilities;
   const Picture picture = draw_snapshot(snapshot);
   const std::filesystem::path file = directory_ / "snapshot.png";

@@ -62,13 +62,15 @@ TEST(RobotBatch, MovesLandOnTheCommandedCellInAllFourDirections) {
 
 TEST(RobotBatch, MovesOntoAndAwayFromEachBorder) {
   // For each border: onto it by 1 and by 2 pixels, then away from it by 2, and along it.
-  struct Case { Cell start, onto1, onto2, away, along; };
+  struct Case {
+    Cell start, onto1, onto2, away, along;
+  };
   const Case cases[] = {
-      {{2, 10}, {-1, 0}, {-1, 0}, {2, 0}, {0, 2}},     // left: 2 -> 1 -> 0 -> 2
-      {{25, 10}, {1, 0}, {1, 0}, {-2, 0}, {0, -2}},    // right: 25 -> 26 -> 27 -> 25
-      {{10, 2}, {0, -1}, {0, -1}, {0, 2}, {2, 0}},     // top
-      {{10, 25}, {0, 1}, {0, 1}, {0, -2}, {-2, 0}},    // bottom
-      {{25, 25}, {0, 2}, {2, 0}, {-2, -2}, {0, 0}},    // onto the corner by 2 on each axis
+      {{2, 10}, {-1, 0}, {-1, 0}, {2, 0}, {0, 2}},   // left: 2 -> 1 -> 0 -> 2
+      {{25, 10}, {1, 0}, {1, 0}, {-2, 0}, {0, -2}},  // right: 25 -> 26 -> 27 -> 25
+      {{10, 2}, {0, -1}, {0, -1}, {0, 2}, {2, 0}},   // top
+      {{10, 25}, {0, 1}, {0, 1}, {0, -2}, {-2, 0}},  // bottom
+      {{25, 25}, {0, 2}, {2, 0}, {-2, -2}, {0, 0}},  // onto the corner by 2 on each axis
   };
   for (const Case& c : cases) {
     RobotBatch batch(kFloor, preset(), 1);
@@ -97,7 +99,10 @@ TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
     EXPECT_FALSE(r.touched_wall);
   }
   expect_on_cell_centre(batch, 0, {0, 0});
-  const struct { Cell step; int count; } sides[] = {{{1, 0}, 27}, {{0, 1}, 27}, {{-1, 0}, 27}, {{0, -1}, 27}};
+  const struct {
+    Cell step;
+    int count;
+  } sides[] = {{{1, 0}, 27}, {{0, 1}, 27}, {{-1, 0}, 27}, {{0, -1}, 27}};
   Cell expected(0, 0);
   for (const auto& side : sides) {
     for (int k = 0; k < side.count; ++k) {
@@ -112,9 +117,10 @@ TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
 
 TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
   ASSERT_LT(kImpactBound_px, 0.5);  // the bound itself keeps the centre on the border pixel
-  const struct { Cell start, command; } cases[] = {
-      {{0, 14}, {-2, 0}}, {{1, 14}, {-5, 0}}, {{27, 3}, {2, 0}}, {{14, 0}, {0, -2}},
-      {{14, 27}, {0, 2}}, {{27, 27}, {3, 3}}, {{26, 1}, {40, -40}}};
+  const struct {
+    Cell start, command;
+  } cases[] = {{{0, 14}, {-2, 0}}, {{1, 14}, {-5, 0}}, {{27, 3}, {2, 0}},   {{14, 0}, {0, -2}},
+               {{14, 27}, {0, 2}}, {{27, 27}, {3, 3}}, {{26, 1}, {40, -40}}};
   for (const auto& c : cases) {
     RobotBatch batch(kFloor, preset(), 1);
     batch.place(0, c.start);
@@ -222,7 +228,8 @@ std::uint64_t random_drive_hash(std::uint32_t seed, int robots, int moves, int t
   std::vector<MoveResult> results(robots);
   std::uint64_t h = 1469598103934665603ull;
   for (int m = 0; m < moves; ++m) {
-    for (Cell& c : commands) c = (rng() % 2) ? Cell(static_cast<int>(rng() % 5) - 2, 0) : Cell(0, static_cast<int>(rng() % 5) - 2);
+    for (Cell& c : commands)
+      c = (rng() % 2) ? Cell(static_cast<int>(rng() % 5) - 2, 0) : Cell(0, static_cast<int>(rng() % 5) - 2);
     batch.move(commands, results);
     h = hash_positions(batch, h);
   }

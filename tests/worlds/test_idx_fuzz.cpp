@@ -102,10 +102,18 @@ class Mutator {
   }
   void mutate(Bytes& b) {
     switch (below(4)) {
-      case 0: flip_bits(b); break;
-      case 1: truncate(b); break;
-      case 2: insert_bytes(b); break;
-      default: overwrite_field(b); break;
+      case 0:
+        flip_bits(b);
+        break;
+      case 1:
+        truncate(b);
+        break;
+      case 2:
+        insert_bytes(b);
+        break;
+      default:
+        overwrite_field(b);
+        break;
     }
   }
 

@@ -1,16 +1,15 @@
 // World files: the shipped worlds, defaults, every kind of bad input and its exact message
 // prefix, floor-size checks, path resolution and the to_yaml round trip.
 #include <gtest/gtest.h>
-
-#include "tests/support/temp_dir.hpp"
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <string>
-#include <unistd.h>
 
+#include "tests/support/temp_dir.hpp"
 #include "worlds/error.hpp"
 #include "worlds/world.hpp"
 
@@ -97,12 +96,31 @@ TEST(WorldFile, ShippedMnistIsThePaperPreset) {
   EXPECT_EQ(w.floor.dataset, "mnist");
   expect_paper_preset(w);
   // Every section and field has its line, for later messages.
-  for (const char* key : {"floor", "floor.dataset", "floor.split", "floor.index", "floor.pixel_size_m", "robot",
-                          "robot.radius_m", "robot.mass_kg", "robot.max_speed_mps", "robot.start", "controller",
-                          "controller.kp_per_s", "controller.tolerance_px", "camera", "camera.patch_px", "task",
-                          "task.episodes", "task.steps", "task.step_px", "physics", "physics.dt_s",
-                          "physics.velocity_iterations", "physics.position_iterations",
-                          "physics.max_ticks_per_move", "seed"}) {
+  for (const char* key : {"floor",
+                          "floor.dataset",
+                          "floor.split",
+                          "floor.index",
+                          "floor.pixel_size_m",
+                          "robot",
+                          "robot.radius_m",
+                          "robot.mass_kg",
+                          "robot.max_speed_mps",
+                          "robot.start",
+                          "controller",
+                          "controller.kp_per_s",
+                          "controller.tolerance_px",
+                          "camera",
+                          "camera.patch_px",
+                          "task",
+                          "task.episodes",
+                          "task.steps",
+                          "task.step_px",
+                          "physics",
+                          "physics.dt_s",
+                          "physics.velocity_iterations",
+                          "physics.position_iterations",
+                          "physics.max_ticks_per_move",
+                          "seed"}) {
     EXPECT_EQ(w.lines.count(key), 1u) << key;
   }
   EXPECT_EQ(w.lines.at("floor"), 2);
@@ -187,7 +205,8 @@ TEST(WorldFile, TheGainMayBeHighWhenTheTickIsShort) {
 TEST(WorldFile, TheRobotMustBeHalfAPixelToAHundredPixelsInRadius) {
   EXPECT_EQ(parse_world("floor: {pixel_size_m: 0.002}\nrobot: {radius_m: 1e-3}\n", "w.yaml").robot.radius_m, 1e-3);
   expect_error("floor: {pixel_size_m: 0.1}\nrobot: {radius_m: 0.04}\n",
-               "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels (0.05 to 10 m at pixel_size_m 0.1), got 0.04 m = 0.4 px");
+               "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels (0.05 to 10 m at pixel_size_m 0.1), "
+               "got 0.04 m = 0.4 px");
   expect_error("floor:\n  pixel_size_m: 0.001\n", "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels");
 }
 
@@ -216,53 +235,73 @@ void PrintTo(const BadCase& bad, std::ostream* os) { *os << bad.name; }
 
 class BadWorld : public ::testing::TestWithParam<BadCase> {};
 
-TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) {
-  expect_error(GetParam().text, GetParam().prefix);
-}
+TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) { expect_error(GetParam().text, GetParam().prefix); }
 
 const BadCase kBadCases[] = {
     {"UnknownTopLevelKey", "floor: {}\nrobott: {}\n",
-     "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, seed, got unknown key"},
+     "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, seed, got unknown "
+     "key"},
     {"UnknownNestedKey", "robot:\n  radius_m: 1\n  radius: 1\n",
-     "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key \"radius\""},
+     "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key "
+     "\"radius\""},
     {"UnknownKeyInFlowMap", "task: {episodes: 4, goals: 2}\n", "w.yaml:1: task.goals: expected a key among episodes"},
     {"NonScalarKey", "camera:\n  [1, 2]: 3\n", "w.yaml:2: camera: expected keys among patch_px, got a sequence"},
     {"DuplicateKey", "camera:\n  patch_px: 6\n  patch_px: 7\n",
      "w.yaml:3: camera.patch_px: expected each key once, got a second one (the first is on line 2)"},
     {"DuplicateSection", "seed: 1\ncamera: {}\nseed: 2\n", "w.yaml:3: seed: expected each section once"},
-    {"StringForNumber", "robot:\n  mass_kg: heavy\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got heavy"},
+    {"StringForNumber", "robot:\n  mass_kg: heavy\n",
+     "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got heavy"},
     {"QuotedNumber", "camera:\n  patch_px: \"6\"\n",
      "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got the string \"6\""},
-    {"TaggedNumber", "camera:\n  patch_px: !!str 6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a value tagged !!str"},
-    {"MapForScalar", "camera:\n  patch_px: {a: 1}\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a map"},
-    {"SequenceForScalar", "physics:\n  dt_s: [0.1]\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got a sequence of 1 element"},
+    {"TaggedNumber", "camera:\n  patch_px: !!str 6\n",
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a value tagged !!str"},
+    {"MapForScalar", "camera:\n  patch_px: {a: 1}\n",
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got a map"},
+    {"SequenceForScalar", "physics:\n  dt_s: [0.1]\n",
+     "w.yaml:2: physics.dt_s: expected a number in (0, 1], got a sequence of 1 element"},
     {"NothingForScalar", "physics:\n  dt_s:\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got nothing"},
-    {"ScalarForSection", "robot: fast\n", "w.yaml:1: robot: expected a map of radius_m, mass_kg, max_speed_mps, start, got fast"},
+    {"ScalarForSection", "robot: fast\n",
+     "w.yaml:1: robot: expected a map of radius_m, mass_kg, max_speed_mps, start, got fast"},
     {"FloatForInteger", "seed: 1\ncamera:\n  patch_px: 6.5\n",
      "w.yaml:3: camera.patch_px: expected an integer in [1, 64], got 6.5"},
-    {"FloatWithZeroFractionForInteger", "task:\n  steps: 5.0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 5.0"},
+    {"FloatWithZeroFractionForInteger", "task:\n  steps: 5.0\n",
+     "w.yaml:2: task.steps: expected an integer in [1, 1000], got 5.0"},
     {"ExponentForInteger", "physics:\n  max_ticks_per_move: 1e3\n",
      "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 1e3"},
-    {"HexForInteger", "camera:\n  patch_px: 0x10\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 0x10"},
+    {"HexForInteger", "camera:\n  patch_px: 0x10\n",
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 0x10"},
     {"PatchBelowRange", "camera:\n  patch_px: 0\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 0"},
-    {"PatchAboveRange", "camera:\n  patch_px: 65\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 65"},
+    {"PatchAboveRange", "camera:\n  patch_px: 65\n",
+     "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got 65"},
     {"EpisodesZero", "task:\n  episodes: 0\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 0"},
-    {"EpisodesAboveRange", "task:\n  episodes: 1001\n", "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 1001"},
+    {"EpisodesAboveRange", "task:\n  episodes: 1001\n",
+     "w.yaml:2: task.episodes: expected an integer in [1, 1000], got 1001"},
     {"StepsZero", "task:\n  steps: 0\n", "w.yaml:2: task.steps: expected an integer in [1, 1000], got 0"},
     {"StepPxAboveRange", "task:\n  step_px: 513\n", "w.yaml:2: task.step_px: expected an integer in [1, 512], got 513"},
     {"NegativePatch", "camera:\n  patch_px: -6\n", "w.yaml:2: camera.patch_px: expected an integer in [1, 64], got -6"},
-    {"NegativeRadius", "robot:\n  radius_m: -0.25\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0.25"},
-    {"NegativeZeroRadius", "robot:\n  radius_m: -0\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0"},
-    {"RadiusAboveRange", "robot:\n  radius_m: 10.5\n", "w.yaml:2: robot.radius_m: expected a number in (0, 10], got 10.5"},
+    {"NegativeRadius", "robot:\n  radius_m: -0.25\n",
+     "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0.25"},
+    {"NegativeZeroRadius", "robot:\n  radius_m: -0\n",
+     "w.yaml:2: robot.radius_m: expected a number in (0, 10], got -0"},
+    {"RadiusAboveRange", "robot:\n  radius_m: 10.5\n",
+     "w.yaml:2: robot.radius_m: expected a number in (0, 10], got 10.5"},
     {"MassZero", "robot:\n  mass_kg: 0\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got 0"},
-    {"MassAboveRange", "robot:\n  mass_kg: 10001\n", "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got 10001"},
-    {"SpeedAboveRange", "robot:\n  max_speed_mps: 1000.5\n", "w.yaml:2: robot.max_speed_mps: expected a number in (0, 1000], got 1000.5"},
-    {"PixelSizeZero", "floor:\n  pixel_size_m: 0\n", "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 0"},
-    {"PixelSizeAboveRange", "floor:\n  pixel_size_m: 11\n", "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 11"},
-    {"GainZero", "controller:\n  kp_per_s: 0\n", "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 0"},
-    {"GainAboveRange", "controller:\n  kp_per_s: 2e6\n", "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 2e6"},
-    {"ToleranceZero", "controller:\n  tolerance_px: 0\n", "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0"},
-    {"ToleranceHalfPixel", "controller:\n  tolerance_px: 0.5\n", "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0.5"},
+    {"MassAboveRange", "robot:\n  mass_kg: 10001\n",
+     "w.yaml:2: robot.mass_kg: expected a number in (0, 10000], got 10001"},
+    {"SpeedAboveRange", "robot:\n  max_speed_mps: 1000.5\n",
+     "w.yaml:2: robot.max_speed_mps: expected a number in (0, 1000], got 1000.5"},
+    {"PixelSizeZero", "floor:\n  pixel_size_m: 0\n",
+     "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 0"},
+    {"PixelSizeAboveRange", "floor:\n  pixel_size_m: 11\n",
+     "w.yaml:2: floor.pixel_size_m: expected a number in (0, 10], got 11"},
+    {"GainZero", "controller:\n  kp_per_s: 0\n",
+     "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 0"},
+    {"GainAboveRange", "controller:\n  kp_per_s: 2e6\n",
+     "w.yaml:2: controller.kp_per_s: expected a number in (0, 1e+06], got 2e6"},
+    {"ToleranceZero", "controller:\n  tolerance_px: 0\n",
+     "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0"},
+    {"ToleranceHalfPixel", "controller:\n  tolerance_px: 0.5\n",
+     "w.yaml:2: controller.tolerance_px: expected a number in (0, 0.5), got 0.5"},
     {"DtZero", "physics:\n  dt_s: 0\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got 0"},
     {"DtAboveRange", "physics:\n  dt_s: 1.5\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got 1.5"},
     {"DtInfinite", "physics:\n  dt_s: .inf\n", "w.yaml:2: physics.dt_s: expected a number in (0, 1], got .inf"},
@@ -272,31 +311,43 @@ const BadCase kBadCases[] = {
      "w.yaml:2: physics.velocity_iterations: expected an integer in [1, 100], got 0"},
     {"PositionIterationsAboveRange", "physics:\n  position_iterations: 101\n",
      "w.yaml:2: physics.position_iterations: expected an integer in [1, 100], got 101"},
-    {"TicksZero", "physics:\n  max_ticks_per_move: 0\n", "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 0"},
+    {"TicksZero", "physics:\n  max_ticks_per_move: 0\n",
+     "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 0"},
     {"TicksAboveRange", "physics:\n  max_ticks_per_move: 100001\n",
      "w.yaml:2: physics.max_ticks_per_move: expected an integer in [1, 100000], got 100001"},
     {"NegativeSeed", "seed: -1\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got -1"},
     {"SeedBeyond64Bits", "seed: 18446744073709551616\n",
      "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got 18446744073709551616"},
     {"FloatSeed", "seed: 1.5\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got 1.5"},
-    {"NegativeIndex", "floor:\n  index: -1\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got -1"},
-    {"IndexBeyondInt", "floor:\n  index: 2147483648\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got 2147483648"},
-    {"IndexWord", "floor:\n  index: any\n", "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got any"},
+    {"NegativeIndex", "floor:\n  index: -1\n",
+     "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got -1"},
+    {"IndexBeyondInt", "floor:\n  index: 2147483648\n",
+     "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got 2147483648"},
+    {"IndexWord", "floor:\n  index: any\n",
+     "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got any"},
     {"BadSplit", "floor:\n  split: val\n", "w.yaml:2: floor.split: expected train, validation or test, got val"},
-    {"EmptyDataset", "floor:\n  dataset: \"\"\n", "w.yaml:2: floor.dataset: expected mnist, fashion-mnist or a folder of IDX files, got the string \"\""},
+    {"EmptyDataset", "floor:\n  dataset: \"\"\n",
+     "w.yaml:2: floor.dataset: expected mnist, fashion-mnist or a folder of IDX files, got the string \"\""},
     {"StartWithThreeElements", "robot:\n  start: [1, 2, 3]\n",
-     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 3 elements"},
-    {"StartWithOneElement", "robot:\n  start: [1]\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 1 element"},
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 3 "
+     "elements"},
+    {"StartWithOneElement", "robot:\n  start: [1]\n",
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 1 "
+     "element"},
     {"StartNegative", "robot:\n  start:\n    - 3\n    - -1\n",
      "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got y = -1"},
-    {"StartFloat", "robot:\n  start: [1.5, 2]\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got x = 1.5"},
-    {"StartScalar", "robot:\n  start: middle\n", "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got middle"},
+    {"StartFloat", "robot:\n  start: [1.5, 2]\n",
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got x = 1.5"},
+    {"StartScalar", "robot:\n  start: middle\n",
+     "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got middle"},
     {"DatasetAndImage", "floor:\n  dataset: mnist\n  image: floor.png\n",
      "w.yaml:3: floor.image: expected either floor.dataset or floor.image, got both"},
     {"ImageAndDataset", "floor:\n  image: floor.png\n  dataset: mnist\n",
      "w.yaml:3: floor.dataset: expected either floor.dataset or floor.image, got both"},
-    {"SplitWithImage", "floor:\n  image: floor.png\n  split: test\n", "w.yaml:3: floor.split: expected no split with floor.image, got test"},
-    {"IndexWithImage", "floor:\n  index: 3\n  image: floor.png\n", "w.yaml:2: floor.index: expected no index with floor.image, got 3"},
+    {"SplitWithImage", "floor:\n  image: floor.png\n  split: test\n",
+     "w.yaml:3: floor.split: expected no split with floor.image, got test"},
+    {"IndexWithImage", "floor:\n  index: 3\n  image: floor.png\n",
+     "w.yaml:2: floor.index: expected no index with floor.image, got 3"},
     {"ImageNotPng", "floor:\n  image: floor.jpg\n", "w.yaml:2: floor.image: expected a .png file, got floor.jpg"},
     {"ImageOnlyExtension", "floor:\n  image: .png\n", "w.yaml:2: floor.image: expected a .png file, got .png"},
     {"PerturbationRefused", "task: {}\nperturbation:\n  slip: 0.1\n",
@@ -313,14 +364,17 @@ const BadCase kBadCases[] = {
     {"DeepFlowNesting", "seed: [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[\n",
      "w.yaml:1: expected nesting at most 64 levels deep, got deeper"},
     {"DeepCompactNesting",
-     "seed:\n- - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - x\n",
+     "seed:\n- - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - - "
+     "- - - - - - - - - - - - - - - - - x\n",
      "w.yaml:2: expected nesting at most 64 levels deep, got deeper"},
     {"AliasOfAWrongKind", "a: &a [1, 2]\n", "w.yaml:1: a: expected a section among"},
     {"AliasedSectionWithWrongKeys", "robot: &r {radius_m: 1}\ncontroller: *r\n",
      // The shared node's keys are written on line 1: that is the line named.
      "w.yaml:1: controller.radius_m: expected a key among kp_per_s, tolerance_px"},
-    {"CyclicAlias", "seed: &a [*a]\n", "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got a sequence of 1 element"},
-    {"NewlineInValueIsEscaped", "floor:\n  split: \"te\\nst\"\n", "w.yaml:2: floor.split: expected train, validation or test, got the string \"te\\nst\""},
+    {"CyclicAlias", "seed: &a [*a]\n",
+     "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got a sequence of 1 element"},
+    {"NewlineInValueIsEscaped", "floor:\n  split: \"te\\nst\"\n",
+     "w.yaml:2: floor.split: expected train, validation or test, got the string \"te\\nst\""},
 };
 
 INSTANTIATE_TEST_SUITE_P(WorldFile, BadWorld, ::testing::ValuesIn(kBadCases),
@@ -353,7 +407,8 @@ TEST(WorldFile, TooLargeFileIsRefusedWithoutReadingItAll) {
 
 TEST(WorldFile, BracketsInsideQuotesAndCommentsAreNotNesting) {
   const std::string many(100, '[');
-  const World w = parse_world("floor:\n  dataset: \"" + many + "\"  # " + many + "\nrobot: {start: random}  # ]]]\n", "w.yaml");
+  const World w =
+      parse_world("floor:\n  dataset: \"" + many + "\"  # " + many + "\nrobot: {start: random}  # ]]]\n", "w.yaml");
   EXPECT_EQ(w.floor.dataset, fs::absolute(many).lexically_normal().string());
 }
 
@@ -494,15 +549,16 @@ TEST(WorldFile, ToYamlRoundTripsTheShippedWorld) {
 
 TEST(WorldFile, ToYamlRoundTripsEveryFieldExactly) {
   const TempDir dir;
-  const fs::path file = dir.write("w.yaml",
-                                  "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
-                                  "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
-                                  "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
-                                  "camera: {patch_px: 9}\n"
-                                  "task: {episodes: 7, steps: 3, step_px: 4}\n"
-                                  "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2,"
-                                  " max_ticks_per_move: 999}\n"
-                                  "seed: 18446744073709551615\n");
+  const fs::path file =
+      dir.write("w.yaml",
+                "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
+                "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+                "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
+                "camera: {patch_px: 9}\n"
+                "task: {episodes: 7, steps: 3, step_px: 4}\n"
+                "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2,"
+                " max_ticks_per_move: 999}\n"
+                "seed: 18446744073709551615\n");
   const World w = load_world(file);
   expect_same_world(parse_world(to_yaml(w), file), w);
 

@@ -110,7 +110,9 @@ class Fuzzer {
 
   std::size_t below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   template <class T>
-  const T& pick(const std::vector<T>& items) { return items[below(items.size())]; }
+  const T& pick(const std::vector<T>& items) {
+    return items[below(items.size())];
+  }
 
   std::string random_bytes() {
     std::string s(below(200), '\0');
@@ -156,8 +158,12 @@ class Fuzzer {
     const std::size_t depth = 30 + below(3000);
     std::string s = pick(std::vector<std::string>{"seed: ", "floor:\n  dataset: ", "", "robot:\n  start: "});
     switch (below(5)) {
-      case 0: s += std::string(depth, '['); break;
-      case 1: s += std::string(depth, '{'); break;
+      case 0:
+        s += std::string(depth, '[');
+        break;
+      case 1:
+        s += std::string(depth, '{');
+        break;
       case 2:
         for (std::size_t i = 0; i < depth; ++i) s += "- ";
         s += "x";
@@ -166,7 +172,8 @@ class Fuzzer {
         for (std::size_t i = 0; i < depth; ++i) s += std::string(i, ' ') + "k:\n";
         break;
       default:
-        for (std::size_t i = 0; i < depth; ++i) s += pick(std::vector<std::string>{"[", "{a: ", "[\"]\", ", "'", "\"", "#", "\n", "- ", "? "});
+        for (std::size_t i = 0; i < depth; ++i)
+          s += pick(std::vector<std::string>{"[", "{a: ", "[\"]\", ", "'", "\"", "#", "\n", "- ", "? "});
     }
     return s;
   }
@@ -180,23 +187,33 @@ class Fuzzer {
       const std::size_t i = below(lines.size());
       std::string& line = lines[i];
       switch (below(8)) {
-        case 0: lines.erase(lines.begin() + static_cast<std::ptrdiff_t>(i)); break;
-        case 1: lines.insert(lines.begin() + static_cast<std::ptrdiff_t>(i), line); break;
-        case 2: std::swap(line, lines[below(lines.size())]); break;
+        case 0:
+          lines.erase(lines.begin() + static_cast<std::ptrdiff_t>(i));
+          break;
+        case 1:
+          lines.insert(lines.begin() + static_cast<std::ptrdiff_t>(i), line);
+          break;
+        case 2:
+          std::swap(line, lines[below(lines.size())]);
+          break;
         case 3:
           if (!line.empty()) line[below(line.size())] = static_cast<char>(below(256));
           break;
         case 4:
           if (!line.empty()) line[below(line.size())] = pick(kInterestingChars);
           break;
-        case 5: line.resize(below(line.size() + 1)); break;
+        case 5:
+          line.resize(below(line.size() + 1));
+          break;
         case 6: {
           // Replace the value after the colon with an interesting one.
           const auto colon = line.find(':');
           if (colon != std::string::npos) line = line.substr(0, colon + 1) + " " + pick(kValues);
           break;
         }
-        default: line.insert(below(line.size() + 1), pick(kTokens)); break;
+        default:
+          line.insert(below(line.size() + 1), pick(kTokens));
+          break;
       }
     }
     std::string out;
@@ -208,26 +225,174 @@ class Fuzzer {
  private:
   std::mt19937_64 rng_;
 
-  const std::vector<std::string> kTokens = {
-      "[", "]", "{", "}", ":", ": ", "-", "- ", ",", "?", "? ", "\"", "'", "#", "|", ">", "&a", "*a", "&b ", "*b",
-      "!!str", "!!int", "!!map", "!!seq", "!foo", "<<", "---", "...", "%YAML 1.2", "\t", "\\", "~", "null",
-      "floor", "robot", "controller", "camera", "task", "physics", "seed", "perturbation", "dataset", "split",
-      "index", "image", "pixel_size_m", "radius_m", "mass_kg", "max_speed_mps", "start", "kp_per_s",
-      "tolerance_px", "patch_px", "episodes", "steps", "step_px", "dt_s", "velocity_iterations",
-      "position_iterations", "max_ticks_per_move", "random", "mnist", "fashion-mnist", "test", "train",
-      "validation", "a.png", "0", "1", "6", "-1", "-0", "0.5", "6.5", "1e400", "-1e400", "1e-400", "nan", ".nan",
-      ".inf", "-.inf", "0x10", "0o7", "007", "1_000", "18446744073709551615", "18446744073709551616",
-      "99999999999999999999999999", "2147483647", "2147483648", "+5", "1.", ".5", "e5", "1e", "\xff", "\xef\xbb\xbf",
-      std::string(1, '\0')};
+  const std::vector<std::string> kTokens = {"[",
+                                            "]",
+                                            "{",
+                                            "}",
+                                            ":",
+                                            ": ",
+                                            "-",
+                                            "- ",
+                                            ",",
+                                            "?",
+                                            "? ",
+                                            "\"",
+                                            "'",
+                                            "#",
+                                            "|",
+                                            ">",
+                                            "&a",
+                                            "*a",
+                                            "&b ",
+                                            "*b",
+                                            "!!str",
+                                            "!!int",
+                                            "!!map",
+                                            "!!seq",
+                                            "!foo",
+                                            "<<",
+                                            "---",
+                                            "...",
+                                            "%YAML 1.2",
+                                            "\t",
+                                            "\\",
+                                            "~",
+                                            "null",
+                                            "floor",
+                                            "robot",
+                                            "controller",
+                                            "camera",
+                                            "task",
+                                            "physics",
+                                            "seed",
+                                            "perturbation",
+                                            "dataset",
+                                            "split",
+                                            "index",
+                                            "image",
+                                            "pixel_size_m",
+                                            "radius_m",
+                                            "mass_kg",
+                                            "max_speed_mps",
+                                            "start",
+                                            "kp_per_s",
+                                            "tolerance_px",
+                                            "patch_px",
+                                            "episodes",
+                                            "steps",
+                                            "step_px",
+                                            "dt_s",
+                                            "velocity_iterations",
+                                            "position_iterations",
+                                            "max_ticks_per_move",
+                                            "random",
+                                            "mnist",
+                                            "fashion-mnist",
+                                            "test",
+                                            "train",
+                                            "validation",
+                                            "a.png",
+                                            "0",
+                                            "1",
+                                            "6",
+                                            "-1",
+                                            "-0",
+                                            "0.5",
+                                            "6.5",
+                                            "1e400",
+                                            "-1e400",
+                                            "1e-400",
+                                            "nan",
+                                            ".nan",
+                                            ".inf",
+                                            "-.inf",
+                                            "0x10",
+                                            "0o7",
+                                            "007",
+                                            "1_000",
+                                            "18446744073709551615",
+                                            "18446744073709551616",
+                                            "99999999999999999999999999",
+                                            "2147483647",
+                                            "2147483648",
+                                            "+5",
+                                            "1.",
+                                            ".5",
+                                            "e5",
+                                            "1e",
+                                            "\xff",
+                                            "\xef\xbb\xbf",
+                                            std::string(1, '\0')};
   const std::vector<std::string> kSeparators = {" ", "", "\n", "\n  ", "\n    ", ", ", "\r\n"};
-  const std::vector<std::string> kValues = {
-      "random", "[1, 2]", "[1, 2, 3]", "{}", "[]", "~", "", "\"6\"", "6.0", "0", "-3", "1e400", ".inf", ".nan",
-      "-0", "0x10", "18446744073709551615", "18446744073709551616", "&x 5", "*x", "!!str 6", "|\n  6",
-      "[[[[", "a.png", "fashion-mnist", "../x", "512", "513", "1000", "0.4999", "1e-300"};
-  const std::vector<std::string> kNumbers = {
-      "0", "1", "2", "3", "6", "28", "100", "512", "1000", "0.05", "0.1", "0.25", "0.4999", "0.5", "1.0", "2.0", "10",
-      "60", "1e4", "1e6", "1e-3", "-1", "-0", "-0.0", "6.5", "1e400", "1e-400", ".5", "5.", "+3", "007",
-      "2147483647", "2147483648", "18446744073709551615", "18446744073709551616", "[3, 4]", "[0, 0]", "random"};
+  const std::vector<std::string> kValues = {"random",
+                                            "[1, 2]",
+                                            "[1, 2, 3]",
+                                            "{}",
+                                            "[]",
+                                            "~",
+                                            "",
+                                            "\"6\"",
+                                            "6.0",
+                                            "0",
+                                            "-3",
+                                            "1e400",
+                                            ".inf",
+                                            ".nan",
+                                            "-0",
+                                            "0x10",
+                                            "18446744073709551615",
+                                            "18446744073709551616",
+                                            "&x 5",
+                                            "*x",
+                                            "!!str 6",
+                                            "|\n  6",
+                                            "[[[[",
+                                            "a.png",
+                                            "fashion-mnist",
+                                            "../x",
+                                            "512",
+                                            "513",
+                                            "1000",
+                                            "0.4999",
+                                            "1e-300"};
+  const std::vector<std::string> kNumbers = {"0",
+                                             "1",
+                                             "2",
+                                             "3",
+                                             "6",
+                                             "28",
+                                             "100",
+                                             "512",
+                                             "1000",
+                                             "0.05",
+                                             "0.1",
+                                             "0.25",
+                                             "0.4999",
+                                             "0.5",
+                                             "1.0",
+                                             "2.0",
+                                             "10",
+                                             "60",
+                                             "1e4",
+                                             "1e6",
+                                             "1e-3",
+                                             "-1",
+                                             "-0",
+                                             "-0.0",
+                                             "6.5",
+                                             "1e400",
+                                             "1e-400",
+                                             ".5",
+                                             "5.",
+                                             "+3",
+                                             "007",
+                                             "2147483647",
+                                             "2147483648",
+                                             "18446744073709551615",
+                                             "18446744073709551616",
+                                             "[3, 4]",
+                                             "[0, 0]",
+                                             "random"};
   const std::vector<std::pair<std::string, std::vector<std::string>>> kSchema = {
       {"floor", {"dataset", "split", "index", "image", "pixel_size_m"}},
       {"robot", {"radius_m", "mass_kg", "max_speed_mps", "start"}},
@@ -236,8 +401,8 @@ class Fuzzer {
       {"task", {"episodes", "steps", "step_px"}},
       {"physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"}},
       {"seed", {}}};
-  const std::vector<char> kInterestingChars = {'[', ']', '{', '}', ':', '-', '#', '"', '\'', '&', '*', '!',
-                                               '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e', '%', '@', '`'};
+  const std::vector<char> kInterestingChars = {'[', ']', '{',  '}',  ':', '-', '#', '"', '\'', '&', '*', '!',
+                                               '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
 };
 
 TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
