@@ -212,13 +212,18 @@ void add_run_command(CLI::App& app, const Context& context) {
                                  "Drive robots over a world headless (mode (i): i.i.d. random goals and "
                                  "actions) and export trajectory.json, images and manifest.json.");
   cmd->add_option("world", opt->world, "World file (YAML), e.g. worlds/mnist.yaml")->required();
-  cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")->required();
+  cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")
+      ->required()
+      ->check(CLI::Validator(
+          [](std::string& text) { return text.empty() ? std::string("expected a folder path, got an empty one") : ""; },
+          "DIR"));
   cmd->add_option("--seed", opt->seed, "Seed, an integer in [0, 2^64 - 1] (overrides the world file's)")
       ->check(seed_validator());
   cmd->add_option("--count", opt->count, "Number of rollouts (each on its own digit with index: random)")
+      ->capture_default_str()
       ->check(decimal_in(1, 1000000));
   cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
-  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->check(decimal_in(1, 64));
+  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->capture_default_str()->check(decimal_in(1, 64));
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing --out folder");
   cmd->add_flag("--no-images", opt->no_images, "Skip the PNG snapshots");
   cmd->callback([opt, &context] {

@@ -102,9 +102,7 @@ fs::path dataset_folder(const std::string& name, const fs::path& data_root) {
 LabeledImages load_split(const fs::path& folder, Split split) {
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
-    // The project's MNIST folder is the one most often missing: say how to make it.
-    const char* hint = folder.filename() == "mnist" ? " (run `scout data` to install MNIST)" : "";
-    throw InputError(fmt::format("{}: no such folder; {}{}", folder.string(), expected_names(), hint));
+    throw InputError(fmt::format("{}: no such folder; {}", folder.string(), expected_names()));
   }
   if (split == Split::Test) return load_pair(folder, "t10k");
 

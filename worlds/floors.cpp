@@ -184,7 +184,14 @@ FloorSet load_dataset(const World& world, const fs::path& data_root) {
     data = load_split(folder, world.floor.split);
   } catch (const InputError& e) {
     // The data set's own message names its folder or file; the prefix names the world's field.
-    fail(world, "floor.dataset", e.what());
+    // The project's MNIST is the data set most often missing: say how to install it.
+    std::error_code ec;
+    const bool mnist_missing = world.floor.dataset == "mnist" && !fs::is_directory(folder, ec);
+    const std::string hint = !mnist_missing                        ? ""
+                             : data_root == default_data_root() ? " (run `scout data` to install MNIST)"
+                                                                : " (run `scout data --data " + data_root.string() +
+                                                                      "` to install MNIST there)";
+    fail(world, "floor.dataset", e.what() + hint);
   }
   FloorSet set;
   set.images = std::move(data.images);

@@ -159,6 +159,11 @@ void Loader::check_text(std::string_view text) const {
                               std::to_string(kMaxFileBytes) + " bytes), got " + std::to_string(text.size()) +
                               " bytes"));
   }
+  // yaml-cpp reports a NUL byte as a confusing escape error on the wrong line: name it here.
+  if (const auto nul = text.find('\0'); nul != std::string_view::npos) {
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(nul), '\n');
+    throw InputError(one_line(origin_.string() + ":" + std::to_string(line) + ": expected text, got a NUL byte"));
+  }
   // Over-estimates depth where unsure (brackets in plain scalars, lines of a block scalar count
   // as nesting), which only refuses odd files; the quote rules are strict enough that text can
   // hide real brackets from the scan only where yaml-cpp's own depth guard still applies.
@@ -597,7 +602,8 @@ void Loader::read(const YAML::Node& root) {
                "a radius of 0.5 to 100 pixels (" + format_double(0.5 * world_.floor.pixel_size_m) + " to " +
                    format_double(100.0 * world_.floor.pixel_size_m) + " m at pixel_size_m " +
                    format_double(world_.floor.pixel_size_m) + ")",
-               format_double(world_.robot.radius_m) + " m = " + fmt::format("{:.3g}", radius_px) + " px");
+               format_double(world_.robot.radius_m) + " m = " + fmt::format("{:.3g}", radius_px) + " px" +
+                   (it == world_.lines.end() ? " (the default)" : ""));
   }
 
   // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
@@ -611,7 +617,8 @@ void Loader::read(const YAML::Node& root) {
     fail_field(line, "controller.kp_per_s",
                "less than 2 / physics.dt_s = " + format_double(2.0 / world_.physics.dt_s) +
                    " (kp_per_s * dt_s = 1 lands in one tick; 2 or more never settles)",
-               format_double(world_.controller.kp_per_s));
+               format_double(world_.controller.kp_per_s) +
+                   (world_.lines.count("controller.kp_per_s") ? "" : " (the default)"));
   }
 }
 

@@ -264,7 +264,13 @@ TEST(DatasetFloor, MissingFolderIsNamedByTheWorldFileLine) {
   // The default "mnist" (no floor section): the field has no line, the file is still named.
   const Refusal mnist = refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\n"), dir.path() / "no-data");
   expect_one_line_with_prefix(mnist, (dir.path() / "w.yaml").string() + ": floor.dataset: ");
-  EXPECT_NE(mnist.message.find("scout data"), std::string::npos) << mnist.message;
+  // ... and it says how to install MNIST into that data folder.
+  EXPECT_NE(mnist.message.find("(run `scout data --data " + (dir.path() / "no-data").string() + "` to install MNIST there)"),
+            std::string::npos)
+      << mnist.message;
+  // A folder of the user's own gets no such advice, even one named mnist.
+  const Refusal own = refusal_of(dir, world_in(dir, "floor:\n  dataset: own/mnist\n"));
+  EXPECT_EQ(own.message.find("scout data"), std::string::npos) << own.message;
   // With a floor section but no dataset key, the section's line.
   const Refusal section =
       refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\nfloor:\n  split: test\n"), dir.path() / "no-data");

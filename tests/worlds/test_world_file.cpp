@@ -210,6 +210,11 @@ TEST(WorldFile, TheRobotMustBeHalfAPixelToAHundredPixelsInRadius) {
   expect_error("floor:\n  pixel_size_m: 0.001\n", "w.yaml:2: robot.radius_m: expected a radius of 0.5 to 100 pixels");
 }
 
+TEST(WorldFile, ANulByteIsNamedWithItsLine) {
+  expect_error(std::string("camera:\n  patch_px: 6\nseed: 1") + std::string(1, '\0') + "\n",
+               "w.yaml:3: expected text, got a NUL byte");
+}
+
 TEST(WorldFile, AGainThatCannotSettleIsRefused) {
   // kp * dt = 2: the position error flips sign with the same size every tick.
   expect_error("controller: {kp_per_s: 120}\nphysics: {dt_s: 0.0166667}\n",
