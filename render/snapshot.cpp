@@ -1,13 +1,16 @@
-// Trajectory pictures: the floor enlarged, the unseen part shaded, the path, the camera window
-// and the goal window, and optionally the classifier's bars. Drawn with OpenCV, in BGR.
+// Trajectory pictures: the floor enlarged, the unseen part shaded, optionally the goal
+// distribution as a heat map with its colour scale, the path, the camera window and the goal
+// window, and optionally the classifier's bars. Drawn with OpenCV, in BGR.
 #include "render/snapshot.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -84,6 +87,94 @@ void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
   }
 }
 
+// The heat map's colours, 1 x 256 BGR: INFERNO runs from near-black to pale yellow, so it
+// neither dazzles the floor nor looks like the blue and green windows. Built once: OpenCV
+// rebuilds its colormap table on every applyColorMap call.
+const cv::Mat& heat_colours() {
+  static const cv::Mat colours = [] {
+    cv::Mat ramp(1, 256, CV_8UC1);
+    for (int i = 0; i < 256; ++i) ramp.at<std::uint8_t>(0, i) = static_cast<std::uint8_t>(i);
+    cv::Mat lut;
+    cv::applyColorMap(ramp, lut, cv::COLORMAP_INFERNO);
+    return lut;
+  }();
+  return colours;
+}
+
+// Negative and non-finite probabilities draw as 0 rather than throwing, like the class bars: a
+// picture is a diagnostic, so it is drawn even for a broken distribution.
+float heat_value(float p) { return std::isfinite(p) && p > 0.0f ? p : 0.0f; }
+
+// Levels 0..255, p / max p: relative, because a distribution over hundreds of pixels has
+// probabilities far too small to show on an absolute scale.
+std::vector<std::uint8_t> heat_levels(std::span<const float> probabilities, float max_p) {
+  std::vector<std::uint8_t> levels(probabilities.size(), 0);
+  if (max_p <= 0.0f) return levels;
+  for (std::size_t i = 0; i < probabilities.size(); ++i) {
+    const double relative = static_cast<double>(heat_value(probabilities[i])) / max_p;
+    levels[i] = static_cast<std::uint8_t>(std::clamp<long>(std::lround(255.0 * relative), 0, 255));
+  }
+  return levels;
+}
+
+// Half floor, half heat colour, rounded half up, so that both stay readable.
+cv::Vec3b blend_heat(const cv::Vec3b& floor, const cv::Vec3b& heat) {
+  cv::Vec3b out;
+  for (int c = 0; c < 3; ++c) out[c] = static_cast<std::uint8_t>((floor[c] + heat[c] + 1) / 2);
+  return out;
+}
+
+// The colour scale beside the heat map: a bar from level 255 (top) to 0 (bottom) and, where the
+// picture is tall enough to read them, labels with max p and 0.
+class HeatLegend {
+ public:
+  HeatLegend(int height, float max_p) : height_(height) {
+    pad_ = std::max(2, height / 40);
+    margin_ = std::min(std::max(2, height / 20), (height - 1) / 2);
+    bar_width_ = std::max(4, height / 20);
+    font_scale_ = std::clamp(height / 800.0, 0.3, 0.5);
+    char text[32];
+    std::snprintf(text, sizeof text, "%.2g", static_cast<double>(max_p));
+    top_label_ = text;
+    int baseline = 0;
+    const cv::Size top = cv::getTextSize(top_label_, cv::FONT_HERSHEY_SIMPLEX, font_scale_, 1, &baseline);
+    const cv::Size bottom = cv::getTextSize("0", cv::FONT_HERSHEY_SIMPLEX, font_scale_, 1, &baseline);
+    text_height_ = std::max(top.height, bottom.height);
+    // Two labels and a visible stretch of bar between them, or no labels at all.
+    labelled_ = height - 2 * margin_ >= 4 * text_height_;
+    width_ = pad_ + bar_width_ + pad_ + (labelled_ ? std::max(top.width, bottom.width) + pad_ : 0);
+  }
+
+  int width() const { return width_; }
+
+  void draw(cv::Mat& strip, const cv::Mat& colours) const {
+    strip.setTo(kPanelBackground);
+    const int bar_height = height_ - 2 * margin_;
+    for (int r = 0; r < bar_height; ++r) {
+      const int level =
+          bar_height == 1 ? 255 : static_cast<int>(std::lround(255.0 * (bar_height - 1 - r) / (bar_height - 1)));
+      strip(cv::Rect(pad_, margin_ + r, bar_width_, 1)).setTo(colours.at<cv::Vec3b>(0, level));
+    }
+    if (!labelled_) return;
+    const int text_x = pad_ + bar_width_ + pad_;
+    cv::putText(strip, top_label_, cv::Point(text_x, margin_ + text_height_), cv::FONT_HERSHEY_SIMPLEX, font_scale_,
+                kTextColour, 1, cv::LINE_AA);
+    cv::putText(strip, "0", cv::Point(text_x, height_ - margin_), cv::FONT_HERSHEY_SIMPLEX, font_scale_, kTextColour, 1,
+                cv::LINE_AA);
+  }
+
+ private:
+  int height_ = 0;
+  int pad_ = 0;
+  int margin_ = 0;
+  int bar_width_ = 0;
+  int text_height_ = 0;
+  int width_ = 0;
+  double font_scale_ = 0.0;
+  bool labelled_ = false;
+  std::string top_label_;
+};
+
 }  // namespace
 
 Picture draw_snapshot(const Snapshot& snapshot) {
@@ -105,22 +196,38 @@ Picture draw_snapshot(const Snapshot& snapshot) {
     throw std::invalid_argument("draw_snapshot: the picture would exceed " + std::to_string(kMaxSidePx) +
                                 " px per side");
   }
+  const std::size_t floor_pixels = static_cast<std::size_t>(snapshot.width_px) * snapshot.height_px;
+  const bool has_heat = !snapshot.goal_probabilities.empty();
+  if (has_heat && snapshot.goal_probabilities.size() != floor_pixels) {
+    throw std::invalid_argument("draw_snapshot: goal_probabilities has " +
+                                std::to_string(snapshot.goal_probabilities.size()) +
+                                " entries, expected one per floor pixel (" + std::to_string(snapshot.width_px) + " x " +
+                                std::to_string(snapshot.height_px) + " = " + std::to_string(floor_pixels) + ")");
+  }
   const int s = snapshot.scale;
   const int width = static_cast<int>(map_width);
   const int height = static_cast<int>(map_height);
   const bool has_panel = !snapshot.class_probabilities.empty();
   const int panel_width = has_panel ? std::max(160, height / 2) : 0;
+  float max_heat = 0.0f;
+  for (float p : snapshot.goal_probabilities) max_heat = std::max(max_heat, heat_value(p));
+  std::optional<HeatLegend> legend;
+  if (has_heat) legend.emplace(height, max_heat);
+  const int legend_width = legend ? legend->width() : 0;
 
-  cv::Mat image(height, width + panel_width, CV_8UC3);
+  cv::Mat image(height, width + legend_width + panel_width, CV_8UC3);
   cv::Mat map = image(cv::Rect(0, 0, width, height));
 
+  const cv::Mat colours = has_heat ? heat_colours() : cv::Mat();
+  const std::vector<std::uint8_t> levels = heat_levels(snapshot.goal_probabilities, max_heat);
   // The floor, each pixel a scale x scale block; a null `revealed` means everything is seen.
   for (int y = 0; y < snapshot.height_px; ++y) {
     for (int x = 0; x < snapshot.width_px; ++x) {
       const std::size_t index = static_cast<std::size_t>(y) * snapshot.width_px + x;
       const std::uint8_t gray = snapshot.floor[index];
       const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
-      const cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
+      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
+      if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
       map(cv::Rect(x * s, y * s, s, s)).setTo(colour);
     }
   }
@@ -140,8 +247,12 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   if (snapshot.goal) draw_window(map, snapshot, *snapshot.goal, outline_px, kGoalColour);
   draw_window(map, snapshot, snapshot.robot, outline_px, kRobotColour);
 
+  if (legend) {
+    cv::Mat strip = image(cv::Rect(width, 0, legend_width, height));
+    legend->draw(strip, colours);
+  }
   if (has_panel) {
-    cv::Mat panel = image(cv::Rect(width, 0, panel_width, height));
+    cv::Mat panel = image(cv::Rect(width + legend_width, 0, panel_width, height));
     draw_panel(panel, snapshot.class_probabilities);
   }
 

@@ -25,17 +25,29 @@ struct Snapshot {
   std::optional<PixelPose> goal;               ///< current goal (green square), if any
   std::vector<PixelPose> path;                 ///< grid poses visited so far, in order (drawn as a line)
   std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
+  std::span<const float> goal_probabilities;   ///< optional goal distribution pi_g over the floor's pixels
+                                               ///< (width*height, row-major); drawn as a heat map
   int scale = 10;                              ///< output pixels per floor pixel
 };
 
-/// Draws the snapshot: revealed pixels as the image, unseen pixels shaded, the path, the robot's
-/// window as a blue square and the goal's as a green one, enlarged `scale` times.
-/// Returns a BGR image as bytes (rows * cols * 3) with its size.
+/// A BGR image as bytes (rows * cols * 3) with its size.
 struct Picture {
   int width = 0;
   int height = 0;
   std::vector<std::uint8_t> bgr;
 };
+
+/// Draws the snapshot: revealed pixels as the image, unseen pixels shaded, the path, the robot's
+/// window as a blue square and the goal's as a green one, enlarged `scale` times.
+///
+/// With `goal_probabilities`, every floor pixel (seen or not) is first blended half and half with
+/// the colour of OpenCV's COLORMAP_INFERNO at level round(255 * p / max p): per channel
+/// (floor colour + colormap colour + 1) / 2. Negative and non-finite p count as 0; if no p is
+/// positive every pixel takes level 0. The path and the windows are drawn on top, and a colour
+/// scale (level 255 at the top, 0 at the bottom, labelled with max p where it fits) is appended
+/// right of the floor, before the class panel. An empty span changes nothing.
+/// Throws std::invalid_argument if `goal_probabilities` is neither empty nor width * height long,
+/// or if the floor, sizes, scale or patch are invalid.
 Picture draw_snapshot(const Snapshot& snapshot);
 
 /// Writes a picture as PNG atomically (temporary file, then rename). Throws std::runtime_error.

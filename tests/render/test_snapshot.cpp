@@ -1,15 +1,18 @@
-// Snapshot pictures: sizes, colours of seen and unseen pixels, the outlines, the panel, and
-// atomic PNG writing.
+// Snapshot pictures: sizes, colours of seen and unseen pixels, the outlines, the panel, the goal
+// heat map, and atomic PNG writing.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "render/snapshot.hpp"
@@ -243,6 +246,185 @@ TEST(DrawSnapshot, ClassPanelIsAppendedWithTheArgmaxHighlighted) {
   }
   EXPECT_GT(plain_bar[3], plain_bar[1] + 50) << "p = 0.1 gives a longer bar than p = 0.02";
   EXPECT_GT(highlighted[7], plain_bar[3] * 3) << "p = 0.6 gives a longer bar than p = 0.1";
+}
+
+// The heat map's documented colours: INFERNO at a level, blended half and half with the floor.
+Bgr inferno(int level) {
+  cv::Mat ramp(1, 256, CV_8UC1);
+  for (int i = 0; i < 256; ++i) ramp.at<std::uint8_t>(0, i) = static_cast<std::uint8_t>(i);
+  cv::Mat colours;
+  cv::applyColorMap(ramp, colours, cv::COLORMAP_INFERNO);
+  const cv::Vec3b c = colours.at<cv::Vec3b>(0, level);
+  return {c[0], c[1], c[2]};
+}
+Bgr blended(Bgr floor, Bgr heat) {
+  return {(floor.b + heat.b + 1) / 2, (floor.g + heat.g + 1) / 2, (floor.r + heat.r + 1) / 2};
+}
+bool same(Bgr a, Bgr b) { return a.b == b.b && a.g == b.g && a.r == b.r; }
+std::string str(Bgr c) {
+  return "(" + std::to_string(c.b) + ", " + std::to_string(c.g) + ", " + std::to_string(c.r) + ")";
+}
+
+// A peak on seen pixel (2, 7) and one half as high on unseen pixel (9, 1). Max p is 0.25, not 1,
+// so the levels are relative: 255 at (2, 7), round(255 * 0.125 / 0.25) = 128 at (9, 1), 0 elsewhere.
+std::vector<float> two_peaks() {
+  std::vector<float> p(Scene::kWidth * Scene::kHeight, 0.0f);
+  p[7 * Scene::kWidth + 2] = 0.25f;
+  p[1 * Scene::kWidth + 9] = 0.125f;
+  return p;
+}
+
+TEST(DrawSnapshot, GoalHeatMapBlendsEachFloorPixelWithItsInfernoColour) {
+  const Scene scene;
+  const std::vector<float> probabilities = two_peaks();
+  Snapshot plain = scene.snapshot();
+  plain.goal = PixelPose{9, 6};
+  plain.path = {{1, 1}, {1, 8}};
+  Snapshot with_heat = plain;
+  with_heat.goal_probabilities = probabilities;
+  const Picture without = draw_snapshot(plain);
+  const Picture picture = draw_snapshot(with_heat);
+  const int s = plain.scale;
+  ASSERT_EQ(picture.height, without.height);
+  ASSERT_GT(picture.width, without.width) << "the colour scale is appended";
+
+  const Bgr top = inferno(255);
+  const Bgr bottom = inferno(0);
+  ASSERT_GT(top.r + top.g + top.b, bottom.r + bottom.g + bottom.b + 300) << "INFERNO runs from dark to bright";
+  // Every output pixel of the hot block: the floor blended with the top colour, so changed.
+  for (int dy = 0; dy < s; ++dy) {
+    for (int dx = 0; dx < s; ++dx) {
+      const int x = 2 * s + dx;
+      const int y = 7 * s + dy;
+      const Bgr floor = pixel(without, x, y);
+      ASSERT_TRUE(is_gray(floor, scene.value(2, 7))) << "(" << x << ", " << y << ") is plain floor";
+      const Bgr c = pixel(picture, x, y);
+      EXPECT_TRUE(same(c, blended(floor, top))) << "(" << x << ", " << y << "): " << str(c);
+      EXPECT_FALSE(same(c, floor)) << "(" << x << ", " << y << ")";
+    }
+  }
+  // The unseen half-hot pixel: its blue-grey blended with level 128.
+  for (int d : {0, s / 2, s - 1}) {
+    const Bgr floor = pixel(without, 9 * s + d, 1 * s + d);
+    EXPECT_TRUE(same(pixel(picture, 9 * s + d, 1 * s + d), blended(floor, inferno(128))));
+  }
+  // Far from both peaks, seen and unseen pixels alike take the colour of p = 0.
+  for (const auto& [fx, fy] : std::vector<std::pair<int, int>>{{5, 0}, {0, 4}, {7, 9}, {11, 4}}) {
+    for (int d : {0, s / 2, s - 1}) {
+      const int x = fx * s + d;
+      const int y = fy * s + d;
+      const Bgr floor = pixel(without, x, y);
+      const Bgr c = pixel(picture, x, y);
+      EXPECT_TRUE(same(c, blended(floor, bottom))) << "(" << x << ", " << y << "): " << str(c);
+    }
+  }
+  // The windows and the path are drawn on top, unblended.
+  EXPECT_TRUE(same(pixel(picture, 20, 35), pixel(without, 20, 35)));
+  EXPECT_TRUE(is_blue(pixel(picture, 20, 35)));
+  EXPECT_TRUE(same(pixel(picture, 80, 65), pixel(without, 80, 65)));
+  EXPECT_TRUE(is_green(pixel(picture, 80, 65)));
+  // (The centres of the path's dots: its lines are anti-aliased, so partly floor.)
+  for (const PixelPose& pose : plain.path) {
+    const int x = pose.x * s + s / 2;
+    const int y = pose.y * s + s / 2;
+    EXPECT_TRUE(same(pixel(picture, x, y), pixel(without, x, y))) << "(" << x << ", " << y << ")";
+    EXPECT_TRUE(is_orange(pixel(picture, x, y))) << "(" << x << ", " << y << ")";
+  }
+}
+
+TEST(DrawSnapshot, GoalHeatMapLegendRunsFromTopColourToBottomColourBeforeTheClassPanel) {
+  const Scene scene;
+  const std::vector<float> probabilities = two_peaks();
+  const std::array<float, 10> classes = {0.05f, 0.02f, 0.03f, 0.1f, 0.05f, 0.05f, 0.05f, 0.6f, 0.03f, 0.02f};
+  Snapshot plain = scene.snapshot();
+  plain.class_probabilities = classes;
+  Snapshot with_heat = plain;
+  with_heat.goal_probabilities = probabilities;
+  const Picture without = draw_snapshot(plain);
+  const Picture picture = draw_snapshot(with_heat);
+  const int map_width = Scene::kWidth * plain.scale;
+  const int panel_width = without.width - map_width;
+  const int legend_width = picture.width - without.width;
+  ASSERT_GT(legend_width, 0);
+
+  // The class panel is the same, shifted right by the legend.
+  for (int y = 0; y < picture.height; ++y) {
+    for (int x = 0; x < panel_width; ++x) {
+      ASSERT_TRUE(same(pixel(picture, map_width + legend_width + x, y), pixel(without, map_width + x, y)))
+          << "panel (" << x << ", " << y << ")";
+    }
+  }
+  // The legend shows the top colour in its upper part and the bottom colour in its lower part.
+  const Bgr top = inferno(255);
+  const Bgr bottom = inferno(0);
+  int top_upper = 0, top_lower = 0, bottom_upper = 0, bottom_lower = 0;
+  for (int y = 0; y < picture.height; ++y) {
+    for (int x = map_width; x < map_width + legend_width; ++x) {
+      const Bgr c = pixel(picture, x, y);
+      const bool upper = y < picture.height / 2;
+      if (same(c, top)) ++(upper ? top_upper : top_lower);
+      if (same(c, bottom)) ++(upper ? bottom_upper : bottom_lower);
+    }
+  }
+  EXPECT_GT(top_upper, 0);
+  EXPECT_EQ(top_lower, 0);
+  EXPECT_GT(bottom_lower, 0);
+  EXPECT_EQ(bottom_upper, 0);
+}
+
+TEST(DrawSnapshot, GoalHeatMapOfTheWrongSizeThrows) {
+  const Scene scene;
+  for (const std::size_t size : {std::size_t{1}, std::size_t{Scene::kWidth * Scene::kHeight - 1},
+                                 std::size_t{Scene::kWidth * Scene::kHeight + 1}}) {
+    const std::vector<float> probabilities(size, 1.0f);
+    Snapshot snapshot = scene.snapshot();
+    snapshot.goal_probabilities = probabilities;
+    try {
+      draw_snapshot(snapshot);
+      FAIL() << size << " entries did not throw";
+    } catch (const std::invalid_argument& error) {
+      EXPECT_NE(std::string(error.what()).find("goal_probabilities"), std::string::npos) << error.what();
+    }
+  }
+}
+
+TEST(DrawSnapshot, EmptyGoalHeatMapLeavesThePictureUnchanged) {
+  const Scene scene;
+  const std::array<float, 10> classes = {0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f, 0.1f};
+  const std::vector<float> none;
+  for (const bool panel : {false, true}) {
+    Snapshot plain = scene.snapshot();
+    plain.goal = PixelPose{9, 6};
+    plain.path = {{1, 1}, {3, 3}};
+    if (panel) plain.class_probabilities = classes;
+    Snapshot with_empty = plain;
+    with_empty.goal_probabilities = none;
+    const Picture a = draw_snapshot(plain);
+    const Picture b = draw_snapshot(with_empty);
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.height, b.height);
+    EXPECT_EQ(a.bgr, b.bgr) << (panel ? "with" : "without") << " the class panel";
+  }
+}
+
+TEST(DrawSnapshot, AllZeroOrBrokenGoalHeatMapTakesTheBottomColour) {
+  const Scene scene;
+  std::vector<float> probabilities(Scene::kWidth * Scene::kHeight, 0.0f);
+  probabilities[5] = -1.0f;
+  probabilities[6] = std::numeric_limits<float>::quiet_NaN();
+  Snapshot plain = scene.snapshot();
+  plain.robot = {-50, -50};
+  Snapshot with_heat = plain;
+  with_heat.goal_probabilities = probabilities;
+  const Picture without = draw_snapshot(plain);
+  const Picture picture = draw_snapshot(with_heat);
+  const Bgr bottom = inferno(0);
+  for (int y = 0; y < Scene::kHeight; ++y) {
+    for (int x = 0; x < Scene::kWidth; ++x) {
+      const Bgr floor = pixel(without, x * 10 + 5, y * 10 + 5);
+      EXPECT_TRUE(same(pixel(picture, x * 10 + 5, y * 10 + 5), blended(floor, bottom))) << x << ", " << y;
+    }
+  }
 }
 
 TEST(DrawSnapshot, RejectsAMissingFloorAndBadSizes) {
