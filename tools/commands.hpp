@@ -23,12 +23,16 @@ struct Context {
 
 /// Thrown between units of work after SIGINT or SIGTERM, so that output folders are cleaned up
 /// by unwinding; main() exits with status 130.
-struct Interrupted {};
+struct Interrupted {
+  std::string message = "interrupted; nothing was written";  ///< printed after "scout: "
+};
 /// Installs the SIGINT / SIGTERM handler, for commands that check throw_if_interrupted() between
 /// units of work; other commands keep the default (the process ends at once).
 void install_interrupt_handler();
 /// Throws Interrupted if a signal has arrived.
 void throw_if_interrupted();
+/// True once SIGINT or SIGTERM has arrived (for loops that save before they stop).
+bool interrupt_requested();
 
 /// A --seed value: a decimal integer in [0, 2^64 - 1], nothing else (no sign, no wrap-around).
 std::uint64_t parse_seed(const std::string& text);
@@ -45,5 +49,7 @@ std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, co
 void add_run_command(CLI::App& app, const Context& context);
 void add_data_command(CLI::App& app, const Context& context);
 void add_bench_command(CLI::App& app, const Context& context);
+void add_train_command(CLI::App& app, const Context& context);
+void add_eval_command(CLI::App& app, const Context& context);
 
 }  // namespace scout::tools

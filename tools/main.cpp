@@ -62,6 +62,8 @@ void scout::tools::install_interrupt_handler() {
   std::signal(SIGTERM, on_signal);
 }
 
+bool scout::tools::interrupt_requested() { return interrupted != 0; }
+
 void scout::tools::throw_if_interrupted() {
   if (interrupted) throw Interrupted{};
 }
@@ -115,6 +117,8 @@ int main(int argc, char** argv) {
   scout::tools::add_run_command(app, context);
   scout::tools::add_data_command(app, context);
   scout::tools::add_bench_command(app, context);
+  scout::tools::add_train_command(app, context);
+  scout::tools::add_eval_command(app, context);
   scout::tools::install_interrupt_handler();
   if (const std::string unknown = check_command_words(app, argc, argv); !unknown.empty()) {
     std::fprintf(stderr, "%s\n", unknown.c_str());
@@ -124,14 +128,16 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
-  } catch (const scout::tools::Interrupted&) {
-    std::fprintf(stderr, "scout: interrupted; nothing was written\n");
+  } catch (const scout::tools::Interrupted& e) {
+    std::fprintf(stderr, "scout: %s\n", e.message.c_str());
     return 130;
   } catch (const scout::InputError& e) {
     std::fprintf(stderr, "scout: error: %s\n", scout::one_line(e.what()).c_str());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "scout: internal error: %s\n", scout::one_line(e.what()).c_str());
+    // The first line only: LibTorch appends a backtrace of dozens of lines.
+    const std::string what = e.what();
+    std::fprintf(stderr, "scout: internal error: %s\n", scout::one_line(what.substr(0, what.find('\n'))).c_str());
     return 3;
   }
   return 0;

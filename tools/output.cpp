@@ -154,6 +154,7 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
   libs["fmt"] = fmt::format("{}.{}.{}", FMT_VERSION / 10000, FMT_VERSION / 100 % 100, FMT_VERSION % 100);
   libs["zlib"] = SCOUT_ZLIB_VERSION;
   libs["openssl"] = SCOUT_OPENSSL_VERSION;
+  libs["libtorch"] = SCOUT_TORCH_VERSION;
   if (!gl_description.empty()) libs["gl"] = gl_description;
   m["libraries"] = libs;
   if (!world_yaml.empty()) m["world"] = world_yaml;

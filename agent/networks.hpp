@@ -1,0 +1,78 @@
+#pragma once
+/// The three networks of METHOD.md § Networks, in LibTorch. Include only from agent/ and learn/
+/// sources: this header pulls in torch.
+#include <torch/torch.h>
+
+#include <memory>
+
+#include "agent/config.hpp"
+
+namespace scout::agent {
+
+/// Number of input channels of both planners: y (c), l, h, g_l.
+inline int planner_channels(const NetworkConfig& config) { return config.image_channels + 3; }
+
+/// r DenseNet-style blocks (conv 3x3 -> ReLU, output concatenated to the input), d channels each.
+/// No normalisation: one robot's output never depends on the others in its batch.
+class DenseStackImpl : public torch::nn::Module {
+ public:
+  DenseStackImpl(int in_channels, int growth, int depth);
+  torch::Tensor forward(torch::Tensor x);
+  int out_channels() const { return out_channels_; }
+
+ private:
+  torch::nn::ModuleList convs_;
+  int out_channels_;
+};
+TORCH_MODULE(DenseStack);
+
+/// f1: u_g [B, c+3, H, W] -> goal logits [B, H*W] (softmax over the floor's pixels, row-major).
+class GoalPlannerImpl : public torch::nn::Module {
+ public:
+  explicit GoalPlannerImpl(const NetworkConfig& config);
+  torch::Tensor forward(torch::Tensor u);
+
+ private:
+  DenseStack body_{nullptr};
+  torch::nn::Conv2d head_{nullptr};
+};
+TORCH_MODULE(GoalPlanner);
+
+/// f2: u_a [B, c+3, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical), 1x1 head then GAP.
+class ActionPlannerImpl : public torch::nn::Module {
+ public:
+  explicit ActionPlannerImpl(const NetworkConfig& config);
+  torch::Tensor forward(torch::Tensor u);
+
+ private:
+  DenseStack body_{nullptr};
+  torch::nn::Conv2d head_{nullptr};
+};
+TORCH_MODULE(ActionPlanner);
+
+/// f3: u_c [B, c, H, W] -> class logits [B, D]. One interface, three variants (ClassifierKind).
+class ClassifierImpl : public torch::nn::Module {
+ public:
+  virtual torch::Tensor forward(torch::Tensor y) = 0;
+};
+
+/// The classifier named by config.classifier, freshly initialised.
+std::shared_ptr<ClassifierImpl> make_classifier(const NetworkConfig& config);
+
+/// The whole agent: its three layers registered as "goal", "action" and "classifier", so that a
+/// state dict names each parameter by its layer.
+class AgentImpl : public torch::nn::Module {
+ public:
+  explicit AgentImpl(const NetworkConfig& config);
+  const NetworkConfig& config() const { return config_; }
+
+  GoalPlanner goal{nullptr};
+  ActionPlanner action{nullptr};
+  std::shared_ptr<ClassifierImpl> classifier;
+
+ private:
+  NetworkConfig config_;
+};
+TORCH_MODULE(Agent);
+
+}  // namespace scout::agent

@@ -1,0 +1,166 @@
+#include "learn/agent_policy.hpp"
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "agent/state.hpp"
+
+namespace scout::learn {
+
+namespace {
+
+// A uniform double in [0, 1) from the top 53 bits.
+double unit_interval(worlds::Rng& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+}  // namespace
+
+AgentPolicy::AgentPolicy(agent::AgentImpl& agent, const sim::FloorFrame& frame, int patch_px, int max_robots)
+    : agent_(agent), frame_(frame), patch_px_(patch_px), max_robots_(max_robots) {
+  if (agent.config().image_channels != 1)
+    throw std::invalid_argument("AgentPolicy: floors are single-channel, the agent expects " +
+                                std::to_string(agent.config().image_channels));
+  rows_.reserve(max_robots);
+}
+
+void AgentPolicy::begin(std::span<const std::uint64_t> seeds, const Sampling& sampling) {
+  const int count = static_cast<int>(seeds.size());
+  if (count <= 0 || count > max_robots_) throw std::invalid_argument("AgentPolicy::begin: bad robot count");
+  sampling_ = sampling;
+  count_ = count;
+  rngs_.clear();
+  rngs_.reserve(count);
+  for (std::uint64_t s : seeds) rngs_.emplace_back(s);
+  log_pi_ = torch::zeros({count});
+  entropy_ = torch::zeros({count});
+  action_decisions_ = 0;
+  goal_maps_.assign(sampling.record_goal_maps ? count : 0, {});
+}
+
+int AgentPolicy::sample(worlds::Rng& rng, const float* probabilities, int n) const {
+  if (sampling_.greedy) {
+    int best = 0;
+    for (int k = 1; k < n; ++k)
+      if (probabilities[k] > probabilities[best]) best = k;
+    return best;
+  }
+  // Inverse CDF; rounding can leave u above the float sum, then the last possible outcome wins.
+  const double u = unit_interval(rng);
+  double cumulative = 0;
+  int last = 0;
+  for (int k = 0; k < n; ++k) {
+    if (probabilities[k] <= 0) continue;
+    cumulative += probabilities[k];
+    last = k;
+    if (u < cumulative) return k;
+  }
+  return last;
+}
+
+void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) {
+  const int count = static_cast<int>(goals.size());
+  if (count != count_) throw std::invalid_argument("AgentPolicy::choose_goals: robot count differs from begin()");
+  const int width = frame_.width_px, area = frame_.area_px();
+  if (!sampling_.learned_goals) {
+    for (int i = 0; i < count; ++i) {
+      const auto pixel = static_cast<int>(worlds::uniform_below(rngs_[i], static_cast<std::uint64_t>(area)));
+      goals[i] = {pixel % width, pixel / width};
+    }
+    return;
+  }
+  std::optional<torch::NoGradGuard> no_grad;
+  if (!sampling_.with_grad) no_grad.emplace();
+  // Fresh storage each call: autograd keeps the input of the first convolution for backward.
+  const int channels = 4;
+  torch::Tensor input = torch::empty({count, channels, frame_.height_px, width});
+  float* data = input.data_ptr<float>();
+  for (int i = 0; i < count; ++i) {
+    agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i],
+                          episode > 0 ? &state.goal[i] : nullptr};
+    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area);
+  }
+  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input), 1);  // [count, H*W]
+  torch::Tensor p = log_p.detach().exp().contiguous();
+  const float* probabilities = p.data_ptr<float>();
+  std::vector<std::int64_t> chosen(count);
+  for (int i = 0; i < count; ++i) {
+    const float* row = probabilities + static_cast<std::size_t>(i) * area;
+    const int pixel = sample(rngs_[i], row, area);
+    chosen[i] = pixel;
+    goals[i] = {pixel % width, pixel / width};
+    if (sampling_.record_goal_maps) goal_maps_[i].emplace_back(row, row + area);
+  }
+  torch::Tensor index = torch::from_blob(chosen.data(), {count, 1}, torch::kLong).clone();
+  log_pi_ = log_pi_ + log_p.gather(1, index).squeeze(1);
+  entropy_ = entropy_ - (log_p.exp() * log_p).sum(1);
+}
+
+void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) {
+  const int count = static_cast<int>(need.size());
+  if (count != count_ || axes.size() < need.size())
+    throw std::invalid_argument("AgentPolicy::choose_axes: robot count differs from begin()");
+  if (!sampling_.learned_actions) {
+    for (int i = 0; i < count; ++i)
+      if (need[i]) axes[i] = (rngs_[i]() >> 63) ? sim::Axis::Vertical : sim::Axis::Horizontal;
+    return;
+  }
+  std::optional<torch::NoGradGuard> no_grad;
+  if (!sampling_.with_grad) no_grad.emplace();
+  // Only the robots with chi = 1 go through the action planner.
+  rows_.clear();
+  for (int i = 0; i < count; ++i)
+    if (need[i]) rows_.push_back(i);
+  if (rows_.empty()) return;
+  const int k = static_cast<int>(rows_.size()), area = frame_.area_px(), channels = 4;
+  torch::Tensor input = torch::empty({k, channels, frame_.height_px, frame_.width_px});
+  float* data = input.data_ptr<float>();
+  for (int r = 0; r < k; ++r) {
+    const auto i = static_cast<std::size_t>(rows_[r]);
+    agent::RobotView view{state.observed_image(static_cast<int>(i)), state.seen[i].data().data(), state.pose[i],
+                          &state.goal[i]};
+    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area);
+  }
+  torch::Tensor log_p = torch::log_softmax(agent_.action->forward(input), 1);  // [k, 2]
+  torch::Tensor p = log_p.detach().exp().contiguous();
+  const float* probabilities = p.data_ptr<float>();
+  std::vector<std::int64_t> chosen(k);
+  for (int r = 0; r < k; ++r) {
+    const auto i = static_cast<std::size_t>(rows_[r]);
+    chosen[r] = sample(rngs_[i], probabilities + 2 * r, 2);
+    axes[i] = chosen[r] == 1 ? sim::Axis::Vertical : sim::Axis::Horizontal;
+  }
+  action_decisions_ += k;
+  torch::Tensor rows = torch::from_blob(rows_.data(), {k}, torch::kLong).clone();
+  torch::Tensor index = torch::from_blob(chosen.data(), {k, 1}, torch::kLong).clone();
+  log_pi_ = log_pi_.index_add(0, rows, log_p.gather(1, index).squeeze(1));
+  entropy_ = entropy_.index_add(0, rows, -(log_p.exp() * log_p).sum(1));
+}
+
+const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {
+  if (robot < 0 || robot >= static_cast<int>(goal_maps_.size()) || episode < 0 ||
+      episode >= static_cast<int>(goal_maps_[robot].size()))
+    throw std::out_of_range("AgentPolicy::goal_map: no map recorded for this robot and episode");
+  return goal_maps_[robot][episode];
+}
+
+torch::Tensor revealed_images(const BatchState& state, int count) {
+  const sim::FloorFrame& frame = state.frame;
+  torch::Tensor y = torch::empty({count, 1, frame.height_px, frame.width_px});
+  float* data = y.data_ptr<float>();
+  for (int i = 0; i < count; ++i) {
+    agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i], nullptr};
+    agent::write_revealed_image(frame, view, data + static_cast<std::size_t>(i) * frame.area_px());
+  }
+  return y;
+}
+
+torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const sim::FloorFrame& frame) {
+  const auto area = static_cast<std::size_t>(frame.area_px());
+  if (floors.size() < area * count) throw std::invalid_argument("full_images: too few floor bytes");
+  torch::Tensor x = torch::empty({count, 1, frame.height_px, frame.width_px});
+  float* data = x.data_ptr<float>();
+  for (std::size_t k = 0; k < area * count; ++k) data[k] = agent::pixel_value(floors[k]);
+  return x;
+}
+
+}  // namespace scout::learn

@@ -1,0 +1,71 @@
+#pragma once
+/// The learned policy: the agent's goal and action planners choosing for a rollout batch, and
+/// the log-probabilities the estimator needs. Torch header: include from learn/ sources only.
+#include <torch/torch.h>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "agent/networks.hpp"
+#include "learn/rollout.hpp"
+#include "worlds/random.hpp"
+
+namespace scout::learn {
+
+/// Which layers choose in a rollout (METHOD.md § Training modes) and how.
+struct Sampling {
+  bool learned_goals = false;    ///< goals from the goal planner; else i.i.d. uniform over the pixels
+  bool learned_actions = false;  ///< axes from the action planner; else i.i.d. 1/2 - 1/2
+  bool greedy = false;           ///< argmax instead of sampling (evaluation extra)
+  bool with_grad = false;        ///< keep the autograd graph of log pi (training)
+  bool record_goal_maps = false; ///< keep pi_g of every robot and episode (pictures)
+};
+
+/// Goals and axes from the agent's planners (or i.i.d. where a layer is not learned). Robot i
+/// samples from its own generator seeded with seeds[i]: its choices never depend on the others.
+/// Only robots whose action protocol says Choose (chi = 1) are run through the action planner.
+class AgentPolicy final : public Policy {
+ public:
+  AgentPolicy(agent::AgentImpl& agent, const sim::FloorFrame& frame, int patch_px, int max_robots);
+
+  /// Starts a batch: new generators, log pi and entropy reset to zero.
+  void begin(std::span<const std::uint64_t> seeds, const Sampling& sampling);
+  void choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) override;
+  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) override;
+
+  /// Sum over the batch so far of the sampled log-probabilities of the learned layers, per robot
+  /// [count] (zeros when no layer is learned). Carries the graph when sampling.with_grad.
+  torch::Tensor log_pi() const { return log_pi_; }
+  /// Sum of the entropies of the learned layers' distributions at each decision, per robot [count].
+  torch::Tensor entropy() const { return entropy_; }
+  /// pi_g of robot i in episode e (H * W floats), when record_goal_maps.
+  const std::vector<float>& goal_map(int robot, int episode) const;
+  /// Decisions taken by the action planner in this batch (robots x steps with chi = 1).
+  long action_decisions() const { return action_decisions_; }
+
+ private:
+  int sample(worlds::Rng& rng, const float* probabilities, int n) const;
+
+  agent::AgentImpl& agent_;
+  sim::FloorFrame frame_;
+  int patch_px_;
+  int max_robots_;
+  Sampling sampling_;
+  int count_ = 0;
+  std::vector<worlds::Rng> rngs_;
+  std::vector<std::uint8_t> has_goal_;
+  torch::Tensor input_;  // preallocated planner input [max_robots, c+3, H, W]
+  torch::Tensor log_pi_, entropy_;
+  std::vector<std::vector<std::vector<float>>> goal_maps_;
+  std::vector<std::int64_t> rows_;
+  long action_decisions_ = 0;
+};
+
+/// u_c = y for the first `count` robots of a batch: [count, 1, H, W] floats.
+torch::Tensor revealed_images(const BatchState& state, int count);
+
+/// Full floors (u_c = x) as the classifier's input: [count, 1, H, W] from count * H * W bytes.
+torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const sim::FloorFrame& frame);
+
+}  // namespace scout::learn

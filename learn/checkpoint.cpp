@@ -1,0 +1,203 @@
+#include "learn/checkpoint.hpp"
+
+#include <ATen/CPUGeneratorImpl.h>
+#include <fmt/format.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "worlds/error.hpp"
+
+namespace scout::learn {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+namespace {
+
+// The first line of a library's message (LibTorch appends a multi-line backtrace).
+std::string first_line(const char* what) {
+  std::string text(what);
+  return one_line(text.substr(0, std::min(text.find('\n'), std::size_t{200})));
+}
+
+fs::path temporary_beside(const fs::path& file) {
+  std::random_device rd;
+  return file.parent_path() / fmt::format(".{}.tmp-{:08x}", file.filename().string(), rd());
+}
+
+json history_json(const std::vector<EpochMetrics>& history) {
+  json rows = json::array();
+  for (const EpochMetrics& m : history)
+    rows.push_back({{"mode", to_string(m.stage)},
+                    {"stage", static_cast<int>(m.stage)},
+                    {"epoch", m.epoch},
+                    {"reward", m.reward},
+                    {"loss", m.loss},
+                    {"train_accuracy", m.train_accuracy},
+                    {"validation_accuracy", m.validation_accuracy},
+                    {"images_per_s", m.images_per_s},
+                    {"seconds", m.seconds}});
+  return rows;
+}
+
+std::vector<EpochMetrics> history_from(const json& rows) {
+  std::vector<EpochMetrics> history;
+  for (const json& r : rows) {
+    EpochMetrics m;
+    const int stage = r.at("stage").get<int>();
+    if (stage < 0 || stage > 3) throw std::out_of_range("stage");
+    m.stage = static_cast<Stage>(stage);
+    m.epoch = r.at("epoch").get<int>();
+    m.reward = r.at("reward").get<double>();
+    m.loss = r.at("loss").get<double>();
+    m.train_accuracy = r.at("train_accuracy").get<double>();
+    m.validation_accuracy = r.at("validation_accuracy").get<double>();
+    m.images_per_s = r.at("images_per_s").get<double>();
+    m.seconds = r.at("seconds").get<double>();
+    history.push_back(m);
+  }
+  return history;
+}
+
+// Non-finite numbers are not JSON; nlohmann writes them as null. Keep losses readable.
+double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
+
+}  // namespace
+
+void write_text_atomic(const fs::path& file, const std::string& text) {
+  const fs::path tmp = temporary_beside(file);
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << text;
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw InputError(file.string() + ": cannot write");
+    }
+  }
+  fs::rename(tmp, file);
+}
+
+void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
+                     const CheckpointState& state) {
+  torch::serialize::OutputArchive archive;
+  archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat)));
+  archive.write("config", c10::IValue(state.config.to_json()));
+  const CheckpointState::Partial& p = state.partial;
+  json progress = {{"stage", state.cursor.stage},
+                   {"epoch", state.cursor.epoch},
+                   {"batch", state.cursor.batch},
+                   {"partial",
+                    {{"reward", finite_or_zero(p.reward)},
+                     {"loss", finite_or_zero(p.loss)},
+                     {"train_seconds", p.train_seconds},
+                     {"correct", p.correct},
+                     {"robots", p.robots},
+                     {"images", p.images},
+                     {"batches", p.batches}}},
+                   {"history", history_json(state.history)}};
+  archive.write("progress", c10::IValue(progress.dump()));
+  torch::serialize::OutputArchive weights;
+  agent.save(weights);
+  archive.write("agent", weights);
+  if (optimizer) {
+    torch::serialize::OutputArchive optimizer_archive;
+    optimizer->save(optimizer_archive);
+    archive.write("optimizer", optimizer_archive);
+  }
+  // Sampling uses Scout's own counter-based streams (seed, stage, epoch, batch, robot); LibTorch's
+  // generator only initialises weights. Both are kept so that nothing random is lost.
+  archive.write("torch_rng_state", at::detail::getDefaultCPUGenerator().get_state());
+  const fs::path tmp = temporary_beside(file);
+  try {
+    archive.save_to(tmp.string());
+    fs::rename(tmp, file);
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw InputError(file.string() + ": cannot write the checkpoint: " + first_line(e.what()));
+  }
+}
+
+namespace {
+
+torch::serialize::InputArchive open_archive(const fs::path& file) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": no such checkpoint file");
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(file.string());
+  } catch (const std::exception&) {
+    throw InputError(file.string() + ": not a Scout checkpoint (expected a file written by scout train)");
+  }
+  return archive;
+}
+
+}  // namespace
+
+CheckpointState read_checkpoint_state(const fs::path& file) {
+  torch::serialize::InputArchive archive = open_archive(file);
+  const std::string name = file.string();
+  c10::IValue version, config, progress;
+  if (!archive.try_read("scout_checkpoint_format", version) || !version.isInt())
+    throw InputError(name + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
+  if (version.toInt() != kCheckpointFormat)
+    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", name,
+                                 kCheckpointFormat, version.toInt()));
+  if (!archive.try_read("config", config) || !config.isString())
+    throw InputError(name + ": config: missing from the checkpoint");
+  CheckpointState state;
+  state.config = TrainConfig::from_json(config.toStringRef(), name);
+  if (!archive.try_read("progress", progress) || !progress.isString())
+    throw InputError(name + ": progress: missing from the checkpoint");
+  try {
+    const json p = json::parse(progress.toStringRef());
+    state.cursor = {p.at("stage").get<int>(), p.at("epoch").get<int>(), p.at("batch").get<int>()};
+    const json& q = p.at("partial");
+    state.partial = {q.at("reward").get<double>(),  q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
+                     q.at("correct").get<long>(),   q.at("robots").get<long>(), q.at("images").get<long>(),
+                     q.at("batches").get<long>()};
+    state.history = history_from(p.at("history"));
+  } catch (const std::exception& e) {
+    throw InputError(name + ": progress: unreadable (" + one_line(e.what()) + ")");
+  }
+  if (state.cursor.stage < 0 || state.cursor.stage > 4 || state.cursor.epoch < 0 || state.cursor.batch < 0)
+    throw InputError(name + ": progress: the schedule position is out of range");
+  return state;
+}
+
+void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) {
+  torch::serialize::InputArchive archive = open_archive(file);
+  try {
+    torch::serialize::InputArchive weights;
+    archive.read("agent", weights);
+    agent.load(weights);
+  } catch (const std::exception& e) {
+    throw InputError(file.string() + ": agent: the weights do not match the checkpoint's network config (" +
+                     first_line(e.what()) + ")");
+  }
+  if (optimizer) {
+    try {
+      torch::serialize::InputArchive optimizer_archive;
+      archive.read("optimizer", optimizer_archive);
+      optimizer->load(optimizer_archive);
+    } catch (const std::exception& e) {
+      throw InputError(file.string() + ": optimizer: missing or unreadable (a model file cannot be resumed; " +
+                       first_line(e.what()) + ")");
+    }
+  }
+}
+
+agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
+  CheckpointState read = read_checkpoint_state(file);
+  agent::Agent agent(read.config.network);
+  load_checkpoint_weights(file, *agent, nullptr);
+  agent->eval();
+  if (state) *state = std::move(read);
+  return agent;
+}
+
+}  // namespace scout::learn

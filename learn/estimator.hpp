@@ -1,0 +1,21 @@
+#pragma once
+/// The generalized policy gradient's estimator with the unified reward (METHOD.md § The
+/// estimator). Torch header: include from learn/ sources and tests only.
+#include <torch/torch.h>
+
+namespace scout::learn {
+
+/// Options beyond the paper (both off in the paper preset).
+struct EstimatorOptions {
+  int rollouts_per_image = 4;  ///< N: robots i*N .. i*N+N-1 drove over image i
+  bool leave_one_out = false;  ///< subtract the mean reward of the image's other N-1 rollouts from sg(r)
+  double entropy_bonus = 0;    ///< beta: adds beta * mean entropy of the learned layers' decisions
+};
+
+/// J-hat = mean over robots of [log_pi * sg(r - b) + r] (+ beta * entropy), b = 0 or the
+/// leave-one-out baseline. log_pi and entropy may be undefined (no learned layer). The loss is -J-hat.
+/// reward: [B*N] = log pi_c[label], with its graph to the classifier.
+torch::Tensor surrogate_objective(const torch::Tensor& log_pi, const torch::Tensor& reward,
+                                  const EstimatorOptions& options, const torch::Tensor& entropy = {});
+
+}  // namespace scout::learn

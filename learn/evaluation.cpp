@@ -1,0 +1,323 @@
+// Evaluation (METHOD.md § Evaluation): R stochastic runs of the checkpoint's policy over a set of
+// digits with the physics and the camera in the loop, the two random baselines, the classifier on
+// full images and one greedy run.
+#include "learn/evaluation.hpp"
+
+#include <fmt/format.h>
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "learn/agent_policy.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/objective.hpp"
+#include "learn/trained_agent.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/error.hpp"
+#include "worlds/floors.hpp"
+#include "worlds/idx.hpp"
+#include "worlds/random.hpp"
+
+namespace scout::learn {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+namespace {
+
+// Streams of a run's seed for the baselines and of the command's seed for the greedy run. The
+// stochastic run's batch streams are derive_seed(seed_k, first image index); these constants lie
+// beyond any image index, so no baseline ever repeats the stochastic run's starts and choices.
+constexpr std::uint64_t kIidStream = std::uint64_t{1} << 40;
+constexpr std::uint64_t kGoalsOnlyStream = kIidStream + 1;
+constexpr std::uint64_t kGreedyStream = kIidStream + 2;
+
+// The continued fraction of the regularized incomplete beta I_x(a, b), evaluated by the modified
+// Lentz method (as Numerical Recipes' betacf).
+double beta_continued_fraction(double a, double b, double x) {
+  constexpr double kTiny = 1e-300;
+  const double qab = a + b, qap = a + 1, qam = a - 1;
+  double c = 1, d = 1 - qab * x / qap;
+  if (std::abs(d) < kTiny) d = kTiny;
+  d = 1 / d;
+  double h = d;
+  for (int m = 1; m <= 10000; ++m) {
+    const double m2 = 2.0 * m;
+    double aa = m * (b - m) * x / ((qam + m2) * (a + m2));
+    d = 1 + aa * d;
+    if (std::abs(d) < kTiny) d = kTiny;
+    c = 1 + aa / c;
+    if (std::abs(c) < kTiny) c = kTiny;
+    d = 1 / d;
+    h *= d * c;
+    aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
+    d = 1 + aa * d;
+    if (std::abs(d) < kTiny) d = kTiny;
+    c = 1 + aa / c;
+    if (std::abs(c) < kTiny) c = kTiny;
+    d = 1 / d;
+    const double delta = d * c;
+    h *= delta;
+    if (std::abs(delta - 1) < 1e-15) break;
+  }
+  return h;
+}
+
+// The regularized incomplete beta function I_x(a, b), x in [0, 1].
+double incomplete_beta(double a, double b, double x) {
+  if (x <= 0) return 0;
+  if (x >= 1) return 1;
+  const double front =
+      std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x));
+  // The continued fraction converges fast for x < (a + 1) / (a + b + 2); use the symmetry beyond.
+  if (x < (a + 1) / (a + b + 2)) return front * beta_continued_fraction(a, b, x) / a;
+  return 1 - front * beta_continued_fraction(b, a, 1 - x) / b;
+}
+
+struct Data {
+  worlds::LabeledImages set;
+  sim::FloorFrame frame;
+};
+
+Data read_data(const EvalConfig& config, const worlds::World& world, int classes) {
+  Data d;
+  d.set.images = worlds::read_idx_images(config.images);
+  d.set.labels = worlds::read_idx_labels(config.labels);
+  d.set.files = {config.images, config.labels};
+  const std::string images = config.images.string(), labels = config.labels.string();
+  if (d.set.images.count == 0) throw InputError(images + ": expected at least one image, the file has none");
+  if (d.set.labels.size() != static_cast<std::size_t>(d.set.images.count))
+    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels, d.set.images.count,
+                                 images, d.set.labels.size()));
+  for (std::size_t i = 0; i < d.set.labels.size(); ++i)
+    if (d.set.labels[i] >= classes)
+      throw InputError(
+          fmt::format("{}: label {} at index {}: expected a class in 0..{} (the checkpoint's network has "
+                      "{} classes)",
+                      labels, static_cast<int>(d.set.labels[i]), i, classes - 1, classes));
+  // The networks are fully convolutional, so any floor size works that the camera can hold and
+  // the world's patch and start fit.
+  if (d.set.images.cols > worlds::kMaxFloorPx || d.set.images.rows > worlds::kMaxFloorPx)
+    throw InputError(fmt::format("{}: expected images of at most {} x {} pixels, got {} x {}", images,
+                                 worlds::kMaxFloorPx, worlds::kMaxFloorPx, d.set.images.cols, d.set.images.rows));
+  worlds::check_against_floor(world, d.set.images.cols, d.set.images.rows);
+  d.frame = {d.set.images.cols, d.set.images.rows, world.floor.pixel_size_m};
+  return d;
+}
+
+// What one pass over all images gave: per image, log pi_c.
+struct Pass {
+  int correct = 0, top2 = 0;
+  torch::Tensor log_probs;  // [images, D]
+};
+
+class Evaluator {
+ public:
+  Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots,
+            const std::function<bool()>& stop)
+      : agent_(agent), world_(world), data_(data), stop_(stop) {
+    const int robots = std::min(batch_robots, data.set.images.count);
+    try {
+      engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
+    } catch (const std::runtime_error& e) {
+      throw InputError(std::string("the camera cannot start: ") + one_line(e.what()));
+    }
+    policy_ = std::make_unique<AgentPolicy>(agent, data.frame, world.camera.patch_px, robots);
+    batch_ = robots;
+  }
+
+  // One rollout per image; batch b's stream is derive_seed(stream_seed, its first image index),
+  // so a run's result does not depend on batch_robots' split other than through it.
+  Pass run(const Sampling& sampling, std::uint64_t stream_seed) {
+    const int n = data_.set.images.count;
+    Pass pass;
+    std::vector<torch::Tensor> parts;
+    std::vector<int> indices;
+    for (int first = 0; first < n; first += batch_) {
+      if (stop_ && stop_()) throw EvalInterrupted{};
+      const int k = std::min(batch_, n - first);
+      indices.resize(k);
+      for (int i = 0; i < k; ++i) indices[i] = first + i;
+      const RolloutBatch batch = make_batch(data_.set, indices, 1, world_, data_.frame,
+                                            worlds::derive_seed(stream_seed, static_cast<std::uint64_t>(first)));
+      const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling, {1, false, 0});
+      pass.correct += count_correct(out.log_probs, batch.labels, 1);
+      pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
+      parts.push_back(out.log_probs);
+    }
+    pass.log_probs = torch::cat(parts, 0);
+    return pass;
+  }
+
+  // The classifier on full images (u_c = x).
+  int full_image_correct() {
+    const int n = data_.set.images.count;
+    const auto area = static_cast<std::size_t>(data_.frame.area_px());
+    int correct = 0;
+    for (int first = 0; first < n; first += batch_) {
+      if (stop_ && stop_()) throw EvalInterrupted{};
+      const int k = std::min(batch_, n - first);
+      torch::Tensor x = full_images(std::span(data_.set.images.image(first), area * k), k, data_.frame);
+      const std::vector<std::int64_t> labels(data_.set.labels.begin() + first, data_.set.labels.begin() + first + k);
+      correct += count_correct(torch::log_softmax(agent_.classifier->forward(x), 1), labels, 1);
+    }
+    return correct;
+  }
+
+ private:
+  agent::AgentImpl& agent_;
+  const worlds::World& world_;
+  const Data& data_;
+  const std::function<bool()>& stop_;
+  std::unique_ptr<RolloutEngine> engine_;
+  std::unique_ptr<AgentPolicy> policy_;
+  int batch_ = 1;
+};
+
+double mean_of(const std::vector<double>& v) {
+  double sum = 0;
+  for (double x : v) sum += x;
+  return v.empty() ? 0 : sum / static_cast<double>(v.size());
+}
+
+}  // namespace
+
+double student_t_975(int dof) {
+  if (dof < 1) throw std::invalid_argument("student_t_975: dof must be at least 1, got " + std::to_string(dof));
+  // P(|T| > t) = I_{v / (v + t^2)}(v / 2, 1 / 2), decreasing in t; the 97.5 % quantile is where
+  // it is 0.05. Bisection to double precision (the tail at t = 1e3 is below 0.05 for every dof).
+  const double v = dof;
+  double lo = 0, hi = 1000;
+  for (int i = 0; i < 200 && hi - lo > 1e-13 * hi; ++i) {
+    const double t = 0.5 * (lo + hi);
+    const double tail = incomplete_beta(v / 2, 0.5, v / (v + t * t));
+    (tail > 0.05 ? lo : hi) = t;
+  }
+  return 0.5 * (lo + hi);
+}
+
+Interval mean_ci95(std::span<const double> values) {
+  Interval out;
+  const std::size_t r = values.size();
+  if (r == 0) return out;
+  double sum = 0;
+  for (double x : values) sum += x;
+  out.mean = sum / static_cast<double>(r);
+  // Equal values: exactly 0 (the mean can differ from them in the last bit).
+  if (r == 1 || std::all_of(values.begin(), values.end(), [&](double x) { return x == values[0]; })) {
+    if (r > 1) out.mean = values[0];
+    return out;
+  }
+  double squares = 0;
+  for (double x : values) squares += (x - out.mean) * (x - out.mean);
+  const double sd = std::sqrt(squares / static_cast<double>(r - 1));
+  out.ci95 = student_t_975(static_cast<int>(r - 1)) * sd / std::sqrt(static_cast<double>(r));
+  return out;
+}
+
+EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
+  if (config.batch_robots < 1)
+    throw std::invalid_argument("evaluate: batch_robots must be positive, got " + std::to_string(config.batch_robots));
+  CheckpointState state;
+  agent::Agent agent = load_agent(config.checkpoint, &state);
+  const std::string checkpoint = config.checkpoint.string();
+  const agent::NetworkConfig& network = state.config.network;
+  if (network.image_channels != 1)
+    throw InputError(fmt::format("{}: network.image_channels: expected 1 (floors are grayscale), got {}", checkpoint,
+                                 network.image_channels));
+  const worlds::World world = config.world_file ? worlds::load_world(*config.world_file) : state.config.world;
+  const Data data = read_data(config, world, network.classes);
+  set_torch_threads(0);
+  torch::NoGradGuard no_grad;
+  agent->eval();
+
+  const LearnedLayers learned = learned_layers(state.history);
+  Sampling sampling;
+  sampling.learned_goals = learned.goals;
+  sampling.learned_actions = learned.actions;
+  Sampling iid;
+  Sampling goals_only;
+  goals_only.learned_goals = true;
+  Sampling greedy = sampling;
+  greedy.greedy = true;
+
+  const int n = data.set.images.count, classes = network.classes, runs = config.runs;
+  EvalReport report;
+  report.runs = runs;
+  report.images = n;
+  report.checkpoint = checkpoint;
+  report.world = config.world_file ? config.world_file->string() : world.file.string();
+  report.seed = config.seed;
+  report.learned_goals = learned.goals;
+  report.learned_actions = learned.actions;
+  report.labels.assign(data.set.labels.begin(), data.set.labels.end());
+  report.confusion.assign(classes, std::vector<double>(classes, 0.0));
+
+  Evaluator evaluator(*agent, world, data, config.batch_robots, stop);
+  std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
+  torch::Tensor probability_sum = torch::zeros({n, classes}, torch::kDouble);
+  std::vector<long> row_counts(classes, 0);
+  for (int label : report.labels) ++row_counts[label];
+  for (int k = 0; k < runs; ++k) {
+    const std::uint64_t seed_k = worlds::derive_seed(config.seed, static_cast<std::uint64_t>(k));
+    const Pass pass = evaluator.run(sampling, seed_k);
+    accuracy[k] = static_cast<double>(pass.correct) / n;
+    top2[k] = static_cast<double>(pass.top2) / n;
+    probability_sum += pass.log_probs.to(torch::kDouble).exp();
+    // This run's confusion counts, row-normalised; rows of absent labels stay 0.
+    const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
+    const std::int64_t* p = predicted.data_ptr<std::int64_t>();
+    std::vector<std::vector<long>> counts(classes, std::vector<long>(classes, 0));
+    for (int i = 0; i < n; ++i) ++counts[report.labels[i]][p[i]];
+    for (int row = 0; row < classes; ++row)
+      for (int col = 0; col < classes; ++col)
+        if (row_counts[row] > 0)
+          report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
+    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, worlds::derive_seed(seed_k, kIidStream)).correct) / n;
+    goals_only_accuracy[k] =
+        static_cast<double>(evaluator.run(goals_only, worlds::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n;
+  }
+  report.accuracy = mean_ci95(accuracy);
+  report.top2 = mean_ci95(top2);
+  report.iid_accuracy = mean_of(iid_accuracy);
+  report.goals_only_accuracy = mean_of(goals_only_accuracy);
+  report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
+  report.greedy_accuracy =
+      static_cast<double>(evaluator.run(greedy, worlds::derive_seed(config.seed, kGreedyStream)).correct) / n;
+
+  const torch::Tensor mean_probabilities = (probability_sum / runs).contiguous();
+  const double* m = mean_probabilities.data_ptr<double>();
+  report.probabilities.resize(n);
+  for (int i = 0; i < n; ++i)
+    report.probabilities[i].assign(m + static_cast<std::size_t>(i) * classes,
+                                   m + static_cast<std::size_t>(i + 1) * classes);
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
+}
+
+std::string report_json(const EvalReport& report) {
+  json j;
+  j["checkpoint"] = report.checkpoint;
+  j["world"] = report.world;
+  j["seed"] = report.seed;
+  j["learned"] = {{"goals", report.learned_goals}, {"actions", report.learned_actions}};
+  j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
+  j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
+  j["confusion"] = report.confusion;
+  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", report.goals_only_accuracy}};
+  j["full_image_accuracy"] = report.full_image_accuracy;
+  j["greedy_accuracy"] = report.greedy_accuracy;
+  j["runs"] = report.runs;
+  j["images"] = report.images;
+  j["seconds"] = report.seconds;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace scout::learn

@@ -1,0 +1,65 @@
+#pragma once
+/// Evaluation (METHOD.md § Evaluation): R independent stochastic runs over a set of digits with
+/// the physics and the camera in the loop, Student-t intervals, confusion matrix, the two random
+/// baselines, full-image and greedy accuracy. Torch-free: the CLI includes this header.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace scout::learn {
+
+struct EvalConfig {
+  std::filesystem::path checkpoint;                 ///< RUN/checkpoint.pt or a model file
+  std::filesystem::path images, labels;             ///< any IDX image and label files
+  std::optional<std::filesystem::path> world_file;  ///< default: the checkpoint's world
+  int runs = 20;                                    ///< R
+  std::uint64_t seed = 1;                           ///< run k uses derive_seed(seed, k)
+  int batch_robots = 240;                           ///< robots per rollout batch
+};
+
+/// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).
+struct Interval {
+  double mean = 0;
+  double ci95 = 0;
+};
+
+struct EvalReport {
+  Interval accuracy;  ///< stochastic, the checkpoint's learned layers
+  Interval top2;
+  std::vector<std::vector<double>> confusion;  ///< D x D, rows = true label, row-normalised, mean over runs
+  double iid_accuracy = 0;                     ///< baseline: i.i.d. goals and actions, same classifier
+  double goals_only_accuracy = 0;              ///< baseline: learned goals, i.i.d. actions
+  double full_image_accuracy = 0;              ///< the classifier on full images (u_c = x)
+  double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
+  int runs = 0, images = 0;
+  double seconds = 0;
+  std::vector<int> labels;                         ///< per image
+  std::vector<std::vector<double>> probabilities;  ///< per image: mean pi_c over the runs (D values)
+  std::string checkpoint;                          ///< the checkpoint file, as given
+  std::string world;                               ///< the world file used (--world or the checkpoint's)
+  std::uint64_t seed = 0;                          ///< the evaluation's seed
+  bool learned_goals = false;                      ///< the checkpoint's history has a mode (ii) or (iii) epoch
+  bool learned_actions = false;                    ///< ... a mode (iii) epoch
+};
+
+/// Thrown by evaluate() when `stop` returned true; nothing of the evaluation is kept.
+struct EvalInterrupted {};
+
+/// Runs the evaluation. `stop` is polled between batches (Ctrl-C) and makes it throw
+/// EvalInterrupted; throws InputError for bad files or a mismatch between the data and the
+/// checkpoint.
+EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop = {});
+
+/// The report as JSON text (fractions in [0, 1], intervals as half-widths).
+std::string report_json(const EvalReport& report);
+/// The 97.5 % quantile of Student's t with `dof` degrees of freedom (dof >= 1).
+double student_t_975(int dof);
+/// The mean of `values` and its 95 % half-width t(R-1) * sd / sqrt(R), sd with R - 1. With one
+/// value (or none) there is no spread to estimate and ci95 is 0; equal values give exactly 0.
+Interval mean_ci95(std::span<const double> values);
+
+}  // namespace scout::learn

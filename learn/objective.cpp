@@ -1,0 +1,67 @@
+#include "learn/objective.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace scout::learn {
+
+namespace {
+// Streams within a batch's seed: one for the start cell, one for the policy's choices.
+constexpr std::uint64_t kStartStream = 1;
+constexpr std::uint64_t kPolicyStream = 2;
+}  // namespace
+
+RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
+                        const worlds::World& world, const sim::FloorFrame& frame, std::uint64_t stream) {
+  if (rollouts <= 0) throw std::invalid_argument("make_batch: rollouts must be positive");
+  RolloutBatch batch;
+  batch.count = static_cast<int>(indices.size()) * rollouts;
+  const auto area = static_cast<std::size_t>(frame.area_px());
+  batch.floors.resize(area * batch.count);
+  batch.labels.resize(batch.count);
+  batch.starts.resize(batch.count);
+  batch.seeds.resize(batch.count);
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    const int image = indices[i];
+    if (image < 0 || image >= data.images.count) throw std::out_of_range("make_batch: image index out of range");
+    for (int k = 0; k < rollouts; ++k) {
+      const std::size_t r = i * rollouts + k;
+      std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
+      batch.labels[r] = data.labels[image];
+      const std::uint64_t robot_seed = worlds::derive_seed(stream, r);
+      worlds::Rng start_rng(worlds::derive_seed(robot_seed, kStartStream));
+      batch.starts[r] = draw_start(world, frame, start_rng);
+      batch.seeds[r] = worlds::derive_seed(robot_seed, kPolicyStream);
+    }
+  }
+  return batch;
+}
+
+BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
+                       const Sampling& sampling, const EstimatorOptions& estimator) {
+  policy.begin(batch.seeds, sampling);
+  engine.run(batch.floors, batch.starts, policy, /*record=*/false);
+  std::optional<torch::NoGradGuard> no_grad;
+  if (!sampling.with_grad) no_grad.emplace();
+  torch::Tensor y = revealed_images(engine.state(), batch.count);
+  torch::Tensor log_probs = torch::log_softmax(agent.classifier->forward(y), 1);
+  // A copy: autograd keeps the index for backward, which may run after `batch` is gone.
+  torch::Tensor labels =
+      torch::from_blob(const_cast<std::int64_t*>(batch.labels.data()), {batch.count, 1}, torch::kLong).clone();
+  torch::Tensor reward = log_probs.gather(1, labels).squeeze(1);
+  const bool learned = sampling.learned_goals || sampling.learned_actions;
+  torch::Tensor objective = surrogate_objective(learned ? policy.log_pi() : torch::Tensor(), reward, estimator,
+                                                learned ? policy.entropy() : torch::Tensor());
+  return {objective, log_probs.detach(), reward.detach()};
+}
+
+int count_correct(const torch::Tensor& log_probs, std::span<const std::int64_t> labels, int top) {
+  torch::Tensor best = std::get<1>(log_probs.topk(top, 1)).contiguous();  // [count, top]
+  const std::int64_t* b = best.data_ptr<std::int64_t>();
+  int correct = 0;
+  for (std::size_t r = 0; r < labels.size(); ++r)
+    correct += std::count(b + r * top, b + (r + 1) * top, labels[r]) > 0 ? 1 : 0;
+  return correct;
+}
+
+}  // namespace scout::learn

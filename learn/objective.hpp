@@ -1,0 +1,46 @@
+#pragma once
+/// One batch of rollouts through the agent, ending in the classifier's verdict and J-hat: the
+/// step that training, evaluation and the estimator test share. Torch header: learn/ and tests.
+#include <torch/torch.h>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "learn/agent_policy.hpp"
+#include "learn/estimator.hpp"
+#include "learn/rollout.hpp"
+#include "worlds/dataset.hpp"
+
+namespace scout::learn {
+
+/// The robots of one batch: robot r drives over floors[r] from starts[r], sampling with seeds[r].
+struct RolloutBatch {
+  int count = 0;
+  std::vector<std::uint8_t> floors;  ///< count * H * W bytes
+  std::vector<std::int64_t> labels;  ///< one per robot
+  std::vector<sim::Cell> starts;
+  std::vector<std::uint64_t> seeds;
+};
+
+/// N robots per image: robot i*N + k drives over image indices[i]. Robot r's start and sampling
+/// seed derive from (stream, r) only, so a batch is reproducible from its stream seed.
+RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
+                        const worlds::World& world, const sim::FloorFrame& frame, std::uint64_t stream);
+
+/// What one batch gave.
+struct BatchOutcome {
+  torch::Tensor objective;  ///< J-hat (scalar, with its graph when sampling.with_grad)
+  torch::Tensor log_probs;  ///< log pi_c per robot [count, D] (detached)
+  torch::Tensor reward;     ///< r per robot [count] (detached)
+};
+
+/// Drives the batch with the physics and the camera in the loop, classifies u_c = y after the
+/// last move, and computes J-hat with `estimator`.
+BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
+                       const Sampling& sampling, const EstimatorOptions& estimator);
+
+/// Per-robot correctness of a batch's predictions (argmax == label), and top-2.
+int count_correct(const torch::Tensor& log_probs, std::span<const std::int64_t> labels, int top = 1);
+
+}  // namespace scout::learn

@@ -1,0 +1,51 @@
+#pragma once
+/// A trained agent loaded from a checkpoint, driving a rollout batch (for `scout run
+/// --checkpoint`). Torch-free facade over AgentPolicy and the classifier.
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "learn/rollout.hpp"
+#include "learn/training.hpp"
+
+namespace scout::learn {
+
+/// The layers a checkpoint drives with: goals once it has trained in mode (ii) or (iii), actions
+/// once in mode (iii) (METHOD.md: a learned layer never returns to i.i.d.); i.i.d. otherwise.
+struct LearnedLayers {
+  bool goals = false;
+  bool actions = false;
+};
+/// What a checkpoint's history (its finished epochs) says it has learned.
+LearnedLayers learned_layers(const std::vector<EpochMetrics>& history);
+
+class TrainedAgent {
+ public:
+  /// Loads RUN/checkpoint.pt or a model file; throws InputError naming the file.
+  static std::unique_ptr<TrainedAgent> load(const std::filesystem::path& checkpoint);
+  ~TrainedAgent();
+
+  /// The checkpoint's config (its world, network and training options).
+  const TrainConfig& config() const;
+  /// The layers the agent drives with (the others choose i.i.d.).
+  LearnedLayers learned() const;
+  /// Prepares the policy for a batch on `frame` (floors must have the checkpoint's channels).
+  /// Drives with the layers the checkpoint has learned (learned()); `greedy`: argmax.
+  void begin(const sim::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
+             bool record_goal_maps);
+  Policy& policy();
+  /// pi_g of robot i in episode e (H * W), when begin() asked to record goal maps.
+  const std::vector<float>& goal_map(int robot, int episode) const;
+  /// pi_c of the first `count` robots of the state (count * D floats).
+  std::vector<float> classify(const BatchState& state, int count);
+  int classes() const;
+
+ private:
+  struct Impl;
+  explicit TrainedAgent(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace scout::learn

@@ -1,0 +1,396 @@
+#include <fmt/format.h>
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <thread>
+
+#include "learn/agent_policy.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/objective.hpp"
+#include "learn/training.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/error.hpp"
+#include "worlds/random.hpp"
+
+namespace scout::learn {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr std::array<Stage, 4> kStages = {Stage::Pretrain, Stage::ModeI, Stage::ModeII, Stage::ModeIII};
+
+// Seed streams of a run (each derived from the run's seed, so that one seed fixes everything).
+constexpr std::uint64_t kOrderStream = 11;       // data order of (stage, epoch)
+constexpr std::uint64_t kBatchStream = 12;       // starts and sampling of (stage, epoch, batch)
+constexpr std::uint64_t kValidationStream = 13;  // validation passes (the same every epoch)
+
+std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, int stage, int epoch) {
+  return worlds::derive_seed(worlds::derive_seed(worlds::derive_seed(seed, stream), stage), epoch);
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::array<int, 4> stage_epochs(const TrainConfig& c) {
+  return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
+}
+
+Sampling sampling_for(Stage stage, bool with_grad) {
+  Sampling s;
+  s.learned_goals = stage == Stage::ModeII || stage == Stage::ModeIII;
+  s.learned_actions = stage == Stage::ModeIII;
+  s.with_grad = with_grad;
+  return s;
+}
+
+torch::nn::Module& layer(agent::AgentImpl& a, Layer l) {
+  switch (l) {
+    case Layer::Goal:
+      return *a.goal;
+    case Layer::Action:
+      return *a.action;
+    case Layer::Classifier:
+      break;
+  }
+  return *a.classifier;
+}
+
+}  // namespace
+
+const char* to_string(Stage stage) {
+  switch (stage) {
+    case Stage::Pretrain:
+      return "full";
+    case Stage::ModeI:
+      return "i";
+    case Stage::ModeII:
+      return "ii";
+    case Stage::ModeIII:
+      return "iii";
+  }
+  return "?";
+}
+
+int set_torch_threads(int threads) {
+  const int n = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  torch::set_num_threads(n);
+  return torch::get_num_threads();
+}
+
+std::string metrics_csv_header() {
+  return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds\n";
+}
+
+std::string metrics_csv_row(const EpochMetrics& m) {
+  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f}\n", to_string(m.stage), m.epoch, m.reward, m.loss,
+                     m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The run.
+
+struct EpochSums {
+  double reward = 0, loss = 0, train_seconds = 0;
+  long correct = 0, robots = 0, images = 0, batches = 0;
+};
+
+struct Trainer::Impl {
+  TrainConfig config;
+  fs::path run_dir;
+  int threads = 1;
+  worlds::LabeledImages train, validation;
+  sim::FloorFrame frame;
+  agent::Agent agent{nullptr};
+  std::unique_ptr<torch::optim::Adam> optimizer;
+  std::unique_ptr<RolloutEngine> engine;
+  std::unique_ptr<AgentPolicy> policy;
+  ScheduleCursor cursor;
+  std::vector<EpochMetrics> history;
+  EpochSums sums;  // of the epoch in progress (non-empty after an interrupt)
+  std::vector<fs::path> data_files;
+
+  void setup(int thread_request) {
+    threads = set_torch_threads(thread_request);
+    train = worlds::load_split(config.data_folder, worlds::Split::Train);
+    validation = worlds::load_split(config.data_folder, worlds::Split::Validation);
+    data_files = train.files;
+    for (const fs::path& f : validation.files)
+      if (std::find(data_files.begin(), data_files.end(), f) == data_files.end()) data_files.push_back(f);
+    auto limit = [](worlds::LabeledImages& d, int k) {
+      if (k <= 0 || k >= d.images.count) return;
+      d.images.count = k;
+      d.images.pixels.resize(static_cast<std::size_t>(k) * d.images.rows * d.images.cols);
+      d.labels.resize(k);
+    };
+    limit(train, config.train_limit);
+    limit(validation, config.validation_limit);
+    const std::string origin = config.data_folder.string();
+    if (train.images.count == 0) throw InputError(origin + ": no training images");
+    for (std::uint8_t label : train.labels)
+      if (label >= config.network.classes)
+        throw InputError(fmt::format("{}: a training label is {}, the network has {} classes", origin, label,
+                                     config.network.classes));
+    worlds::check_against_floor(config.world, train.images.cols, train.images.rows);
+    frame = {train.images.cols, train.images.rows, config.world.floor.pixel_size_m};
+    torch::manual_seed(config.seed);
+    agent = agent::Agent(config.network);
+    optimizer = std::make_unique<torch::optim::Adam>(agent->parameters(),
+                                                     torch::optim::AdamOptions(config.learning_rate));
+    const int robots = config.batch_images * config.rollouts;
+    engine = std::make_unique<RolloutEngine>(config.world, frame, robots);
+    policy = std::make_unique<AgentPolicy>(*agent, frame, config.world.camera.patch_px, robots);
+  }
+
+  Stage stage() const { return kStages[cursor.stage]; }
+  bool finished() const { return cursor.stage >= static_cast<int>(kStages.size()); }
+
+  // Skips stages with no epochs left.
+  void normalise_cursor() {
+    const auto epochs = stage_epochs(config);
+    while (!finished() && cursor.epoch >= epochs[cursor.stage]) {
+      ++cursor.stage;
+      cursor.epoch = 0;
+      cursor.batch = 0;
+    }
+  }
+
+  // Which layers Adam may change in `stage`: frozen layers only learn from full images.
+  void set_trainable(Stage s) {
+    for (int l = 0; l < 3; ++l) {
+      const bool trainable =
+          s == Stage::Pretrain ? static_cast<Layer>(l) == Layer::Classifier : !config.frozen[l];
+      for (torch::Tensor& p : layer(*agent, static_cast<Layer>(l)).parameters()) p.set_requires_grad(trainable);
+    }
+  }
+
+  int batch_images_for(Stage s) const { return s == Stage::Pretrain ? config.batch_images * config.rollouts : config.batch_images; }
+  int batches_per_epoch(Stage s) const {
+    const int b = batch_images_for(s);
+    return (train.images.count + b - 1) / b;
+  }
+
+  std::vector<int> epoch_order() const {
+    std::vector<int> order(train.images.count);
+    for (int i = 0; i < train.images.count; ++i) order[i] = i;
+    worlds::Rng rng(stage_epoch_seed(config.seed, kOrderStream, cursor.stage, cursor.epoch));
+    worlds::shuffle(order, rng);
+    return order;
+  }
+
+  // One optimisation step; returns false when the loss is not finite (nothing is changed then).
+  bool train_batch(std::span<const int> indices, int batch_index, double& loss_out) {
+    const Stage s = stage();
+    agent->train();
+    optimizer->zero_grad();
+    torch::Tensor loss;
+    if (s == Stage::Pretrain) {
+      std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * indices.size());
+      std::vector<std::int64_t> labels(indices.size());
+      for (std::size_t i = 0; i < indices.size(); ++i) {
+        std::copy_n(train.images.image(indices[i]), frame.area_px(), floors.data() + i * frame.area_px());
+        labels[i] = train.labels[indices[i]];
+      }
+      torch::Tensor x = full_images(floors, static_cast<int>(indices.size()), frame);
+      torch::Tensor log_probs = torch::log_softmax(agent->classifier->forward(x), 1);
+      torch::Tensor target = torch::from_blob(labels.data(), {static_cast<long>(labels.size())}, torch::kLong).clone();
+      loss = torch::nll_loss(log_probs, target);
+      const torch::Tensor reward = -torch::nll_loss(log_probs.detach(), target, {}, at::Reduction::None);
+      sums.reward += reward.sum().item<double>();
+      sums.correct += count_correct(log_probs.detach(), labels);
+      sums.robots += static_cast<long>(labels.size());
+    } else {
+      const std::uint64_t stream =
+          worlds::derive_seed(stage_epoch_seed(config.seed, kBatchStream, cursor.stage, cursor.epoch), batch_index);
+      const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
+      EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
+      const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true), est);
+      loss = -out.objective;
+      sums.reward += out.reward.sum().item<double>();
+      sums.correct += count_correct(out.log_probs, batch.labels);
+      sums.robots += batch.count;
+    }
+    loss_out = loss.item<double>();
+    if (!std::isfinite(loss_out)) return false;
+    loss.backward();
+    optimizer->step();
+    return true;
+  }
+
+  double validation_accuracy() {
+    torch::NoGradGuard no_grad;
+    agent->eval();
+    const Stage s = stage();
+    const int n = validation.images.count;
+    if (n == 0) return 0;
+    const int chunk = config.batch_images * config.rollouts;
+    long correct = 0;
+    for (int first = 0; first < n; first += chunk) {
+      const int k = std::min(chunk, n - first);
+      std::vector<int> indices(k);
+      for (int i = 0; i < k; ++i) indices[i] = first + i;
+      if (s == Stage::Pretrain) {
+        const auto area = static_cast<std::size_t>(frame.area_px());
+        torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
+        std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
+        correct += count_correct(torch::log_softmax(agent->classifier->forward(x), 1), labels);
+      } else {
+        const RolloutBatch batch = make_batch(validation, indices, 1, config.world, frame,
+                                              worlds::derive_seed(worlds::derive_seed(config.seed, kValidationStream), first));
+        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false), {1, false, 0});
+        correct += count_correct(out.log_probs, batch.labels);
+      }
+    }
+    return static_cast<double>(correct) / n;
+  }
+
+  void write_metrics() const {
+    std::string text = metrics_csv_header();
+    for (const EpochMetrics& m : history) text += metrics_csv_row(m);
+    write_text_atomic(run_dir / "metrics.csv", text);
+  }
+
+  void save() {
+    CheckpointState state;
+    state.config = config;
+    state.cursor = cursor;
+    state.history = history;
+    state.partial = {sums.reward, sums.loss, sums.train_seconds, sums.correct, sums.robots, sums.images, sums.batches};
+    save_checkpoint(run_dir / kCheckpointName, *agent, optimizer.get(), state);
+  }
+
+  double remaining_images_after_epoch() const {
+    const auto epochs = stage_epochs(config);
+    double images = 0;
+    for (int st = cursor.stage; st < static_cast<int>(kStages.size()); ++st) {
+      const int left = epochs[st] - (st == cursor.stage ? cursor.epoch + 1 : 0);
+      if (left > 0) images += static_cast<double>(left) * train.images.count;
+    }
+    return images;
+  }
+
+  TrainResult run(const TrainHooks& hooks) {
+    normalise_cursor();
+    while (!finished()) {
+      const Stage s = stage();
+      set_trainable(s);
+      const auto epochs = stage_epochs(config);
+      const int batches = batches_per_epoch(s);
+      const int per_batch = batch_images_for(s);
+      const std::vector<int> order = epoch_order();
+      const auto epoch_start = Clock::now();
+      const double seconds_before = sums.train_seconds;
+      for (int b = cursor.batch; b < batches; ++b) {
+        if (hooks.stop_requested && hooks.stop_requested()) {
+          save();
+          return {TrainOutcome::Interrupted,
+                  fmt::format("interrupted in mode {} epoch {} after batch {}/{}; checkpoint saved: {}", to_string(s),
+                              cursor.epoch + 1, cursor.batch, batches, (run_dir / kCheckpointName).string())};
+        }
+        const auto t0 = Clock::now();
+        const int first = b * per_batch;
+        const int k = std::min(per_batch, train.images.count - first);
+        double loss = 0;
+        if (!train_batch(std::span(order.data() + first, k), b, loss)) {
+          return {TrainOutcome::NonFinite,
+                  fmt::format("the loss is {} in mode {} epoch {} batch {}; training stopped, the last good checkpoint "
+                              "is kept ({}); try a smaller --lr",
+                              loss, to_string(s), cursor.epoch + 1, b + 1,
+                              history.empty() ? "none was written yet" : (run_dir / kCheckpointName).string())};
+        }
+        sums.loss += loss;
+        sums.batches += 1;
+        sums.images += k;
+        sums.train_seconds += seconds_since(t0);
+        cursor.batch = b + 1;
+        if (hooks.on_progress) {
+          Progress p;
+          p.stage = s;
+          p.epoch = cursor.epoch + 1;
+          p.epochs = epochs[cursor.stage];
+          p.batch = b + 1;
+          p.batches = batches;
+          p.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
+          p.reward = sums.robots ? sums.reward / sums.robots : 0;
+          const double left_this_epoch = static_cast<double>(train.images.count - std::min<long>(sums.images, train.images.count));
+          p.eta_s = p.images_per_s > 0 ? (left_this_epoch + remaining_images_after_epoch()) / p.images_per_s : 0;
+          hooks.on_progress(p);
+        }
+      }
+      EpochMetrics m;
+      m.stage = s;
+      m.epoch = cursor.epoch + 1;
+      m.reward = sums.robots ? sums.reward / sums.robots : 0;
+      m.loss = sums.batches ? sums.loss / sums.batches : 0;
+      m.train_accuracy = sums.robots ? static_cast<double>(sums.correct) / sums.robots : 0;
+      m.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
+      m.validation_accuracy = validation_accuracy();
+      // Wall time: this process's part of the epoch, plus the training time before a resume.
+      m.seconds = seconds_before + seconds_since(epoch_start);
+      history.push_back(m);
+      sums = {};
+      cursor.epoch += 1;
+      cursor.batch = 0;
+      normalise_cursor();
+      save();
+      write_metrics();
+      if (hooks.on_epoch) hooks.on_epoch(m);
+    }
+    return {TrainOutcome::Finished, "training finished"};
+  }
+};
+
+Trainer::Trainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : impl_(std::make_unique<Impl>()) {
+  config.validate();
+  impl_->config = config;
+  impl_->run_dir = std::move(run_dir);
+  impl_->setup(threads);
+}
+
+std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs) {
+  const fs::path file = run_dir / kCheckpointName;
+  auto impl = std::make_unique<Impl>();
+  CheckpointState state = read_checkpoint_state(file);
+  if (epochs) state.config.epochs = *epochs;
+  state.config.validate();
+  impl->config = state.config;
+  impl->run_dir = run_dir;
+  impl->setup(threads);
+  load_checkpoint_weights(file, *impl->agent, impl->optimizer.get());
+  impl->cursor = state.cursor;
+  impl->history = state.history;
+  const CheckpointState::Partial& p = state.partial;
+  impl->sums = {p.reward, p.loss, p.train_seconds, p.correct, p.robots, p.images, p.batches};
+  return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
+}
+
+Trainer::~Trainer() = default;
+
+TrainResult Trainer::run(const TrainHooks& hooks) { return impl_->run(hooks); }
+const TrainConfig& Trainer::config() const { return impl_->config; }
+const ScheduleCursor& Trainer::cursor() const { return impl_->cursor; }
+const std::vector<EpochMetrics>& Trainer::history() const { return impl_->history; }
+int Trainer::threads() const { return impl_->threads; }
+fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointName; }
+const std::vector<fs::path>& Trainer::data_files() const { return impl_->data_files; }
+
+CheckpointInfo read_checkpoint_info(const fs::path& file) {
+  CheckpointState state = read_checkpoint_state(file);
+  CheckpointInfo info;
+  info.format_version = kCheckpointFormat;
+  info.config = std::move(state.config);
+  info.cursor = state.cursor;
+  info.history = std::move(state.history);
+  return info;
+}
+
+}  // namespace scout::learn

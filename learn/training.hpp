@@ -1,0 +1,142 @@
+#pragma once
+/// Training (METHOD.md § The estimator, § Training modes): the hierarchical schedule
+/// (full images) -> (i) -> (ii) -> (iii) over rollouts with the physics and the camera in the
+/// loop, checkpointed every epoch. Torch-free: the CLI includes this header.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "agent/config.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::learn {
+
+/// A stage of the schedule. Pretrain trains the classifier on full images (u_c = x), the
+/// transfer variant's first step; modes (i) - (iii) are METHOD.md's.
+enum class Stage { Pretrain = 0, ModeI = 1, ModeII = 2, ModeIII = 3 };
+const char* to_string(Stage stage);  ///< "full", "i", "ii", "iii"
+
+/// The layers, in the order of TrainConfig::frozen.
+enum class Layer { Goal = 0, Action = 1, Classifier = 2 };
+
+/// Everything that determines a training run (stored in every checkpoint).
+struct TrainConfig {
+  worlds::World world;                ///< task, camera, robot and physics (floor.dataset names the data)
+  std::filesystem::path data_folder;  ///< IDX folder with train-* (and t10k-*, validation-* if any)
+  agent::NetworkConfig network;
+  int pretrain_epochs = 0;                ///< epochs of the classifier alone on full images, first
+  std::array<int, 3> epochs = {1, 1, 1};  ///< epochs of modes (i), (ii), (iii)
+  int rollouts = 4;                       ///< N: rollouts per image
+  int batch_images = 60;                  ///< B: images per mini-batch (B x N robots)
+  double learning_rate = 1e-3;            ///< Adam's step size
+  bool leave_one_out = false;             ///< leave-one-out baseline (beyond the paper)
+  double entropy_bonus = 0;               ///< beta of the entropy bonus (beyond the paper)
+  std::array<bool, 3> frozen = {false, false, false};  ///< per Layer: not updated in modes (i)-(iii)
+  std::uint64_t seed = 1;                 ///< initialisation, data order, starts and sampling
+  int train_limit = 0;                    ///< train on the first K training digits only (0: all)
+  int validation_limit = 0;               ///< validate on the first K validation digits only (0: all)
+
+  /// Throws InputError naming the option when a value is out of range.
+  void validate() const;
+  /// The config as JSON text (the world as YAML inside) and back; `origin` names the source in errors.
+  std::string to_json() const;
+  static TrainConfig from_json(const std::string& text, const std::string& origin);
+};
+
+/// One row of metrics.csv.
+struct EpochMetrics {
+  Stage stage = Stage::ModeI;
+  int epoch = 0;  ///< 1-based, within the stage
+  double reward = 0;               ///< mean r = log pi_c[label] over the epoch's rollouts
+  double loss = 0;                 ///< mean -J-hat over the epoch's batches
+  double train_accuracy = 0;       ///< share of the epoch's rollouts classified right
+  double validation_accuracy = 0;  ///< one stochastic pass over the validation digits, this stage's policy
+  double images_per_s = 0;         ///< training images per second (validation excluded)
+  double seconds = 0;              ///< wall time of the epoch, validation included
+};
+/// metrics.csv's header line and one row.
+std::string metrics_csv_header();
+std::string metrics_csv_row(const EpochMetrics& m);
+
+/// Reported after every batch.
+struct Progress {
+  Stage stage = Stage::ModeI;
+  int epoch = 0, epochs = 0;    ///< 1-based epoch within the stage, and the stage's epochs
+  int batch = 0, batches = 0;   ///< batches done in this epoch, and its batches
+  double images_per_s = 0;      ///< this epoch so far
+  double reward = 0;            ///< mean reward this epoch so far
+  double eta_s = 0;             ///< rest of the schedule at this epoch's rate
+};
+
+struct TrainHooks {
+  std::function<bool()> stop_requested;                   ///< polled between batches (Ctrl-C)
+  std::function<void(const Progress&)> on_progress;       ///< after every batch
+  std::function<void(const EpochMetrics&)> on_epoch;      ///< after every epoch (metrics written)
+};
+
+enum class TrainOutcome { Finished, Interrupted, NonFinite };
+struct TrainResult {
+  TrainOutcome outcome = TrainOutcome::Finished;
+  std::string message;  ///< one line for the user
+};
+
+/// Where the schedule stands (stored in checkpoints).
+struct ScheduleCursor {
+  int stage = 0;  ///< index into the stages (Pretrain, ModeI, ModeII, ModeIII)
+  int epoch = 0;  ///< epochs done within that stage
+  int batch = 0;  ///< batches done within the next epoch (non-zero only after an interrupt)
+};
+
+/// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.
+class Trainer {
+ public:
+  /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
+  Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads);
+  /// Continues RUN/checkpoint.pt; `epochs` may extend the schedule (nullptr: keep). Throws
+  /// InputError for a bad or foreign checkpoint.
+  static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
+                                         const std::array<int, 3>* epochs = nullptr);
+  ~Trainer();
+  Trainer(const Trainer&) = delete;
+  Trainer& operator=(const Trainer&) = delete;
+
+  /// Trains until the schedule is done, a stop is requested (a checkpoint is saved first) or the
+  /// loss is not finite (the last good checkpoint is kept).
+  TrainResult run(const TrainHooks& hooks);
+
+  const TrainConfig& config() const;
+  const ScheduleCursor& cursor() const;
+  const std::vector<EpochMetrics>& history() const;
+  int threads() const;
+  std::filesystem::path checkpoint_file() const;
+  /// The data files read (for manifests).
+  const std::vector<std::filesystem::path>& data_files() const;
+
+ private:
+  struct Impl;
+  explicit Trainer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// What a checkpoint file says about itself, without loading weights.
+struct CheckpointInfo {
+  int format_version = 0;
+  TrainConfig config;
+  ScheduleCursor cursor;
+  std::vector<EpochMetrics> history;
+};
+/// Reads a checkpoint's header; throws InputError with one line naming the file for anything
+/// that is not a Scout checkpoint of this format version.
+CheckpointInfo read_checkpoint_info(const std::filesystem::path& file);
+
+/// The checkpoint format this build writes and reads.
+inline constexpr int kCheckpointFormat = 1;
+
+/// Sets LibTorch's intra-op threads (0: one per core) and returns the number in use.
+int set_torch_threads(int threads);
+
+}  // namespace scout::learn

@@ -1,0 +1,146 @@
+// scout eval: the paper's evaluation protocol (METHOD.md § Evaluation) for a checkpoint on a set
+// of digits: a table on stdout, optionally a JSON report and per-image mean probabilities.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "learn/evaluation.hpp"
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/error.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct EvalOptions {
+  std::string checkpoint, images, labels, world;
+  std::string seed;  // empty: 1
+  int runs = 20;
+  std::string json_out, predictions_out;
+};
+
+// Refuses an output file that cannot be written or that is one of the inputs, before minutes of
+// rollouts are spent.
+void check_output(const char* option, const std::string& file, const std::vector<std::string>& inputs) {
+  if (file.empty()) return;
+  for (const std::string& input : inputs) {
+    std::error_code ec;
+    if (!input.empty() && fs::equivalent(file, input, ec))
+      throw InputError(fmt::format("{}: {}: expected a file other than the inputs", option, file));
+  }
+  const fs::path probe = file + ".tmp";
+  const bool writable = static_cast<bool>(std::ofstream(probe));
+  std::error_code ec;
+  fs::remove(probe, ec);
+  if (!writable) throw InputError(fmt::format("{}: cannot write {}", option, file));
+}
+
+std::string predictions_csv(const learn::EvalReport& report) {
+  const std::size_t classes = report.confusion.size();
+  std::string text = "index,label";
+  for (std::size_t c = 0; c < classes; ++c) text += fmt::format(",p{}", c);
+  text += "\n";
+  for (std::size_t i = 0; i < report.probabilities.size(); ++i) {
+    text += fmt::format("{},{}", i, report.labels[i]);
+    for (double p : report.probabilities[i]) text += fmt::format(",{:.6f}", p);
+    text += "\n";
+  }
+  return text;
+}
+
+void print_table(const learn::EvalReport& r) {
+  const char* layers = r.learned_actions ? "learned goals and actions"
+                       : r.learned_goals ? "learned goals, i.i.d. actions"
+                                         : "i.i.d. goals and actions";
+  fmt::print("{} on {} images, {} run{} (seed {}; {})\n", r.checkpoint, r.images, r.runs, r.runs == 1 ? "" : "s",
+             r.seed, layers);
+  fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "accuracy", r.accuracy.mean, r.accuracy.ci95);
+  fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "top-2 accuracy", r.top2.mean, r.top2.ci95);
+  fmt::print("  {:<26}{:.4f}\n", "i.i.d. baseline", r.iid_accuracy);
+  fmt::print("  {:<26}{:.4f}\n", "goals-only baseline", r.goals_only_accuracy);
+  fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
+  fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
+  fmt::print("  {:<26}{}\n", "runs", r.runs);
+  fmt::print("  {:<26}{}\n", "images", r.images);
+  fmt::print("  {:<26}{:.1f}\n", "seconds", r.seconds);
+  fmt::print("  (± is the half-width of the 95 % Student-t interval over the runs)\n");
+}
+
+void eval_command(const EvalOptions& opt, const Context& context) {
+  const std::vector<std::string> inputs = {opt.checkpoint, opt.images, opt.labels, opt.world};
+  check_output("--json", opt.json_out, inputs);
+  check_output("--predictions", opt.predictions_out, inputs);
+  if (!opt.json_out.empty() && !opt.predictions_out.empty() && fs::path(opt.json_out) == fs::path(opt.predictions_out))
+    throw InputError("--predictions: expected a file other than --json's");
+  learn::EvalConfig config;
+  config.checkpoint = opt.checkpoint;
+  config.images = opt.images;
+  config.labels = opt.labels;
+  if (!opt.world.empty()) config.world_file = opt.world;
+  config.runs = opt.runs;
+  config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
+  learn::EvalReport report;
+  try {
+    report = learn::evaluate(config, [] { return interrupt_requested(); });
+  } catch (const learn::EvalInterrupted&) {
+    throw Interrupted{};
+  }
+  // Nothing is written when a signal arrives before here; after it the files are complete.
+  throw_if_interrupted();
+  print_table(report);
+  if (!opt.json_out.empty()) {
+    nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));
+    std::vector<fs::path> data_files = {opt.images, opt.labels};
+    j["manifest"] = make_manifest(context.argv, "", data_files, "");
+    j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(opt.checkpoint);
+    write_file_atomic(opt.json_out, j.dump(2) + "\n");
+    fmt::print("report:      {}\n", opt.json_out);
+  }
+  if (!opt.predictions_out.empty()) {
+    write_file_atomic(opt.predictions_out, predictions_csv(report));
+    fmt::print("predictions: {}\n", opt.predictions_out);
+  }
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app, const Context& context) {
+  auto opt = std::make_shared<EvalOptions>();
+  auto* cmd = app.add_subcommand(
+      "eval",
+      "Evaluate a checkpoint on a set of digits (METHOD.md § Evaluation): R stochastic runs with the physics and the "
+      "camera in the loop (mean ± 95 % Student-t half-width), top-2, the confusion matrix, the i.i.d. and goals-only "
+      "baselines with the same classifier, the classifier on full images and one greedy run.");
+  cmd->add_option("--checkpoint", opt->checkpoint, "RUN/checkpoint.pt (or a model file) written by scout train")
+      ->required();
+  cmd->add_option("--images", opt->images,
+                  "IDX image file (idx3-ubyte, raw or .gz), e.g. data/mnist/t10k-images-idx3-ubyte")
+      ->required();
+  cmd->add_option("--labels", opt->labels, "IDX label file (idx1-ubyte, raw or .gz), one label per image")->required();
+  cmd->add_option("--world", opt->world, "World file (default: the world the checkpoint was trained in)");
+  cmd->add_option("--runs", opt->runs, "R: independent stochastic runs over all images")
+      ->capture_default_str()
+      ->check(decimal_in(1, 10000));
+  cmd->add_option("--seed", opt->seed,
+                  "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
+      ->check(seed_validator());
+  cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
+  cmd->add_option("--predictions", opt->predictions_out,
+                  "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");
+  cmd->callback([opt, &context] {
+    install_interrupt_handler();
+    eval_command(*opt, context);
+  });
+}
+
+}  // namespace scout::tools

@@ -1,0 +1,344 @@
+// scout train: the hierarchical training schedule with the physics and the camera in the loop,
+// checkpointed every epoch into a run folder (learn/training.hpp).
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "learn/training.hpp"
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/error.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+struct TrainOptions {
+  std::string world;
+  std::string out;
+  std::string resume;
+  std::string data_root;
+  std::string seed;
+  std::string epochs = "2,2,2";
+  int pretrain_epochs = 0;
+  int planner_width = 16, planner_depth = 3;
+  std::string classifier = "paper";
+  int classifier_width = 16, classifier_depth = 3;
+  double lr = 1e-3;
+  int batch = 60, rollouts = 4;
+  bool baseline = false;
+  double entropy_bonus = 0;
+  std::string freeze;
+  int train_limit = 0, validation_limit = 0;
+  int threads = 0;
+};
+
+std::array<int, 3> parse_epochs(const std::string& text) {
+  std::array<int, 3> epochs{};
+  std::stringstream in(text);
+  std::string part;
+  int k = 0;
+  const std::string expected = "--epochs: expected three counts i,ii,iii (e.g. 2,2,2), got '" + one_line(text) + "'";
+  while (std::getline(in, part, ',')) {
+    if (k >= 3 || part.empty() || part.size() > 6 || part.find_first_not_of("0123456789") != std::string::npos)
+      throw InputError(expected);
+    epochs[k++] = std::stoi(part);
+  }
+  if (k != 3 || text.back() == ',') throw InputError(expected);
+  return epochs;
+}
+
+std::array<bool, 3> parse_freeze(const std::string& text) {
+  std::array<bool, 3> frozen{};
+  if (text.empty()) return frozen;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    if (part == "goal") frozen[0] = true;
+    else if (part == "action") frozen[1] = true;
+    else if (part == "classifier") frozen[2] = true;
+    else
+      throw InputError("--freeze: expected a comma-separated list of goal, action, classifier; got '" +
+                       one_line(text) + "'");
+  }
+  return frozen;
+}
+
+std::string duration(double seconds) {
+  if (!(seconds >= 0) || seconds > 1e7) return "?";
+  const long s = static_cast<long>(seconds + 0.5);
+  if (s >= 3600) return fmt::format("{}h{:02d}m", s / 3600, s / 60 % 60);
+  if (s >= 60) return fmt::format("{}m{:02d}s", s / 60, s % 60);
+  return fmt::format("{}s", s);
+}
+
+// Prints progress on one line that overwrites itself on a terminal; elsewhere (logs, CI) one
+// line every 30 seconds, so logs stay readable.
+class ProgressPrinter {
+ public:
+  ProgressPrinter() : tty_(isatty(fileno(stderr)) != 0) {}
+  void show(const learn::Progress& p) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!tty_ && now - last_ < std::chrono::seconds(30) && p.batch != p.batches) return;
+    last_ = now;
+    const std::string line =
+        fmt::format("mode {:<3} epoch {}/{}  batch {}/{}  {:.1f} images/s  reward {:.3f}  ETA {}",
+                    learn::to_string(p.stage), p.epoch, p.epochs, p.batch, p.batches, p.images_per_s, p.reward,
+                    duration(p.eta_s));
+    if (tty_) {
+      std::fprintf(stderr, "\r%-90s", line.c_str());
+      pending_ = true;
+    } else {
+      std::fprintf(stderr, "%s\n", line.c_str());
+    }
+    std::fflush(stderr);
+  }
+  void end_line() {
+    if (pending_) std::fprintf(stderr, "\r%-90s\r", "");
+    pending_ = false;
+  }
+
+ private:
+  bool tty_;
+  bool pending_ = false;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+// A resumed run keeps its config: an option given again must agree with it.
+void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const learn::TrainConfig& c,
+                          const std::string& run) {
+  auto refuse = [&](const std::string& option, const std::string& stored, const std::string& asked) {
+    if (stored == asked) return;
+    throw InputError(fmt::format("{}: the run at {} was trained with {}, the command line asks for {} (a resumed run "
+                                 "keeps its config; start a new run to change it)",
+                                 option, run, stored, asked));
+  };
+  auto given = [&](const char* name) { return cmd.get_option(name)->count() > 0; };
+  if (given("--planner-width")) refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.planner_width));
+  if (given("--planner-depth")) refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.planner_depth));
+  if (given("--classifier")) refuse("--classifier", agent::to_string(c.network.classifier), o.classifier);
+  if (given("--classifier-width"))
+    refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.classifier_width));
+  if (given("--classifier-depth"))
+    refuse("--classifier-depth", std::to_string(c.network.classifier_depth), std::to_string(o.classifier_depth));
+  if (given("--lr")) refuse("--lr", fmt::format("{}", c.learning_rate), fmt::format("{}", o.lr));
+  if (given("--batch")) refuse("--batch", std::to_string(c.batch_images), std::to_string(o.batch));
+  if (given("--rollouts")) refuse("--rollouts", std::to_string(c.rollouts), std::to_string(o.rollouts));
+  if (given("--baseline")) refuse("--baseline", c.leave_one_out ? "on" : "off", o.baseline ? "on" : "off");
+  if (given("--entropy-bonus"))
+    refuse("--entropy-bonus", fmt::format("{}", c.entropy_bonus), fmt::format("{}", o.entropy_bonus));
+  if (given("--pretrain-epochs"))
+    refuse("--pretrain-epochs", std::to_string(c.pretrain_epochs), std::to_string(o.pretrain_epochs));
+  if (given("--seed")) refuse("--seed", std::to_string(c.seed), o.seed);
+  if (given("--train-limit")) refuse("--train-limit", std::to_string(c.train_limit), std::to_string(o.train_limit));
+  if (given("--validation-limit"))
+    refuse("--validation-limit", std::to_string(c.validation_limit), std::to_string(o.validation_limit));
+  if (given("--freeze")) {
+    const auto f = parse_freeze(o.freeze);
+    if (f != c.frozen) throw InputError("--freeze: differs from the run's frozen layers (a resumed run keeps its config)");
+  }
+  if (!o.world.empty()) {
+    worlds::World w = worlds::load_world(o.world);
+    w.seed = c.world.seed;
+    if (worlds::to_yaml(w) != worlds::to_yaml(c.world))
+      throw InputError(o.world + ": differs from the world the run at " + run +
+                       " was trained on (a resumed run keeps its world; omit WORLD or start a new run)");
+  }
+  if (!o.data_root.empty()) {
+    const fs::path folder = worlds::dataset_folder(c.world.floor.dataset, o.data_root);
+    if (fs::weakly_canonical(folder) != fs::weakly_canonical(c.data_folder))
+      throw InputError("--data: the run at " + run + " was trained on " + c.data_folder.string() + ", not " +
+                       folder.string());
+  }
+}
+
+void write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed) {
+  json manifest = make_manifest(context.argv, worlds::to_yaml(trainer.config().world), trainer.data_files(), "");
+  const fs::path file = run / "manifest.json";
+  // A resumed run keeps the first manifest and records each resumption under "resumed".
+  if (resumed && fs::exists(file)) {
+    try {
+      std::ifstream in(file);
+      json first = json::parse(in);
+      first["resumed"].push_back({{"command", manifest["command"]},
+                                  {"git_commit", manifest["git_commit"]},
+                                  {"created_utc", manifest["created_utc"]},
+                                  {"torch_threads", trainer.threads()}});
+      write_file_atomic(file, first.dump(2) + "\n");
+      return;
+    } catch (const std::exception&) {
+      // An unreadable manifest is replaced by a fresh one below.
+    }
+  }
+  manifest["torch_threads"] = trainer.threads();
+  manifest["config"] = json::parse(trainer.config().to_json());
+  manifest["outputs"] = {{"checkpoint", "checkpoint.pt"}, {"metrics", "metrics.csv"}};
+  write_file_atomic(file, manifest.dump(2) + "\n");
+}
+
+void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& context) {
+  const bool resuming = !o.resume.empty();
+  if (resuming && !o.out.empty() && fs::path(o.out) != fs::path(o.resume))
+    throw InputError("--out: a resumed run writes into its own folder (" + o.resume + "); leave --out out");
+  if (!resuming && o.world.empty()) throw InputError("WORLD: a world file is required (or --resume RUN)");
+  if (!resuming && o.out.empty()) throw InputError("--out: a run folder is required (or --resume RUN)");
+  const std::array<int, 3> epochs = parse_epochs(o.epochs);
+  const bool epochs_given = cmd.get_option("--epochs")->count() > 0;
+
+  std::unique_ptr<learn::Trainer> trainer;
+  fs::path run;
+  bool created = false;
+  if (resuming) {
+    run = o.resume;
+    if (!fs::is_regular_file(run / "checkpoint.pt"))
+      throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
+    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / "checkpoint.pt");
+    check_resume_options(cmd, o, info.config, o.resume);
+    trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr);
+  } else {
+    learn::TrainConfig config;
+    config.world = worlds::load_world(o.world);
+    if (!o.seed.empty()) config.world.seed = parse_seed(o.seed);
+    config.seed = config.world.seed;
+    if (config.world.floor.dataset.empty())
+      throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
+    const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
+    config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
+    config.network.planner_width = o.planner_width;
+    config.network.planner_depth = o.planner_depth;
+    try {
+      config.network.classifier = agent::parse_classifier_kind(o.classifier);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--classifier: ") + e.what());
+    }
+    config.network.classifier_width = o.classifier_width;
+    config.network.classifier_depth = o.classifier_depth;
+    config.pretrain_epochs = o.pretrain_epochs;
+    config.epochs = epochs;
+    config.rollouts = o.rollouts;
+    config.batch_images = o.batch;
+    config.learning_rate = o.lr;
+    config.leave_one_out = o.baseline;
+    config.entropy_bonus = o.entropy_bonus;
+    config.frozen = parse_freeze(o.freeze);
+    config.train_limit = o.train_limit;
+    config.validation_limit = o.validation_limit;
+    config.validate();
+    run = o.out;
+    std::error_code ec;
+    if (fs::exists(run, ec))
+      throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out +
+                       ", or name a new folder)");
+    fs::create_directories(run);
+    created = true;
+    try {
+      trainer = std::make_unique<learn::Trainer>(config, run, o.threads);
+    } catch (...) {
+      fs::remove_all(run, ec);
+      throw;
+    }
+  }
+  write_manifest(run, context, *trainer, resuming);
+  const learn::TrainConfig& c = trainer->config();
+  fmt::print("training {} -> {} ({} LibTorch threads; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
+             c.world.file.string(), run.string(), trainer->threads(), c.network.planner_width, c.network.planner_depth,
+             agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth,
+             c.rollouts, c.batch_images, c.learning_rate);
+  if (resuming) {
+    const learn::ScheduleCursor& k = trainer->cursor();
+    fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
+               k.epoch, k.batch);
+  }
+  std::fflush(stdout);
+  (void)created;
+
+  ProgressPrinter progress;
+  learn::TrainHooks hooks;
+  hooks.stop_requested = [] { return interrupt_requested(); };
+  hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
+  hooks.on_epoch = [&](const learn::EpochMetrics& m) {
+    progress.end_line();
+    fmt::print("mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f}  {:.1f} images/s  "
+               "{:.1f} s\n",
+               learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
+               m.images_per_s, m.seconds);
+    std::fflush(stdout);
+  };
+  const learn::TrainResult result = trainer->run(hooks);
+  progress.end_line();
+  switch (result.outcome) {
+    case learn::TrainOutcome::Finished:
+      fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / "checkpoint.pt").string(), (run / "metrics.csv").string());
+      return;
+    case learn::TrainOutcome::Interrupted:
+      throw Interrupted{result.message};
+    case learn::TrainOutcome::NonFinite:
+      throw InputError(result.message);
+  }
+}
+
+}  // namespace
+
+void add_train_command(CLI::App& app, const Context& context) {
+  auto o = std::make_shared<TrainOptions>();
+  auto* cmd = app.add_subcommand(
+      "train",
+      "Train the agent (METHOD.md): optional full-image pretraining, then modes (i) -> (ii) -> (iii), with the "
+      "physics and the camera in the loop. Writes RUN/checkpoint.pt every epoch, RUN/metrics.csv, RUN/manifest.json.");
+  cmd->add_option("world", o->world, "World file (YAML), e.g. worlds/mnist.yaml (omit with --resume)");
+  cmd->add_option("--out", o->out, "Run folder to create (must not exist)");
+  cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.pt");
+  cmd->add_option("--data", o->data_root, "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
+                                          "folder with train-*/t10k-* IDX files");
+  cmd->add_option("--epochs", o->epochs, "Epochs of modes i,ii,iii")->capture_default_str();
+  cmd->add_option("--pretrain-epochs", o->pretrain_epochs, "Epochs of the classifier on full images, first")
+      ->capture_default_str()
+      ->check(decimal_in(0, 100000));
+  cmd->add_option("--seed", o->seed, "Seed (overrides the world file's): init, data order, starts, sampling")
+      ->check(seed_validator());
+  cmd->add_option("--planner-width", o->planner_width, "Channels each planner block adds (d)")
+      ->capture_default_str()
+      ->check(decimal_in(1, agent::kMaxWidth));
+  cmd->add_option("--planner-depth", o->planner_depth, "Planner blocks (r)")
+      ->capture_default_str()
+      ->check(decimal_in(1, agent::kMaxPlannerDepth));
+  cmd->add_option("--classifier", o->classifier, "Classifier: paper | strided | resnet18")->capture_default_str();
+  cmd->add_option("--classifier-width", o->classifier_width, "Classifier's first block width (doubles each block)")
+      ->capture_default_str()
+      ->check(decimal_in(1, agent::kMaxWidth));
+  cmd->add_option("--classifier-depth", o->classifier_depth, "Classifier blocks")
+      ->capture_default_str()
+      ->check(decimal_in(1, agent::kMaxClassifierDepth));
+  cmd->add_option("--lr", o->lr, "Adam's learning rate")->capture_default_str();
+  cmd->add_option("--batch", o->batch, "B: images per mini-batch")->capture_default_str()->check(decimal_in(1, 4096));
+  cmd->add_option("--rollouts", o->rollouts, "N: rollouts per image")->capture_default_str()->check(decimal_in(1, 64));
+  cmd->add_flag("--baseline", o->baseline, "Leave-one-out baseline (beyond the paper; off in the paper preset)");
+  cmd->add_option("--entropy-bonus", o->entropy_bonus, "Entropy bonus beta (beyond the paper; 0 in the paper preset)")
+      ->capture_default_str();
+  cmd->add_option("--freeze", o->freeze, "Layers not updated in modes i-iii: goal,action,classifier");
+  cmd->add_option("--train-limit", o->train_limit, "Train on the first K training digits only (0: all)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 100000000));
+  cmd->add_option("--validation-limit", o->validation_limit, "Validate on the first K validation digits (0: all)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 100000000));
+  cmd->add_option("--threads", o->threads, "LibTorch threads (0: one per core)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 256));
+  cmd->callback([cmd, o, &context] {
+    install_interrupt_handler();
+    train_command(*cmd, *o, context);
+  });
+}
+
+}  // namespace scout::tools
