@@ -35,5 +35,7 @@ struct NetworkConfig {
 inline constexpr int kMaxWidth = 512;
 inline constexpr int kMaxPlannerDepth = 16;
 inline constexpr int kMaxClassifierDepth = 8;
+/// The widest classifier block (width doubles each block): classifier_width x 2^(depth - 1).
+inline constexpr int kMaxClassifierBlockWidth = 4096;
 
 }  // namespace scout::agent

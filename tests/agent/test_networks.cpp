@@ -1,0 +1,242 @@
+// The three networks of METHOD.md § Networks: output shapes on any floor size, softmax-ready
+// logits, batch independence of the planners, parameter names, determinism under a seed.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include <cstdlib>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "agent/networks.hpp"
+
+namespace scout::agent {
+namespace {
+
+const ClassifierKind kKinds[] = {ClassifierKind::Paper, ClassifierKind::Strided, ClassifierKind::ResNet18};
+
+// Floor sizes: MNIST's, smaller than a 6 x 6 patch, and non-square.
+const std::pair<int, int> kSizes[] = {{28, 28}, {4, 4}, {12, 9}};  // (H, W)
+
+NetworkConfig config_for(ClassifierKind kind) {
+  NetworkConfig config;
+  config.classifier = kind;
+  // Small widths keep the test fast; the structure is what is tested.
+  config.planner_width = 8;
+  config.classifier_width = kind == ClassifierKind::ResNet18 ? 4 : 8;
+  return config;
+}
+
+// The parameter of `module` named `name` (fails the test if there is none).
+torch::Tensor parameter(const torch::nn::Module& module, const std::string& name) {
+  const auto params = module.named_parameters();
+  const torch::Tensor* found = params.find(name);
+  if (found == nullptr) throw std::runtime_error("no parameter " + name);
+  return *found;
+}
+
+TEST(Networks, OutputShapesAndSoftmaxesOnAnyFloorSize) {
+  torch::manual_seed(1);
+  for (const ClassifierKind kind : kKinds) {
+    const NetworkConfig config = config_for(kind);
+    Agent agent(config);
+    agent->eval();  // the ResNet's BatchNorm then accepts a batch of one
+    for (const auto& [h, w] : kSizes) {
+      for (const int batch : {1, 3}) {
+        SCOPED_TRACE(std::string(to_string(kind)) + " H=" + std::to_string(h) + " W=" + std::to_string(w) +
+                     " B=" + std::to_string(batch));
+        torch::NoGradGuard no_grad;
+        const torch::Tensor u = torch::rand({batch, planner_channels(config), h, w}) - 0.5;
+        const torch::Tensor y = torch::rand({batch, config.image_channels, h, w}) - 0.5;
+
+        const torch::Tensor goal = agent->goal->forward(u);
+        ASSERT_EQ(goal.sizes(), (std::vector<std::int64_t>{batch, h * w}));
+        EXPECT_TRUE(torch::allclose(goal.softmax(1).sum(1), torch::ones({batch}), 1e-5, 1e-5));
+
+        const torch::Tensor action = agent->action->forward(u);
+        ASSERT_EQ(action.sizes(), (std::vector<std::int64_t>{batch, 2}));
+        EXPECT_TRUE(torch::allclose(action.softmax(1).sum(1), torch::ones({batch}), 1e-5, 1e-5));
+
+        const torch::Tensor classes = agent->classifier->forward(y);
+        ASSERT_EQ(classes.sizes(), (std::vector<std::int64_t>{batch, config.classes}));
+        EXPECT_TRUE(torch::allclose(classes.softmax(1).sum(1), torch::ones({batch}), 1e-5, 1e-5));
+        EXPECT_TRUE(torch::isfinite(goal).all().item<bool>());
+        EXPECT_TRUE(torch::isfinite(classes).all().item<bool>());
+      }
+    }
+  }
+}
+
+TEST(Networks, StridedClassifierReachesDepthFourOn28x28) {
+  NetworkConfig config = config_for(ClassifierKind::Strided);
+  config.classifier_depth = 4;  // 28 -> 14 -> 7 -> 4 -> 2
+  config.classes = 7;
+  const auto classifier = make_classifier(config);
+  EXPECT_EQ(classifier->forward(torch::zeros({2, 1, 28, 28})).sizes(), (std::vector<std::int64_t>{2, 7}));
+  // Block k: conv stride 2 to w * 2^k, GroupNorm, ReLU, conv stride 1, GroupNorm, ReLU.
+  for (int k = 0; k < 4; ++k) {
+    const std::string block = "blocks." + std::to_string(k);
+    const int width = config.classifier_width << k;
+    const int in = k == 0 ? 1 : width / 2;
+    EXPECT_EQ(parameter(*classifier, block + ".0.weight").sizes(), (std::vector<std::int64_t>{width, in, 3, 3}));
+    EXPECT_EQ(parameter(*classifier, block + ".3.weight").sizes(), (std::vector<std::int64_t>{width, width, 3, 3}));
+    EXPECT_EQ(parameter(*classifier, block + ".4.weight").sizes(), (std::vector<std::int64_t>{width}));  // GroupNorm
+  }
+  const auto strided_conv = classifier->named_modules()["blocks.0.0"]->as<torch::nn::Conv2d>();
+  ASSERT_NE(strided_conv, nullptr);
+  EXPECT_EQ((*strided_conv->options.stride())[0], 2);
+  EXPECT_EQ(parameter(*classifier, "head.weight").sizes(), (std::vector<std::int64_t>{7, 64, 1, 1}));
+}
+
+TEST(Networks, StridedClassifierAcceptsWidthsThatAreNotMultiplesOfItsNormGroups) {
+  for (const int width : {1, 3, 12}) {
+    NetworkConfig config = config_for(ClassifierKind::Strided);
+    config.classifier_width = width;
+    const auto classifier = make_classifier(config);
+    EXPECT_EQ(classifier->forward(torch::zeros({2, 1, 12, 9})).sizes(), (std::vector<std::int64_t>{2, 10}))
+        << "width " << width;
+  }
+}
+
+TEST(Networks, DenseBlocksGrowAsThePaperSays) {
+  const NetworkConfig config;  // planners 16 x 3, paper classifier 16 x 3, c = 1, D = 10
+  Agent agent(config);
+  // Planner block k reads c + 3 + 16 k channels; the head reads all 4 + 48.
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(parameter(*agent, "goal.body.blocks." + std::to_string(k) + ".weight").sizes(),
+              (std::vector<std::int64_t>{16, 4 + 16 * k, 3, 3}));
+  }
+  EXPECT_EQ(parameter(*agent, "goal.head.weight").sizes(), (std::vector<std::int64_t>{1, 52, 1, 1}));
+  EXPECT_EQ(parameter(*agent, "action.head.weight").sizes(), (std::vector<std::int64_t>{2, 52, 1, 1}));
+  // Classifier block k adds 16 * 2^k channels: 1 + 16 + 32 + 64 reach the head.
+  EXPECT_EQ(parameter(*agent, "classifier.blocks.2.weight").sizes(), (std::vector<std::int64_t>{64, 49, 3, 3}));
+  EXPECT_EQ(parameter(*agent, "classifier.head.weight").sizes(), (std::vector<std::int64_t>{10, 113, 1, 1}));
+}
+
+TEST(Networks, ResNet18AtWidth64HasResNet18sParameterCount) {
+  // torchvision's resnet18 (3 channels, 1,000 classes) has 11,689,512 parameters; ours swaps the
+  // 7 x 7 stem (3 * 64 * 49 weights) for a 3 x 3 one (3 * 64 * 9): 7,680 fewer.
+  NetworkConfig config;
+  config.image_channels = 3;
+  config.classes = 1000;
+  config.classifier = ClassifierKind::ResNet18;
+  config.classifier_width = 64;
+  const auto classifier = make_classifier(config);
+  std::int64_t count = 0;
+  for (const auto& p : classifier->parameters()) count += p.numel();
+  EXPECT_EQ(count, 11'689'512 - 7'680);
+  EXPECT_EQ(parameter(*classifier, "layer4.1.conv2.weight").sizes(), (std::vector<std::int64_t>{512, 512, 3, 3}));
+  EXPECT_EQ(parameter(*classifier, "layer2.0.downsample.0.weight").sizes(), (std::vector<std::int64_t>{128, 64, 1, 1}));
+  EXPECT_EQ(classifier->named_parameters().find("layer1.0.downsample.0.weight"), nullptr);  // same shape: identity
+  EXPECT_EQ(parameter(*classifier, "fc.weight").sizes(), (std::vector<std::int64_t>{1000, 512}));
+}
+
+TEST(Networks, GoalLogitsAreRowMajorAndSeeA7x7Neighbourhood) {
+  // Three 3 x 3 blocks see 7 x 7: changing the input at pixel (x, y) = (8, 2) of a 12-wide, 9-high
+  // floor may change only the logits within 3 pixels of it, found at index y * W + x.
+  torch::manual_seed(3);
+  const NetworkConfig config;
+  GoalPlanner goal(config);
+  const int h = 9, w = 12, px = 8, py = 2;
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({1, 4, h, w}) - 0.5;
+  torch::Tensor v = u.clone();
+  v[0][0][py][px] += 1.0;
+  const torch::Tensor diff = (goal->forward(v) - goal->forward(u)).abs()[0];
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float d = diff[y * w + x].item<float>();
+      if (std::abs(x - px) > 3 || std::abs(y - py) > 3) {
+        EXPECT_EQ(d, 0.0f) << "x = " << x << ", y = " << y;
+      }
+    }
+  }
+  EXPECT_GT(diff[py * w + px].item<float>(), 0.0f);
+}
+
+TEST(Networks, PlannersAndPerSampleClassifiersAreBatchIndependent) {
+  torch::manual_seed(5);
+  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::Strided}) {
+    SCOPED_TRACE(to_string(kind));
+    const NetworkConfig config = config_for(kind);
+    Agent agent(config);
+    agent->train();  // train mode too: nothing may look at the other robots
+    torch::NoGradGuard no_grad;
+    const torch::Tensor u = torch::rand({6, 4, 28, 28}) - 0.5;
+    const torch::Tensor goal = agent->goal->forward(u);
+    const torch::Tensor action = agent->action->forward(u);
+    const torch::Tensor classes = agent->classifier->forward(u.narrow(1, 0, 1));
+    for (const int robot : {0, 4}) {
+      const torch::Tensor alone = u.narrow(0, robot, 1);
+      EXPECT_TRUE(torch::allclose(agent->goal->forward(alone)[0], goal[robot], 1e-6, 1e-6));
+      EXPECT_TRUE(torch::allclose(agent->action->forward(alone)[0], action[robot], 1e-6, 1e-6));
+      EXPECT_TRUE(torch::allclose(agent->classifier->forward(alone.narrow(1, 0, 1))[0], classes[robot], 1e-6, 1e-6));
+    }
+    // And the batch's order does not matter.
+    const torch::Tensor reversed = u.flip({0});
+    EXPECT_TRUE(torch::allclose(agent->goal->forward(reversed).flip({0}), goal, 1e-6, 1e-6));
+  }
+}
+
+TEST(Networks, ParametersAreNamedByLayer) {
+  for (const ClassifierKind kind : kKinds) {
+    SCOPED_TRACE(to_string(kind));
+    Agent agent(config_for(kind));
+    std::set<std::string> layers;
+    for (const auto& item : agent->named_parameters()) {
+      const std::string& name = item.key();
+      const std::string layer = name.substr(0, name.find('.'));
+      EXPECT_TRUE(layer == "goal" || layer == "action" || layer == "classifier") << name;
+      layers.insert(layer);
+    }
+    EXPECT_EQ(layers, (std::set<std::string>{"goal", "action", "classifier"}));
+    EXPECT_NE(agent->named_parameters().find("goal.head.weight"), nullptr);
+    EXPECT_NE(agent->named_parameters().find("action.body.blocks.0.bias"), nullptr);
+  }
+  Agent resnet(config_for(ClassifierKind::ResNet18));
+  EXPECT_NE(resnet->named_parameters().find("classifier.layer3.1.bn2.weight"), nullptr);
+  EXPECT_NE(resnet->named_buffers().find("classifier.bn1.running_mean"), nullptr);
+}
+
+TEST(Networks, TheSameSeedGivesTheSameParameters) {
+  for (const ClassifierKind kind : kKinds) {
+    SCOPED_TRACE(to_string(kind));
+    const NetworkConfig config = config_for(kind);
+    torch::manual_seed(11);
+    Agent a(config);
+    torch::manual_seed(11);
+    Agent b(config);
+    torch::manual_seed(12);
+    Agent c(config);
+    const auto pa = a->named_parameters();
+    const auto pb = b->named_parameters();
+    const auto pc = c->named_parameters();
+    ASSERT_EQ(pa.size(), pb.size());
+    bool any_differs = false;
+    for (const auto& item : pa) {
+      EXPECT_TRUE(torch::equal(item.value(), pb[item.key()])) << item.key();
+      // BatchNorm starts at weight 1, bias 0 whatever the seed; the convolutions must not.
+      if (!torch::equal(item.value(), pc[item.key()])) any_differs = true;
+    }
+    EXPECT_TRUE(any_differs);
+  }
+}
+
+TEST(Networks, InvalidConfigOrInputIsRefused) {
+  NetworkConfig config;
+  config.planner_depth = 0;
+  try {
+    Agent agent(config);
+    FAIL() << "planner_depth 0 was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("planner_depth"), std::string::npos) << e.what();
+  }
+  Agent agent{NetworkConfig{}};
+  EXPECT_THROW(agent->goal->forward(torch::zeros({1, 3, 8, 8})), c10::Error);        // c + 3 = 4 channels
+  EXPECT_THROW(agent->classifier->forward(torch::zeros({1, 4, 8, 8})), c10::Error);  // c = 1 channel
+}
+
+}  // namespace
+}  // namespace scout::agent

@@ -1,0 +1,157 @@
+// The agent's state (METHOD.md § The agent's state) on a small 6 x 5 floor, element by element
+// against pictures drawn by hand, including windows clipped at the borders.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "agent/state.hpp"
+
+namespace scout::agent {
+namespace {
+
+constexpr int kW = 6;
+constexpr int kH = 5;
+constexpr int kN = kW * kH;
+const sim::FloorFrame kFloor{kW, kH, 0.1};
+
+// A 0/1 plane from a picture: one character per pixel, rows top to bottom.
+std::vector<float> plane(const std::string& picture) {
+  if (picture.size() != static_cast<std::size_t>(kN)) throw std::invalid_argument("plane: wrong picture size");
+  std::vector<float> out;
+  for (const char ch : picture) out.push_back(ch == '1' ? 1.0f : 0.0f);
+  return out;
+}
+
+// What the robot has seen: two 2 x 2 blocks. Unseen bytes hold 77, which must never reach y.
+const std::vector<std::uint8_t> kSeen = {
+    1, 1, 0, 0, 0, 0,  //
+    1, 1, 0, 0, 0, 0,  //
+    0, 0, 0, 0, 1, 1,  //
+    0, 0, 0, 0, 1, 1,  //
+    0, 0, 0, 0, 0, 0,  //
+};
+const std::vector<std::uint8_t> kObserved = {
+    0,  255, 77, 77, 77,  77,   //
+    51, 102, 77, 77, 77,  77,   //
+    77, 77,  77, 77, 255, 0,    //
+    77, 77,  77, 77, 153, 204,  //
+    77, 77,  77, 77, 77,  77,   //
+};
+// y by hand: p / 255 - 0.5 where seen (0 -> -0.5, 51 -> -0.3, 102 -> -0.1, 153 -> 0.1, ...).
+const std::vector<float> kY = {
+    -0.5f, 0.5f,  0, 0, 0,    0,      //
+    -0.3f, -0.1f, 0, 0, 0,    0,      //
+    0,     0,     0, 0, 0.5f, -0.5f,  //
+    0,     0,     0, 0, 0.1f, 0.3f,   //
+    0,     0,     0, 0, 0,    0,      //
+};
+// h by hand: 0 where seen.
+std::vector<float> unseen_plane() {
+  return plane(
+      "001111"
+      "001111"
+      "111100"
+      "111100"
+      "111111");
+}
+
+// Runs write_planner_input into a buffer pre-filled with NaN (so an unwritten element shows).
+std::vector<float> planner_input(int patch_px, const sim::Cell& pose, const sim::Cell* goal) {
+  std::vector<float> u(4 * kN, std::numeric_limits<float>::quiet_NaN());
+  const RobotView view{kObserved.data(), kSeen.data(), pose, goal};
+  write_planner_input(kFloor, patch_px, view, u.data());
+  return u;
+}
+
+void expect_channel(const std::vector<float>& u, int channel, const std::vector<float>& expected, const char* name) {
+  for (int i = 0; i < kN; ++i) {
+    EXPECT_FLOAT_EQ(u[static_cast<std::size_t>(channel * kN + i)], expected[static_cast<std::size_t>(i)])
+        << name << " at x = " << i % kW << ", y = " << i / kW;
+  }
+}
+
+TEST(AgentState, PixelValueMapsBytesToMinusHalfToHalf) {
+  EXPECT_FLOAT_EQ(pixel_value(0), -0.5f);
+  EXPECT_FLOAT_EQ(pixel_value(255), 0.5f);
+  EXPECT_NEAR(pixel_value(51), -0.3f, 1e-7);
+}
+
+TEST(AgentState, RevealedImageIsThePixelWhereSeenAndZeroElsewhere) {
+  std::vector<float> y(kN, std::numeric_limits<float>::quiet_NaN());
+  const RobotView view{kObserved.data(), kSeen.data(), {0, 0}, nullptr};
+  write_revealed_image(kFloor, view, y.data());
+  for (int i = 0; i < kN; ++i) EXPECT_NEAR(y[i], kY[i], 1e-6) << "x = " << i % kW << ", y = " << i / kW;
+}
+
+TEST(AgentState, OddPatchWindowsAreClippedAtTheLeftAndBottom) {
+  // m = 3: the window at (x, y) is columns x-1 .. x+1, rows y-1 .. y+1.
+  const sim::Cell goal{5, 4};                                    // columns 4..6 -> 4..5, rows 3..5 -> 3..4
+  const std::vector<float> u = planner_input(3, {0, 2}, &goal);  // columns -1..1 -> 0..1, rows 1..3
+  for (int i = 0; i < kN; ++i) EXPECT_NEAR(u[i], kY[i], 1e-6);
+  expect_channel(u, 1,
+                 plane("111111"
+                       "001111"
+                       "001111"
+                       "001111"
+                       "111111"),
+                 "l");
+  expect_channel(u, 2, unseen_plane(), "h");
+  expect_channel(u, 3,
+                 plane("111111"
+                       "111111"
+                       "111111"
+                       "111100"
+                       "111100"),
+                 "g_l");
+}
+
+TEST(AgentState, EvenPatchWindowsStartHalfAPatchLeftAndUp) {
+  // m = 2: the window at (x, y) is columns x-1 .. x, rows y-1 .. y.
+  const sim::Cell goal{0, 0};                                    // clipped to the single pixel (0, 0)
+  const std::vector<float> u = planner_input(2, {3, 1}, &goal);  // columns 2..3, rows 0..1
+  expect_channel(u, 1,
+                 plane("110011"
+                       "110011"
+                       "111111"
+                       "111111"
+                       "111111"),
+                 "l");
+  expect_channel(u, 2, unseen_plane(), "h");
+  expect_channel(u, 3,
+                 plane("011111"
+                       "111111"
+                       "111111"
+                       "111111"
+                       "111111"),
+                 "g_l");
+}
+
+TEST(AgentState, WithoutAGoalTheGoalChannelIsAllOnes) {
+  const std::vector<float> corner = planner_input(2, {5, 4}, nullptr);  // columns 4..5, rows 3..4
+  expect_channel(corner, 1,
+                 plane("111111"
+                       "111111"
+                       "111111"
+                       "111100"
+                       "111100"),
+                 "l");
+  expect_channel(corner, 3, plane(std::string(kN, '1')), "g_l");
+
+  const std::vector<float> inside = planner_input(3, {2, 2}, nullptr);  // columns 1..3, rows 1..3
+  expect_channel(inside, 1,
+                 plane("111111"
+                       "100011"
+                       "100011"
+                       "100011"
+                       "111111"),
+                 "l");
+  expect_channel(inside, 2, unseen_plane(), "h");
+  expect_channel(inside, 3, plane(std::string(kN, '1')), "g_l");
+}
+
+}  // namespace
+}  // namespace scout::agent
