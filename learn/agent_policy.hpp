@@ -54,7 +54,6 @@ class AgentPolicy final : public Policy {
   Sampling sampling_;
   int count_ = 0;
   std::vector<worlds::Rng> rngs_;
-  std::vector<std::uint8_t> has_goal_;
   torch::Tensor input_;  // preallocated planner input [max_robots, c+3, H, W]
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
