@@ -66,6 +66,11 @@ double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
 }  // namespace
 
+fs::path resolve_checkpoint(const fs::path& path) {
+  std::error_code ec;
+  return fs::is_directory(path, ec) ? path / kCheckpointName : path;
+}
+
 void write_text_atomic(const fs::path& file, const std::string& text) {
   const fs::path tmp = temporary_beside(file);
   {
@@ -124,9 +129,11 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
 
 namespace {
 
-torch::serialize::InputArchive open_archive(const fs::path& file) {
+torch::serialize::InputArchive open_archive(const fs::path& given) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": no such checkpoint file");
+  const fs::path file = resolve_checkpoint(given);
+  if (!fs::is_regular_file(file, ec))
+    throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.pt or a model file)");
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(file.string());

@@ -30,9 +30,9 @@ using json = nlohmann::ordered_json;
 
 namespace {
 
-// Streams of a run's seed for the baselines and of the command's seed for the greedy run. The
-// stochastic run's batch streams are derive_seed(seed_k, first image index); these constants lie
-// beyond any image index, so no baseline ever repeats the stochastic run's starts and choices.
+// Streams of a run's seed for the baselines and of the command's seed for the greedy run. Image
+// i of the stochastic run k drives with derive_seed(seed_k, i); these constants lie beyond any
+// image index, so no baseline ever repeats the stochastic run's starts and choices.
 constexpr std::uint64_t kIidStream = std::uint64_t{1} << 40;
 constexpr std::uint64_t kGoalsOnlyStream = kIidStream + 1;
 constexpr std::uint64_t kGreedyStream = kIidStream + 2;
@@ -131,20 +131,25 @@ class Evaluator {
     batch_ = robots;
   }
 
-  // One rollout per image; batch b's stream is derive_seed(stream_seed, its first image index),
-  // so a run's result does not depend on batch_robots' split other than through it.
+  // One rollout per image. Image i's start and choices derive from (stream_seed, i) alone, so a
+  // run's figures do not depend on how the images are split into batches.
   Pass run(const Sampling& sampling, std::uint64_t stream_seed) {
     const int n = data_.set.images.count;
     Pass pass;
     std::vector<torch::Tensor> parts;
-    std::vector<int> indices;
     for (int first = 0; first < n; first += batch_) {
       if (stop_ && stop_()) throw EvalInterrupted{};
       const int k = std::min(batch_, n - first);
-      indices.resize(k);
-      for (int i = 0; i < k; ++i) indices[i] = first + i;
-      const RolloutBatch batch = make_batch(data_.set, indices, 1, world_, data_.frame,
-                                            worlds::derive_seed(stream_seed, static_cast<std::uint64_t>(first)));
+      RolloutBatch batch;
+      for (int image = first; image < first + k; ++image) {
+        const RolloutBatch one = make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
+                                            worlds::derive_seed(stream_seed, static_cast<std::uint64_t>(image)));
+        batch.floors.insert(batch.floors.end(), one.floors.begin(), one.floors.end());
+        batch.labels.push_back(one.labels[0]);
+        batch.starts.push_back(one.starts[0]);
+        batch.seeds.push_back(one.seeds[0]);
+      }
+      batch.count = k;
       const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling, {1, false, 0});
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));

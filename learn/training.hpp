@@ -133,6 +133,9 @@ struct CheckpointInfo {
 /// that is not a Scout checkpoint of this format version.
 CheckpointInfo read_checkpoint_info(const std::filesystem::path& file);
 
+/// The checkpoint file a path names: RUN/checkpoint.pt for a run folder, else the path itself.
+std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
+
 /// The checkpoint format this build writes and reads.
 inline constexpr int kCheckpointFormat = 1;
 

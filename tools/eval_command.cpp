@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "learn/evaluation.hpp"
+#include "learn/training.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -102,7 +103,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
     nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));
     std::vector<fs::path> data_files = {opt.images, opt.labels};
     j["manifest"] = make_manifest(context.argv, "", data_files, "");
-    j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(opt.checkpoint);
+    j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint));
     write_file_atomic(opt.json_out, j.dump(2) + "\n");
     fmt::print("report:      {}\n", opt.json_out);
   }
@@ -121,7 +122,7 @@ void add_eval_command(CLI::App& app, const Context& context) {
       "Evaluate a checkpoint on a set of digits (METHOD.md § Evaluation): R stochastic runs with the physics and the "
       "camera in the loop (mean ± 95 % Student-t half-width), top-2, the confusion matrix, the i.i.d. and goals-only "
       "baselines with the same classifier, the classifier on full images and one greedy run.");
-  cmd->add_option("--checkpoint", opt->checkpoint, "RUN/checkpoint.pt (or a model file) written by scout train")
+  cmd->add_option("--checkpoint", opt->checkpoint, "RUN/checkpoint.pt, the RUN folder, or a model file written by scout train")
       ->required();
   cmd->add_option("--images", opt->images,
                   "IDX image file (idx3-ubyte, raw or .gz), e.g. data/mnist/t10k-images-idx3-ubyte")

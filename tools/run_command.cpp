@@ -1,4 +1,5 @@
-// scout run: headless rollouts of a world, with trajectory.json, images and manifest.json.
+// scout run: headless rollouts of a world, with trajectory.json, images and manifest.json; driven
+// by mode (i), or by a trained agent with --checkpoint.
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -8,8 +9,10 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <span>
 
 #include "learn/rollout.hpp"
+#include "learn/trained_agent.hpp"
 #include "render/snapshot.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
@@ -36,6 +39,9 @@ struct RunOptions {
   bool overwrite = false;
   bool no_images = false;
   int scale = 10;
+  std::string checkpoint;  // empty: mode (i)
+  bool greedy = false;
+  bool heat_map = false;
 };
 
 /// One rollout to do: its digit, and its seed, which fixes its start and its choices.
@@ -75,8 +81,10 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
 json cell_json(const sim::Cell& c) { return json::array({c.x(), c.y()}); }
 
 // One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
-// by step, in files of any size).
-std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors) {
+// by step, in files of any size). `probabilities`: the trained agent's pi_c at the end (empty
+// without --checkpoint, and then the text is exactly what it always was).
+std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors,
+                     std::span<const float> probabilities) {
   json j;
   j["seed"] = run.seed;
   j["dataset"] = floors.source;
@@ -85,6 +93,10 @@ std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, 
   const int label = floors.labels[run.index];
   j["label"] = label >= 0 ? json(label) : json(nullptr);
   j["start"] = cell_json(record.start);
+  if (!probabilities.empty()) {
+    j["prediction"] = std::max_element(probabilities.begin(), probabilities.end()) - probabilities.begin();
+    j["probabilities"] = std::vector<float>(probabilities.begin(), probabilities.end());
+  }
   std::string text = j.dump();
   text.pop_back();  // the closing brace: the steps follow
   text += ", \"steps\": [";
@@ -106,8 +118,17 @@ std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, 
   return text + "\n  ]}";
 }
 
+/// What a trained agent adds to a run's pictures: the class-probability bars and, per episode,
+/// the goal distribution pi_g it drew that episode's goal from.
+struct AgentOverlay {
+  std::span<const float> class_probabilities;  ///< empty: no bars
+  const learn::TrainedAgent* agent = nullptr;  ///< set: heat maps of robot `robot`
+  int robot = 0;
+};
+
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
-                  const sim::FloorFrame& frame, int patch_px, int scale, std::vector<std::string>& written) {
+                  const sim::FloorFrame& frame, int patch_px, int scale, const AgentOverlay& overlay,
+                  std::vector<std::string>& written) {
   for (const learn::SnapshotRecord& snap : record.snapshots) {
     render::Snapshot s;
     s.floor = floor;
@@ -120,6 +141,10 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     for (std::size_t p = 0; p < snap.path_length; ++p) s.path.push_back({record.path[p].x(), record.path[p].y()});
     s.scale = scale;
     const bool final_image = !snap.goal;
+    // The bars show the final prediction on every picture of the run (the classifier is asked
+    // once, after the last move, as in training and evaluation).
+    s.class_probabilities = overlay.class_probabilities;
+    if (overlay.agent && !final_image) s.goal_probabilities = overlay.agent->goal_map(overlay.robot, snap.episode);
     const std::string name = final_image ? fmt::format("run{:03d}_final.png", run_number)
                                          : fmt::format("run{:03d}_episode{}.png", run_number, snap.episode);
     render::write_png(folder / name, render::draw_snapshot(s));
@@ -129,6 +154,14 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
 
 void run_command(const RunOptions& opt, const Context& context) {
   if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
+  std::unique_ptr<learn::TrainedAgent> agent;
+  if (!opt.checkpoint.empty()) {
+    agent = learn::TrainedAgent::load(opt.checkpoint);
+    if (opt.heat_map && !agent->learned().goals)
+      throw InputError(opt.checkpoint +
+                       ": --heat-map: expected a checkpoint with a learned goal layer (trained in mode (ii) or "
+                       "(iii)); this one drives with i.i.d. goals");
+  }
   worlds::World world = worlds::load_world(opt.world);
   if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
@@ -141,6 +174,7 @@ void run_command(const RunOptions& opt, const Context& context) {
                     frame.height_px, render::kMaxPictureSidePx, opt.scale));
   std::vector<fs::path> inputs = floors.files;
   inputs.push_back(opt.world);
+  if (agent) inputs.push_back(learn::resolve_checkpoint(opt.checkpoint));
   OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -171,18 +205,30 @@ void run_command(const RunOptions& opt, const Context& context) {
       starts[i] = r.start;
       policy_seeds[i] = worlds::derive_seed(r.seed, kPolicyStream);
     }
-    learn::RandomPolicy policy(policy_seeds);
-    const std::vector<learn::RolloutRecord> records = engine.run(batch_floors, starts, policy);
+    std::vector<learn::RolloutRecord> records;
+    std::vector<float> probabilities;  // n * D with a checkpoint
+    if (agent) {
+      agent->begin(frame, world.camera.patch_px, policy_seeds, opt.greedy, opt.heat_map && !opt.no_images);
+      records = engine.run(batch_floors, starts, agent->policy());
+      probabilities = agent->classify(engine.state(), n);
+    } else {
+      learn::RandomPolicy policy(policy_seeds);
+      records = engine.run(batch_floors, starts, policy);
+    }
+    const std::size_t classes = agent ? static_cast<std::size_t>(agent->classes()) : 0;
     for (int i = 0; i < n; ++i) {
       const learn::RolloutRecord& rec = records[i];
-      trajectory << (first + i == 0 ? "\n  " : ",\n  ") << run_json(runs[first + i], rec, floors);
+      const std::span<const float> p =
+          agent ? std::span<const float>(probabilities.data() + classes * i, classes) : std::span<const float>();
+      trajectory << (first + i == 0 ? "\n  " : ",\n  ") << run_json(runs[first + i], rec, floors, p);
       for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
       if (!opt.no_images) {
         throw_if_interrupted();
+        const AgentOverlay overlay{p, opt.heat_map ? agent.get() : nullptr, i};
         write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
-                     opt.scale, images);
+                     opt.scale, overlay, images);
       }
     }
   }
@@ -192,6 +238,13 @@ void run_command(const RunOptions& opt, const Context& context) {
   trajectory.close();
   if (!trajectory) throw InputError(trajectory_file.string() + ": cannot write");
   json manifest = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
+  if (agent) {
+    manifest["checkpoint"] = {{"path", opt.checkpoint},
+                              {"sha256", worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint))},
+                              {"greedy", opt.greedy},
+                              {"learned_goals", agent->learned().goals},
+                              {"learned_actions", agent->learned().actions}};
+  }
   manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
   write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
   out.commit();
@@ -210,7 +263,8 @@ void add_run_command(CLI::App& app, const Context& context) {
   auto opt = std::make_shared<RunOptions>();
   auto* cmd = app.add_subcommand("run",
                                  "Drive robots over a world headless (mode (i): i.i.d. random goals and "
-                                 "actions) and export trajectory.json, images and manifest.json.");
+                                 "actions, or a trained agent with --checkpoint) and export trajectory.json, "
+                                 "images and manifest.json.");
   cmd->add_option("world", opt->world, "World file (YAML), e.g. worlds/mnist.yaml")->required();
   cmd->add_option("--out", opt->out, "Output folder (must not exist unless --overwrite)")
       ->required()
@@ -223,9 +277,20 @@ void add_run_command(CLI::App& app, const Context& context) {
       ->capture_default_str()
       ->check(decimal_in(1, 1000000));
   cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
-  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")->capture_default_str()->check(decimal_in(1, 64));
+  cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")
+      ->capture_default_str()
+      ->check(decimal_in(1, 64));
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing --out folder");
   cmd->add_flag("--no-images", opt->no_images, "Skip the PNG snapshots");
+  auto* checkpoint =
+      cmd->add_option("--checkpoint", opt->checkpoint,
+                      "Drive with this trained agent (RUN/checkpoint.pt), sampling its learned layers as in "
+                      "training; its prediction goes into trajectory.json and the pictures");
+  cmd->add_flag("--greedy", opt->greedy, "With --checkpoint: argmax goals and actions instead of sampling")
+      ->needs(checkpoint);
+  cmd->add_flag("--heat-map", opt->heat_map,
+                "With --checkpoint (learned goals): draw each episode's goal distribution on its picture")
+      ->needs(checkpoint);
   cmd->callback([opt, &context] {
     install_interrupt_handler();
     run_command(*opt, context);

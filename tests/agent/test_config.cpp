@@ -100,8 +100,6 @@ TEST(NetworkConfig, UnknownClassifierEnumValueIsRefused) {
 }
 
 }  // namespace
-}  // namespace scout::agent
-
 TEST(NetworkConfig, TheWidestClassifierBlockIsBounded) {
   NetworkConfig config;
   config.classifier_width = kMaxWidth;
@@ -111,3 +109,5 @@ TEST(NetworkConfig, TheWidestClassifierBlockIsBounded) {
   config.classifier = ClassifierKind::ResNet18;  // its stages are fixed: 8 x width at most
   EXPECT_EQ(validation_error(config), "");
 }
+
+}  // namespace scout::agent
