@@ -17,13 +17,13 @@ ClassifierKind parse_classifier_kind(const std::string& text);
 
 /// Widths and depths of the three networks.
 struct NetworkConfig {
-  int image_channels = 1;      ///< c: channels of the floor image (y has c, planners read c + 3)
-  int classes = 10;            ///< D
-  int planner_width = 16;      ///< d: channels each planner block adds
-  int planner_depth = 3;       ///< r: planner blocks
+  int image_channels = 1;  ///< c: channels of the floor image (y has c, planners read c + 3)
+  int classes = 10;        ///< D
+  int planner_width = 16;  ///< d: channels each planner block adds
+  int planner_depth = 3;   ///< r: planner blocks
   ClassifierKind classifier = ClassifierKind::Paper;
-  int classifier_width = 16;   ///< first block's channels (doubling each block); ResNet-18: stem width
-  int classifier_depth = 3;    ///< classifier blocks (ResNet-18: ignored, always 4 stages of 2)
+  int classifier_width = 16;  ///< first block's channels (doubling each block); ResNet-18: stem width
+  int classifier_depth = 3;   ///< classifier blocks (ResNet-18: ignored, always 4 stages of 2)
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;

@@ -15,11 +15,11 @@ namespace scout::learn {
 
 /// Which layers choose in a rollout (METHOD.md § Training modes) and how.
 struct Sampling {
-  bool learned_goals = false;    ///< goals from the goal planner; else i.i.d. uniform over the pixels
-  bool learned_actions = false;  ///< axes from the action planner; else i.i.d. 1/2 - 1/2
-  bool greedy = false;           ///< argmax instead of sampling (evaluation extra)
-  bool with_grad = false;        ///< keep the autograd graph of log pi (training)
-  bool record_goal_maps = false; ///< keep pi_g of every robot and episode (pictures)
+  bool learned_goals = false;     ///< goals from the goal planner; else i.i.d. uniform over the pixels
+  bool learned_actions = false;   ///< axes from the action planner; else i.i.d. 1/2 - 1/2
+  bool greedy = false;            ///< argmax instead of sampling (evaluation extra)
+  bool with_grad = false;         ///< keep the autograd graph of log pi (training)
+  bool record_goal_maps = false;  ///< keep pi_g of every robot and episode (pictures)
 };
 
 /// Goals and axes from the agent's planners (or i.i.d. where a layer is not learned). Robot i

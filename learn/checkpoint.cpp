@@ -164,8 +164,8 @@ CheckpointState read_checkpoint_state(const fs::path& file) {
     const json p = json::parse(progress.toStringRef());
     state.cursor = {p.at("stage").get<int>(), p.at("epoch").get<int>(), p.at("batch").get<int>()};
     const json& q = p.at("partial");
-    state.partial = {q.at("reward").get<double>(),  q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
-                     q.at("correct").get<long>(),   q.at("robots").get<long>(), q.at("images").get<long>(),
+    state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
+                     q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
                      q.at("batches").get<long>()};
     state.history = history_from(p.at("history"));
   } catch (const std::exception& e) {
@@ -178,13 +178,26 @@ CheckpointState read_checkpoint_state(const fs::path& file) {
 
 void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) {
   torch::serialize::InputArchive archive = open_archive(file);
+  // LibTorch's load replaces each tensor with the file's whatever its shape: compare afterwards.
+  std::vector<std::pair<std::string, std::vector<std::int64_t>>> shapes;
+  for (const auto& p : agent.named_parameters()) shapes.emplace_back(p.key(), p.value().sizes().vec());
+  for (const auto& b : agent.named_buffers()) shapes.emplace_back(b.key(), b.value().sizes().vec());
+  const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
   try {
     torch::serialize::InputArchive weights;
     archive.read("agent", weights);
     agent.load(weights);
   } catch (const std::exception& e) {
-    throw InputError(file.string() + ": agent: the weights do not match the checkpoint's network config (" +
-                     first_line(e.what()) + ")");
+    throw InputError(file.string() + mismatch + first_line(e.what()) + ")");
+  }
+  const auto parameters = agent.named_parameters();
+  const auto buffers = agent.named_buffers();
+  for (const auto& [name, shape] : shapes) {
+    const torch::Tensor* t = parameters.find(name);
+    if (!t) t = buffers.find(name);
+    if (!t || t->sizes().vec() != shape)
+      throw InputError(file.string() + mismatch + name + " is " + (t ? c10::str(t->sizes()) : std::string("missing")) +
+                       ", the config gives " + c10::str(c10::IntArrayRef(shape)) + ")");
   }
   if (optimizer) {
     try {

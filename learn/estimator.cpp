@@ -10,8 +10,8 @@ torch::Tensor surrogate_objective(const torch::Tensor& log_pi, const torch::Tens
   if (reward.dim() != 1) throw std::invalid_argument("surrogate_objective: reward must be one value per robot");
   const int64_t robots = reward.size(0), n = options.rollouts_per_image;
   if (n <= 0 || robots % n != 0)
-    throw std::invalid_argument("surrogate_objective: " + std::to_string(robots) + " robots are not a multiple of N = " +
-                                std::to_string(n));
+    throw std::invalid_argument("surrogate_objective: " + std::to_string(robots) +
+                                " robots are not a multiple of N = " + std::to_string(n));
   if (options.leave_one_out && n < 2) throw std::invalid_argument("surrogate_objective: the baseline needs N >= 2");
   // sg(r): the REINFORCE weight carries no gradient; the second r term trains the classifier.
   torch::Tensor weight = reward.detach();

@@ -49,10 +49,13 @@ std::string TrainConfig::to_json() const {
   j["world_yaml"] = worlds::to_yaml(world);
   j["world_file"] = world.file.string();
   j["data_folder"] = data_folder.string();
-  j["network"] = {{"image_channels", network.image_channels},     {"classes", network.classes},
-                  {"planner_width", network.planner_width},       {"planner_depth", network.planner_depth},
+  j["network"] = {{"image_channels", network.image_channels},
+                  {"classes", network.classes},
+                  {"planner_width", network.planner_width},
+                  {"planner_depth", network.planner_depth},
                   {"classifier", agent::to_string(network.classifier)},
-                  {"classifier_width", network.classifier_width}, {"classifier_depth", network.classifier_depth}};
+                  {"classifier_width", network.classifier_width},
+                  {"classifier_depth", network.classifier_depth}};
   j["pretrain_epochs"] = pretrain_epochs;
   j["epochs"] = epochs;
   j["rollouts"] = rollouts;

@@ -117,9 +117,12 @@ struct Trainer::Impl {
   EpochSums sums;  // of the epoch in progress (non-empty after an interrupt)
   std::vector<fs::path> data_files;
 
-  void setup(int thread_request) {
+  // new_run: D (network.classes) comes from the training labels; a resumed run keeps its own.
+  void setup(int thread_request, bool new_run) {
     threads = set_torch_threads(thread_request);
     train = worlds::load_split(config.data_folder, worlds::Split::Train);
+    if (new_run && !train.labels.empty())
+      config.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
     validation = worlds::load_split(config.data_folder, worlds::Split::Validation);
     data_files = train.files;
     for (const fs::path& f : validation.files)
@@ -142,8 +145,8 @@ struct Trainer::Impl {
     frame = {train.images.cols, train.images.rows, config.world.floor.pixel_size_m};
     torch::manual_seed(config.seed);
     agent = agent::Agent(config.network);
-    optimizer = std::make_unique<torch::optim::Adam>(agent->parameters(),
-                                                     torch::optim::AdamOptions(config.learning_rate));
+    optimizer =
+        std::make_unique<torch::optim::Adam>(agent->parameters(), torch::optim::AdamOptions(config.learning_rate));
     const int robots = config.batch_images * config.rollouts;
     engine = std::make_unique<RolloutEngine>(config.world, frame, robots);
     policy = std::make_unique<AgentPolicy>(*agent, frame, config.world.camera.patch_px, robots);
@@ -165,13 +168,14 @@ struct Trainer::Impl {
   // Which layers Adam may change in `stage`: frozen layers only learn from full images.
   void set_trainable(Stage s) {
     for (int l = 0; l < 3; ++l) {
-      const bool trainable =
-          s == Stage::Pretrain ? static_cast<Layer>(l) == Layer::Classifier : !config.frozen[l];
+      const bool trainable = s == Stage::Pretrain ? static_cast<Layer>(l) == Layer::Classifier : !config.frozen[l];
       for (torch::Tensor& p : layer(*agent, static_cast<Layer>(l)).parameters()) p.set_requires_grad(trainable);
     }
   }
 
-  int batch_images_for(Stage s) const { return s == Stage::Pretrain ? config.batch_images * config.rollouts : config.batch_images; }
+  int batch_images_for(Stage s) const {
+    return s == Stage::Pretrain ? config.batch_images * config.rollouts : config.batch_images;
+  }
   int batches_per_epoch(Stage s) const {
     const int b = batch_images_for(s);
     return (train.images.count + b - 1) / b;
@@ -242,8 +246,9 @@ struct Trainer::Impl {
         std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
         correct += count_correct(torch::log_softmax(agent->classifier->forward(x), 1), labels);
       } else {
-        const RolloutBatch batch = make_batch(validation, indices, 1, config.world, frame,
-                                              worlds::derive_seed(worlds::derive_seed(config.seed, kValidationStream), first));
+        const RolloutBatch batch =
+            make_batch(validation, indices, 1, config.world, frame,
+                       worlds::derive_seed(worlds::derive_seed(config.seed, kValidationStream), first));
         const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false), {1, false, 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
@@ -319,7 +324,8 @@ struct Trainer::Impl {
           p.batches = batches;
           p.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
           p.reward = sums.robots ? sums.reward / sums.robots : 0;
-          const double left_this_epoch = static_cast<double>(train.images.count - std::min<long>(sums.images, train.images.count));
+          const double left_this_epoch =
+              static_cast<double>(train.images.count - std::min<long>(sums.images, train.images.count));
           p.eta_s = p.images_per_s > 0 ? (left_this_epoch + remaining_images_after_epoch()) / p.images_per_s : 0;
           hooks.on_progress(p);
         }
@@ -353,7 +359,7 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : imp
   config.validate();
   impl_->config = config;
   impl_->run_dir = std::move(run_dir);
-  impl_->setup(threads);
+  impl_->setup(threads, /*new_run=*/true);
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs) {
@@ -364,10 +370,16 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;
-  impl->setup(threads);
+  impl->setup(threads, /*new_run=*/false);
   load_checkpoint_weights(file, *impl->agent, impl->optimizer.get());
   impl->cursor = state.cursor;
   impl->history = state.history;
+  // A saved cursor has already skipped the stages with no epochs left; under a longer schedule,
+  // continue right after the last epoch trained (run() skips finished stages again).
+  if (epochs && impl->cursor.batch == 0 && !impl->history.empty()) {
+    const EpochMetrics& last = impl->history.back();
+    impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};
+  }
   const CheckpointState::Partial& p = state.partial;
   impl->sums = {p.reward, p.loss, p.train_seconds, p.correct, p.robots, p.images, p.batches};
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));

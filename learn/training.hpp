@@ -28,17 +28,17 @@ struct TrainConfig {
   worlds::World world;                ///< task, camera, robot and physics (floor.dataset names the data)
   std::filesystem::path data_folder;  ///< IDX folder with train-* (and t10k-*, validation-* if any)
   agent::NetworkConfig network;
-  int pretrain_epochs = 0;                ///< epochs of the classifier alone on full images, first
-  std::array<int, 3> epochs = {1, 1, 1};  ///< epochs of modes (i), (ii), (iii)
-  int rollouts = 4;                       ///< N: rollouts per image
-  int batch_images = 60;                  ///< B: images per mini-batch (B x N robots)
-  double learning_rate = 1e-3;            ///< Adam's step size
-  bool leave_one_out = false;             ///< leave-one-out baseline (beyond the paper)
-  double entropy_bonus = 0;               ///< beta of the entropy bonus (beyond the paper)
+  int pretrain_epochs = 0;                             ///< epochs of the classifier alone on full images, first
+  std::array<int, 3> epochs = {1, 1, 1};               ///< epochs of modes (i), (ii), (iii)
+  int rollouts = 4;                                    ///< N: rollouts per image
+  int batch_images = 60;                               ///< B: images per mini-batch (B x N robots)
+  double learning_rate = 1e-3;                         ///< Adam's step size
+  bool leave_one_out = false;                          ///< leave-one-out baseline (beyond the paper)
+  double entropy_bonus = 0;                            ///< beta of the entropy bonus (beyond the paper)
   std::array<bool, 3> frozen = {false, false, false};  ///< per Layer: not updated in modes (i)-(iii)
-  std::uint64_t seed = 1;                 ///< initialisation, data order, starts and sampling
-  int train_limit = 0;                    ///< train on the first K training digits only (0: all)
-  int validation_limit = 0;               ///< validate on the first K validation digits only (0: all)
+  std::uint64_t seed = 1;                              ///< initialisation, data order, starts and sampling
+  int train_limit = 0;                                 ///< train on the first K training digits only (0: all)
+  int validation_limit = 0;                            ///< validate on the first K validation digits only (0: all)
 
   /// Throws InputError naming the option when a value is out of range.
   void validate() const;
@@ -50,7 +50,7 @@ struct TrainConfig {
 /// One row of metrics.csv.
 struct EpochMetrics {
   Stage stage = Stage::ModeI;
-  int epoch = 0;  ///< 1-based, within the stage
+  int epoch = 0;                   ///< 1-based, within the stage
   double reward = 0;               ///< mean r = log pi_c[label] over the epoch's rollouts
   double loss = 0;                 ///< mean -J-hat over the epoch's batches
   double train_accuracy = 0;       ///< share of the epoch's rollouts classified right
@@ -65,17 +65,17 @@ std::string metrics_csv_row(const EpochMetrics& m);
 /// Reported after every batch.
 struct Progress {
   Stage stage = Stage::ModeI;
-  int epoch = 0, epochs = 0;    ///< 1-based epoch within the stage, and the stage's epochs
-  int batch = 0, batches = 0;   ///< batches done in this epoch, and its batches
-  double images_per_s = 0;      ///< this epoch so far
-  double reward = 0;            ///< mean reward this epoch so far
-  double eta_s = 0;             ///< rest of the schedule at this epoch's rate
+  int epoch = 0, epochs = 0;   ///< 1-based epoch within the stage, and the stage's epochs
+  int batch = 0, batches = 0;  ///< batches done in this epoch, and its batches
+  double images_per_s = 0;     ///< this epoch so far
+  double reward = 0;           ///< mean reward this epoch so far
+  double eta_s = 0;            ///< rest of the schedule at this epoch's rate
 };
 
 struct TrainHooks {
-  std::function<bool()> stop_requested;                   ///< polled between batches (Ctrl-C)
-  std::function<void(const Progress&)> on_progress;       ///< after every batch
-  std::function<void(const EpochMetrics&)> on_epoch;      ///< after every epoch (metrics written)
+  std::function<bool()> stop_requested;               ///< polled between batches (Ctrl-C)
+  std::function<void(const Progress&)> on_progress;   ///< after every batch
+  std::function<void(const EpochMetrics&)> on_epoch;  ///< after every epoch (metrics written)
 };
 
 enum class TrainOutcome { Finished, Interrupted, NonFinite };

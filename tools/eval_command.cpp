@@ -122,7 +122,8 @@ void add_eval_command(CLI::App& app, const Context& context) {
       "Evaluate a checkpoint on a set of digits (METHOD.md § Evaluation): R stochastic runs with the physics and the "
       "camera in the loop (mean ± 95 % Student-t half-width), top-2, the confusion matrix, the i.i.d. and goals-only "
       "baselines with the same classifier, the classifier on full images and one greedy run.");
-  cmd->add_option("--checkpoint", opt->checkpoint, "RUN/checkpoint.pt, the RUN folder, or a model file written by scout train")
+  cmd->add_option("--checkpoint", opt->checkpoint,
+                  "RUN/checkpoint.pt, the RUN folder, or a model file written by scout train")
       ->required();
   cmd->add_option("--images", opt->images,
                   "IDX image file (idx3-ubyte, raw or .gz), e.g. data/mnist/t10k-images-idx3-ubyte")

@@ -48,7 +48,7 @@ std::array<int, 3> parse_epochs(const std::string& text) {
   std::stringstream in(text);
   std::string part;
   int k = 0;
-  const std::string expected = "--epochs: expected three counts i,ii,iii (e.g. 2,2,2), got '" + one_line(text) + "'";
+  const std::string expected = "expected three counts i,ii,iii (e.g. 2,2,2), got '" + one_line(text) + "'";
   while (std::getline(in, part, ',')) {
     if (k >= 3 || part.empty() || part.size() > 6 || part.find_first_not_of("0123456789") != std::string::npos)
       throw InputError(expected);
@@ -64,14 +64,31 @@ std::array<bool, 3> parse_freeze(const std::string& text) {
   std::stringstream in(text);
   std::string part;
   while (std::getline(in, part, ',')) {
-    if (part == "goal") frozen[0] = true;
-    else if (part == "action") frozen[1] = true;
-    else if (part == "classifier") frozen[2] = true;
+    if (part == "goal")
+      frozen[0] = true;
+    else if (part == "action")
+      frozen[1] = true;
+    else if (part == "classifier")
+      frozen[2] = true;
     else
-      throw InputError("--freeze: expected a comma-separated list of goal, action, classifier; got '" +
-                       one_line(text) + "'");
+      throw InputError("expected a comma-separated list of goal, action, classifier; got '" + one_line(text) + "'");
   }
   return frozen;
+}
+
+// A CLI11 check from a parser, so that a malformed value is a usage error (exit 2).
+template <typename Parse>
+CLI::Validator parsed_by(Parse parse, const std::string& name) {
+  return CLI::Validator(
+      [parse](std::string& text) -> std::string {
+        try {
+          parse(text);
+          return {};
+        } catch (const InputError& e) {
+          return e.what();
+        }
+      },
+      name);
 }
 
 std::string duration(double seconds) {
@@ -91,10 +108,9 @@ class ProgressPrinter {
     const auto now = std::chrono::steady_clock::now();
     if (!tty_ && now - last_ < std::chrono::seconds(30) && p.batch != p.batches) return;
     last_ = now;
-    const std::string line =
-        fmt::format("mode {:<3} epoch {}/{}  batch {}/{}  {:.1f} images/s  reward {:.3f}  ETA {}",
-                    learn::to_string(p.stage), p.epoch, p.epochs, p.batch, p.batches, p.images_per_s, p.reward,
-                    duration(p.eta_s));
+    const std::string line = fmt::format("mode {:<3} epoch {}/{}  batch {}/{}  {:.1f} images/s  reward {:.3f}  ETA {}",
+                                         learn::to_string(p.stage), p.epoch, p.epochs, p.batch, p.batches,
+                                         p.images_per_s, p.reward, duration(p.eta_s));
     if (tty_) {
       std::fprintf(stderr, "\r%-90s", line.c_str());
       pending_ = true;
@@ -119,13 +135,16 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
                           const std::string& run) {
   auto refuse = [&](const std::string& option, const std::string& stored, const std::string& asked) {
     if (stored == asked) return;
-    throw InputError(fmt::format("{}: the run at {} was trained with {}, the command line asks for {} (a resumed run "
-                                 "keeps its config; start a new run to change it)",
-                                 option, run, stored, asked));
+    throw InputError(
+        fmt::format("{}: the run at {} was trained with {}, the command line asks for {} (a resumed run "
+                    "keeps its config; start a new run to change it)",
+                    option, run, stored, asked));
   };
   auto given = [&](const char* name) { return cmd.get_option(name)->count() > 0; };
-  if (given("--planner-width")) refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.planner_width));
-  if (given("--planner-depth")) refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.planner_depth));
+  if (given("--planner-width"))
+    refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.planner_width));
+  if (given("--planner-depth"))
+    refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.planner_depth));
   if (given("--classifier")) refuse("--classifier", agent::to_string(c.network.classifier), o.classifier);
   if (given("--classifier-width"))
     refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.classifier_width));
@@ -145,7 +164,8 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
     refuse("--validation-limit", std::to_string(c.validation_limit), std::to_string(o.validation_limit));
   if (given("--freeze")) {
     const auto f = parse_freeze(o.freeze);
-    if (f != c.frozen) throw InputError("--freeze: differs from the run's frozen layers (a resumed run keeps its config)");
+    if (f != c.frozen)
+      throw InputError("--freeze: differs from the run's frozen layers (a resumed run keeps its config)");
   }
   if (!o.world.empty()) {
     worlds::World w = worlds::load_world(o.world);
@@ -216,11 +236,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
     config.network.planner_width = o.planner_width;
     config.network.planner_depth = o.planner_depth;
-    try {
-      config.network.classifier = agent::parse_classifier_kind(o.classifier);
-    } catch (const std::invalid_argument& e) {
-      throw InputError(std::string("--classifier: ") + e.what());
-    }
+    config.network.classifier = agent::parse_classifier_kind(o.classifier);  // checked by the option
     config.network.classifier_width = o.classifier_width;
     config.network.classifier_depth = o.classifier_depth;
     config.pretrain_epochs = o.pretrain_epochs;
@@ -237,8 +253,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     run = o.out;
     std::error_code ec;
     if (fs::exists(run, ec))
-      throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out +
-                       ", or name a new folder)");
+      throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
     fs::create_directories(run);
     created = true;
     try {
@@ -252,8 +267,8 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   const learn::TrainConfig& c = trainer->config();
   fmt::print("training {} -> {} ({} LibTorch threads; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
              c.world.file.string(), run.string(), trainer->threads(), c.network.planner_width, c.network.planner_depth,
-             agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth,
-             c.rollouts, c.batch_images, c.learning_rate);
+             agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth, c.rollouts,
+             c.batch_images, c.learning_rate);
   if (resuming) {
     const learn::ScheduleCursor& k = trainer->cursor();
     fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
@@ -268,10 +283,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
   hooks.on_epoch = [&](const learn::EpochMetrics& m) {
     progress.end_line();
-    fmt::print("mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f}  {:.1f} images/s  "
-               "{:.1f} s\n",
-               learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
-               m.images_per_s, m.seconds);
+    fmt::print(
+        "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f}  {:.1f} images/s  "
+        "{:.1f} s\n",
+        learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s,
+        m.seconds);
     std::fflush(stdout);
   };
   const learn::TrainResult result = trainer->run(hooks);
@@ -298,9 +314,12 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("world", o->world, "World file (YAML), e.g. worlds/mnist.yaml (omit with --resume)");
   cmd->add_option("--out", o->out, "Run folder to create (must not exist)");
   cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.pt");
-  cmd->add_option("--data", o->data_root, "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
-                                          "folder with train-*/t10k-* IDX files");
-  cmd->add_option("--epochs", o->epochs, "Epochs of modes i,ii,iii")->capture_default_str();
+  cmd->add_option("--data", o->data_root,
+                  "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
+                  "folder with train-*/t10k-* IDX files");
+  cmd->add_option("--epochs", o->epochs, "Epochs of modes i,ii,iii")
+      ->capture_default_str()
+      ->check(parsed_by(parse_epochs, "I,II,III"));
   cmd->add_option("--pretrain-epochs", o->pretrain_epochs, "Epochs of the classifier on full images, first")
       ->capture_default_str()
       ->check(decimal_in(0, 100000));
@@ -312,7 +331,18 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("--planner-depth", o->planner_depth, "Planner blocks (r)")
       ->capture_default_str()
       ->check(decimal_in(1, agent::kMaxPlannerDepth));
-  cmd->add_option("--classifier", o->classifier, "Classifier: paper | strided | resnet18")->capture_default_str();
+  cmd->add_option("--classifier", o->classifier, "Classifier: paper | strided | resnet18")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            try {
+              agent::parse_classifier_kind(text);
+              return {};
+            } catch (const std::invalid_argument&) {
+              return "expected one of paper, strided, resnet18, got '" + one_line(text) + "'";
+            }
+          },
+          "KIND"));
   cmd->add_option("--classifier-width", o->classifier_width, "Classifier's first block width (doubles each block)")
       ->capture_default_str()
       ->check(decimal_in(1, agent::kMaxWidth));
@@ -325,7 +355,8 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_flag("--baseline", o->baseline, "Leave-one-out baseline (beyond the paper; off in the paper preset)");
   cmd->add_option("--entropy-bonus", o->entropy_bonus, "Entropy bonus beta (beyond the paper; 0 in the paper preset)")
       ->capture_default_str();
-  cmd->add_option("--freeze", o->freeze, "Layers not updated in modes i-iii: goal,action,classifier");
+  cmd->add_option("--freeze", o->freeze, "Layers not updated in modes i-iii: goal,action,classifier")
+      ->check(parsed_by(parse_freeze, "LAYERS"));
   cmd->add_option("--train-limit", o->train_limit, "Train on the first K training digits only (0: all)")
       ->capture_default_str()
       ->check(decimal_in(0, 100000000));
