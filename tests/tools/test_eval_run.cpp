@@ -247,7 +247,7 @@ TEST_F(EvalRun, RunWithACheckpointPredictsAndDrawsIt) {
     ASSERT_EQ(p.size(), 3u);
     double sum = 0;
     int best = 0;
-    for (int c = 0; c < 10; ++c) {
+    for (int c = 0; c < 3; ++c) {
       sum += p[c];
       if (p[c] > p[best]) best = c;
     }
