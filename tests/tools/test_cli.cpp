@@ -17,6 +17,7 @@
 #include <set>
 #include <string>
 
+#include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace {
@@ -24,22 +25,9 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct Result {
-  int status = -1;
-  std::string output;  // stdout and stderr together
-};
+using Result = scout::testing::CliResult;
 
-Result scout(const std::string& args) {
-  const std::string command = std::string(SCOUT_BINARY) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
-  const int raw = pclose(pipe);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
-}
+Result scout(const std::string& args) { return scout::testing::run_cli(SCOUT_BINARY, args); }
 
 class Cli : public ::testing::Test {
  protected:

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace {
@@ -24,40 +25,25 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct Result {
-  int status = -1;
-  std::string output;  // stdout and stderr together
-};
+using Result = scout::testing::CliResult;
 
-Result scout(const std::string& args) {
-  const std::string command = std::string(SCOUT_BINARY) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
-  const int raw = pclose(pipe);
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  return r;
-}
+Result scout(const std::string& args) { return scout::testing::run_cli(SCOUT_BINARY, args); }
 
 constexpr int kSide = 12;
 constexpr int kTestImages = 9;
 
-void put_u32(std::string& out, std::uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<char>((v >> shift) & 0xFF));
-}
+using scout::testing::put_u32_be;
 
 // Raw IDX files (big-endian header) of `count` 12 x 12 images of three classes: a vertical bar,
 // a horizontal bar, a square.
 void write_idx(const fs::path& folder, const std::string& prefix, int count) {
   std::string images, labels;
-  put_u32(images, 0x803);
-  put_u32(images, count);
-  put_u32(images, kSide);
-  put_u32(images, kSide);
-  put_u32(labels, 0x801);
-  put_u32(labels, count);
+  put_u32_be(images, 0x803);
+  put_u32_be(images, count);
+  put_u32_be(images, kSide);
+  put_u32_be(images, kSide);
+  put_u32_be(labels, 0x801);
+  put_u32_be(labels, count);
   for (int i = 0; i < count; ++i) {
     const int label = i % 3, at = 3 + (i * 7) % 6;
     labels.push_back(static_cast<char>(label));

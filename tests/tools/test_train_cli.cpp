@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace {
@@ -39,21 +40,19 @@ std::vector<std::string> lines_of(const std::string& text) {
   return lines;
 }
 
-void put_u32(std::string& out, std::uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<char>((v >> shift) & 0xFF));
-}
+using scout::testing::put_u32_be;
 
 // Raw IDX train-* files of `count` 12 x 12 floors of two classes, told apart only by the
 // top-left 3 x 3 block (black or white) over noise in [64, 192).
 void write_train_idx(const fs::path& folder, int count) {
   fs::create_directories(folder);
   std::string images, labels;
-  put_u32(images, 0x803);
-  put_u32(images, count);
-  put_u32(images, kSide);
-  put_u32(images, kSide);
-  put_u32(labels, 0x801);
-  put_u32(labels, count);
+  put_u32_be(images, 0x803);
+  put_u32_be(images, count);
+  put_u32_be(images, kSide);
+  put_u32_be(images, kSide);
+  put_u32_be(labels, 0x801);
+  put_u32_be(labels, count);
   std::uint32_t state = 12345;
   auto next = [&] { return state = state * 1664525u + 1013904223u; };
   for (int i = 0; i < count; ++i) {
