@@ -390,6 +390,10 @@ Trainer::~Trainer() = default;
 TrainResult Trainer::run(const TrainHooks& hooks) { return impl_->run(hooks); }
 const TrainConfig& Trainer::config() const { return impl_->config; }
 const ScheduleCursor& Trainer::cursor() const { return impl_->cursor; }
+bool Trainer::finished() const {
+  impl_->normalise_cursor();
+  return impl_->finished();
+}
 const std::vector<EpochMetrics>& Trainer::history() const { return impl_->history; }
 int Trainer::threads() const { return impl_->threads; }
 fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointName; }

@@ -110,6 +110,8 @@ class Trainer {
 
   const TrainConfig& config() const;
   const ScheduleCursor& cursor() const;
+  /// True when no epoch of the schedule is left.
+  bool finished() const;
   const std::vector<EpochMetrics>& history() const;
   int threads() const;
   std::filesystem::path checkpoint_file() const;

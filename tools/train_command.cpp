@@ -250,6 +250,8 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     config.train_limit = o.train_limit;
     config.validation_limit = o.validation_limit;
     config.validate();
+    if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)
+      throw InputError("--epochs: nothing to train (every stage has 0 epochs); expected at least one epoch");
     run = o.out;
     std::error_code ec;
     if (fs::exists(run, ec))
@@ -262,6 +264,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
       fs::remove_all(run, ec);
       throw;
     }
+  }
+  if (resuming && trainer->finished()) {
+    fmt::print("the run's schedule is complete after {} epoch(s); nothing to do (a longer --epochs continues it)\n",
+               trainer->history().size());
+    return;
   }
   write_manifest(run, context, *trainer, resuming);
   const learn::TrainConfig& c = trainer->config();

@@ -251,7 +251,10 @@ TEST_F(TrainCli, ControlCSavesACheckpointThatResumeFinishes) {
   // Resuming a finished run trains nothing more.
   const Result again = run("train --resume " + run_dir);
   EXPECT_EQ(again.status, 0) << again.out << again.err;
+  EXPECT_NE(again.out.find("nothing to do"), std::string::npos) << again.out;
   EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), rows.size());
+  std::ifstream in_again(run_dir + "/manifest.json");
+  EXPECT_EQ(json::parse(in_again)["resumed"].size(), 1u);  // nothing was resumed
 }
 
 TEST_F(TrainCli, BadCheckpointsAreRefusedWithOneLine) {
@@ -304,6 +307,9 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   fs::create_directories(path("exists"));
   expect_one_line_error(run("train " + world() + " --out " + path("exists") + kTiny), {"--out", path("exists")});
   EXPECT_TRUE(fs::is_empty(path("exists")));
+  // A schedule with no epoch at all.
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --epochs 0,0,0"), {"--epochs"});
+  EXPECT_FALSE(fs::exists(path("o")));
   for (const char* epochs : {"1,2", "a,b,c", "1,2,3,4", "1,,2"}) {
     expect_one_line_error(run("train " + world() + " --out " + path("o") + " --epochs " + epochs), {"--epochs"}, 2);
     EXPECT_FALSE(fs::exists(path("o"))) << epochs;
