@@ -83,7 +83,12 @@ void write_text_atomic(const fs::path& file, const std::string& text) {
       throw InputError(file.string() + ": cannot write");
     }
   }
-  fs::rename(tmp, file);
+  std::error_code ec;
+  fs::rename(tmp, file, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw InputError(file.string() + ": cannot write (" + ec.message() + ")");
+  }
 }
 
 void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,

@@ -286,8 +286,11 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
         if (row_counts[row] > 0)
           report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
     iid_accuracy[k] = static_cast<double>(evaluator.run(iid, worlds::derive_seed(seed_k, kIidStream)).correct) / n;
+    // Without a learned goal layer the baseline would only measure an untrained planner.
     goals_only_accuracy[k] =
-        static_cast<double>(evaluator.run(goals_only, worlds::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n;
+        learned.goals
+            ? static_cast<double>(evaluator.run(goals_only, worlds::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n
+            : std::numeric_limits<double>::quiet_NaN();
   }
   report.accuracy = mean_ci95(accuracy);
   report.top2 = mean_ci95(top2);
@@ -316,7 +319,8 @@ std::string report_json(const EvalReport& report) {
   j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
   j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
   j["confusion"] = report.confusion;
-  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", report.goals_only_accuracy}};
+  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", nullptr}};
+  if (!std::isnan(report.goals_only_accuracy)) j["baselines"]["goals_only"] = report.goals_only_accuracy;
   j["full_image_accuracy"] = report.full_image_accuracy;
   j["greedy_accuracy"] = report.greedy_accuracy;
   j["runs"] = report.runs;

@@ -32,7 +32,7 @@ struct EvalReport {
   Interval top2;
   std::vector<std::vector<double>> confusion;  ///< D x D, rows = true label, row-normalised, mean over runs
   double iid_accuracy = 0;                     ///< baseline: i.i.d. goals and actions, same classifier
-  double goals_only_accuracy = 0;              ///< baseline: learned goals, i.i.d. actions
+  double goals_only_accuracy = 0;              ///< baseline: learned goals, i.i.d. actions (NaN: no learned goal layer)
   double full_image_accuracy = 0;              ///< the classifier on full images (u_c = x)
   double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
   int runs = 0, images = 0;

@@ -141,6 +141,11 @@ struct Trainer::Impl {
       if (label >= config.network.classes)
         throw InputError(fmt::format("{}: a training label is {}, the network has {} classes", origin, label,
                                      config.network.classes));
+    for (std::uint8_t label : validation.labels)
+      if (label >= config.network.classes)
+        throw InputError(
+            fmt::format("{}: a validation label is {}, the network has {} classes (from the training labels)", origin,
+                        label, config.network.classes));
     worlds::check_against_floor(config.world, train.images.cols, train.images.rows);
     frame = {train.images.cols, train.images.rows, config.world.floor.pixel_size_m};
     torch::manual_seed(config.seed);
@@ -193,7 +198,14 @@ struct Trainer::Impl {
   bool train_batch(std::span<const int> indices, int batch_index, double& loss_out) {
     const Stage s = stage();
     agent->train();
-    optimizer->zero_grad();
+    // Frozen layers keep their BatchNorm statistics too (ResNet-18).
+    if (s != Stage::Pretrain)
+      for (int l = 0; l < 3; ++l)
+        if (config.frozen[l]) layer(*agent, static_cast<Layer>(l)).eval();
+    // Gradients are cleared, not zeroed: Adam skips a parameter without a gradient but would keep
+    // moving one with a zero gradient on its momentum (a frozen layer, or an action planner that
+    // no robot consulted in this batch).
+    for (torch::Tensor& p : agent->parameters()) p.mutable_grad() = torch::Tensor();
     torch::Tensor loss;
     if (s == Stage::Pretrain) {
       std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * indices.size());
@@ -223,8 +235,11 @@ struct Trainer::Impl {
     }
     loss_out = loss.item<double>();
     if (!std::isfinite(loss_out)) return false;
-    loss.backward();
-    optimizer->step();
+    // A stage whose layers are all frozen has nothing to step.
+    if (loss.requires_grad()) {
+      loss.backward();
+      optimizer->step();
+    }
     return true;
   }
 
@@ -362,11 +377,13 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : imp
   impl_->setup(threads, /*new_run=*/true);
 }
 
-std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs) {
+std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs,
+                                         const fs::path* data_folder) {
   const fs::path file = run_dir / kCheckpointName;
   auto impl = std::make_unique<Impl>();
   CheckpointState state = read_checkpoint_state(file);
   if (epochs) state.config.epochs = *epochs;
+  if (data_folder) state.config.data_folder = fs::absolute(*data_folder);
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;
@@ -376,6 +393,20 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   impl->history = state.history;
   // A saved cursor has already skipped the stages with no epochs left; under a longer schedule,
   // continue right after the last epoch trained (run() skips finished stages again).
+  if (epochs && !impl->history.empty()) {
+    // A layer that has been learned never returns to i.i.d.: earlier stages cannot grow.
+    const int last_stage = static_cast<int>(impl->history.back().stage);
+    const std::array<int, 4> wanted = {state.config.pretrain_epochs, (*epochs)[0], (*epochs)[1], (*epochs)[2]};
+    for (int st = 0; st < last_stage; ++st) {
+      const auto done = std::count_if(impl->history.begin(), impl->history.end(),
+                                      [&](const EpochMetrics& m) { return static_cast<int>(m.stage) == st; });
+      if (wanted[st] > done)
+        throw InputError(
+            fmt::format("--epochs: the run has reached mode {}; mode {} cannot follow it (asked for {} "
+                        "epochs of it, {} done)",
+                        to_string(kStages[last_stage]), to_string(kStages[st]), wanted[st], done));
+    }
+  }
   if (epochs && impl->cursor.batch == 0 && !impl->history.empty()) {
     const EpochMetrics& last = impl->history.back();
     impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};

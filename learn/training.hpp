@@ -96,10 +96,13 @@ class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
   Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads);
-  /// Continues RUN/checkpoint.pt; `epochs` may extend the schedule (nullptr: keep). Throws
+  /// Continues RUN/checkpoint.pt; `epochs` may extend the schedule (nullptr: keep); a mode that
+  /// precedes one already trained cannot grow (METHOD.md: a learned layer never returns to i.i.d.). Throws
   /// InputError for a bad or foreign checkpoint.
+  /// `data_folder` (nullptr: keep) replaces the stored data folder: the same data, moved.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
-                                         const std::array<int, 3>* epochs = nullptr);
+                                         const std::array<int, 3>* epochs = nullptr,
+                                         const std::filesystem::path* data_folder = nullptr);
   ~Trainer();
   Trainer(const Trainer&) = delete;
   Trainer& operator=(const Trainer&) = delete;

@@ -1,8 +1,10 @@
 // scout eval: the paper's evaluation protocol (METHOD.md § Evaluation) for a checkpoint on a set
 // of digits: a table on stdout, optionally a JSON report and per-image mean probabilities.
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -39,7 +41,8 @@ void check_output(const char* option, const std::string& file, const std::vector
     if (!input.empty() && fs::equivalent(file, input, ec))
       throw InputError(fmt::format("{}: {}: expected a file other than the inputs", option, file));
   }
-  const fs::path probe = file + ".tmp";
+  // A name of our own beside the file, so that no file of the user's is touched.
+  const fs::path probe = fs::path(file).parent_path() / fmt::format(".scout-probe-{}", ::getpid());
   const bool writable = static_cast<bool>(std::ofstream(probe));
   std::error_code ec;
   fs::remove(probe, ec);
@@ -68,7 +71,10 @@ void print_table(const learn::EvalReport& r) {
   fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "accuracy", r.accuracy.mean, r.accuracy.ci95);
   fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "top-2 accuracy", r.top2.mean, r.top2.ci95);
   fmt::print("  {:<26}{:.4f}\n", "i.i.d. baseline", r.iid_accuracy);
-  fmt::print("  {:<26}{:.4f}\n", "goals-only baseline", r.goals_only_accuracy);
+  if (std::isnan(r.goals_only_accuracy))
+    fmt::print("  {:<26}{}\n", "goals-only baseline", "n/a (no learned goal layer)");
+  else
+    fmt::print("  {:<26}{:.4f}\n", "goals-only baseline", r.goals_only_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
   fmt::print("  {:<26}{}\n", "runs", r.runs);

@@ -137,7 +137,7 @@ double rollout_accuracy(agent::AgentImpl& agent, const worlds::World& world, con
 }
 
 // The parameters of two agents are bitwise the same (name by name).
-void expect_same_weights(agent::AgentImpl& a, agent::AgentImpl& b) {
+void expect_same_weights(torch::nn::Module& a, torch::nn::Module& b) {
   const auto pa = a.named_parameters(), pb = b.named_parameters();
   ASSERT_EQ(pa.size(), pb.size());
   for (const auto& item : pa) {
@@ -316,6 +316,44 @@ TEST_F(Resume, AddingModeIIIsTheUninterruptedRun) {
   EXPECT_EQ(resumed->history()[1].stage, Stage::ModeII);
   expect_same_metrics(resumed->history()[1], full[1]);
   expect_same_checkpoints("a", "b");
+}
+
+// A frozen classifier is the pretrained one, bit for bit, after modes (i) and (ii): Adam must not
+// move it on momentum it gathered while pretraining; a stage with every layer frozen trains nothing
+// and does not fail.
+TEST_F(Resume, AFrozenLayerStaysExactlyAsItWas) {
+  TrainConfig pretrain = config({0, 0, 0});
+  pretrain.pretrain_epochs = 1;
+  pretrain.frozen = {false, false, true};
+  {
+    Trainer trainer(pretrain, run_dir("pre"), kThreads);
+    ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
+  }
+  agent::Agent before = load_agent(temp_.path() / "pre" / kCheckpointName);
+  const std::array<int, 3> more = {1, 1, 0};
+  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "pre", kThreads, &more);
+  const TrainResult r = resumed->run({});
+  ASSERT_EQ(r.outcome, TrainOutcome::Finished) << r.message;  // mode (i) has nothing to train here
+  ASSERT_EQ(resumed->history().size(), 3u);
+  agent::Agent after = load_agent(temp_.path() / "pre" / kCheckpointName);
+  expect_same_weights(*before->classifier, *after->classifier);
+  // ... while the goal planner, trained in mode (ii), did change.
+  const torch::Tensor g0 = before->goal->parameters()[0], g1 = after->goal->parameters()[0];
+  EXPECT_FALSE(torch::equal(g0, g1));
+}
+
+// Modes only go forward: a run that has reached mode (ii) cannot be given more mode (i).
+TEST_F(Resume, AnEarlierModeCannotGrowAfterALaterOne) {
+  ASSERT_EQ(train("b", {1, 1, 0}).size(), 2u);
+  const std::array<int, 3> more = {2, 1, 0};
+  try {
+    Trainer::resume(temp_.path() / "b", kThreads, &more);
+    ADD_FAILURE() << "resume accepted more mode (i) after mode (ii)";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("--epochs"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
 }
 
 // Interrupted in the middle of an epoch of each mode, then resumed to the end: the same weights
