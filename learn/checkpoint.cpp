@@ -8,6 +8,7 @@
 #include <random>
 
 #include "worlds/error.hpp"
+#include "worlds/files.hpp"
 
 namespace scout::learn {
 
@@ -20,11 +21,6 @@ namespace {
 std::string first_line(const char* what) {
   std::string text(what);
   return one_line(text.substr(0, std::min(text.find('\n'), std::size_t{200})));
-}
-
-fs::path temporary_beside(const fs::path& file) {
-  std::random_device rd;
-  return file.parent_path() / fmt::format(".{}.tmp-{:08x}", file.filename().string(), rd());
 }
 
 json history_json(const std::vector<EpochMetrics>& history) {
@@ -71,26 +67,6 @@ fs::path resolve_checkpoint(const fs::path& path) {
   return fs::is_directory(path, ec) ? path / kCheckpointName : path;
 }
 
-void write_text_atomic(const fs::path& file, const std::string& text) {
-  const fs::path tmp = temporary_beside(file);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw InputError(file.string() + ": cannot write");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw InputError(file.string() + ": cannot write (" + ec.message() + ")");
-  }
-}
-
 void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
                      const CheckpointState& state) {
   torch::serialize::OutputArchive archive;
@@ -121,7 +97,7 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
   // Sampling uses Scout's own counter-based streams (seed, stage, epoch, batch, robot); LibTorch's
   // generator only initialises weights. Both are kept so that nothing random is lost.
   archive.write("torch_rng_state", at::detail::getDefaultCPUGenerator().get_state());
-  const fs::path tmp = temporary_beside(file);
+  const fs::path tmp = worlds::temporary_path_beside(file);
   try {
     archive.save_to(tmp.string());
     fs::rename(tmp, file);

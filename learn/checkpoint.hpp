@@ -42,7 +42,4 @@ void load_checkpoint_weights(const std::filesystem::path& file, agent::AgentImpl
 /// Throws InputError naming the file.
 agent::Agent load_agent(const std::filesystem::path& file, CheckpointState* state = nullptr);
 
-/// A text file written atomically.
-void write_text_atomic(const std::filesystem::path& file, const std::string& text);
-
 }  // namespace scout::learn

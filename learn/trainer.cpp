@@ -16,6 +16,7 @@
 #include "learn/training.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
+#include "worlds/files.hpp"
 #include "worlds/random.hpp"
 
 namespace scout::learn {
@@ -274,7 +275,7 @@ struct Trainer::Impl {
   void write_metrics() const {
     std::string text = metrics_csv_header();
     for (const EpochMetrics& m : history) text += metrics_csv_row(m);
-    write_text_atomic(run_dir / "metrics.csv", text);
+    worlds::write_file_atomic(run_dir / "metrics.csv", text);
   }
 
   void save() {

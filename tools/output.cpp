@@ -114,23 +114,6 @@ std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, co
   }
 }
 
-void write_file_atomic(const fs::path& file, const std::string& text) {
-  const fs::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw InputError(file.string() + ": cannot write");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec) throw InputError(file.string() + ": cannot write: " + ec.message());
-}
-
 std::vector<std::string> command_line(int argc, char** argv) { return {argv, argv + argc}; }
 
 nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,

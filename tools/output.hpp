@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "worlds/files.hpp"
+
 namespace scout::tools {
 
 /// An output folder being written. `path()` is where to write; commit() moves it to its final
@@ -34,7 +36,7 @@ class OutputDir {
 };
 
 /// Writes a file atomically: a temporary file beside it, then a rename.
-void write_file_atomic(const std::filesystem::path& file, const std::string& text);
+using worlds::write_file_atomic;
 
 /// The manifest every output folder gets: command line, git commit, library versions, the
 /// resolved world (YAML text, may be empty) and the SHA-256 of each data file.

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "worlds/dataset.hpp"
+#include "worlds/files.hpp"
 #include "worlds/digest.hpp"
 
 extern char** environ;
@@ -208,26 +209,6 @@ std::string read_text(const fs::path& file, const std::string& name) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
-}
-
-// Text written next to the IDX files, atomically for the same reason as they are.
-void write_text_atomically(const fs::path& file, const std::string& text) {
-  fs::path tmp = file;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      fs::remove(tmp, ignored);
-      throw InputError(fmt::format("{}: cannot write {}", file.string(), tmp.string()));
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec)
-    throw InputError(fmt::format("{}: cannot rename {} into place: {}", file.string(), tmp.string(), ec.message()));
 }
 
 std::string join(const std::array<int, 10>& v) {
@@ -465,7 +446,7 @@ DataInstallReport install(const fs::path& data_root) {
        "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
       {"counts", {{"train", train.size()}, {"validation", held_out[0].size()}, {"test", held_out[1].size()}}},
       {"files", files}};
-  write_text_atomically(report.folder / kSourceFile, source.dump(2) + "\n");
+  write_file_atomic(report.folder / kSourceFile, source.dump(2) + "\n");
 
   report.train = static_cast<int>(train.size());
   report.validation = static_cast<int>(held_out[0].size());
