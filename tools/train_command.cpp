@@ -178,26 +178,27 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
   }
 }
 
-// --data on resume: the run's data, moved. Every data file read there must have a SHA-256 that
-// the run's manifest recorded.
-fs::path moved_data_folder(const TrainOptions& o, const learn::TrainConfig& c, const fs::path& run) {
-  const fs::path folder = worlds::dataset_folder(c.world.floor.dataset, o.data_root);
-  std::error_code ec;
-  if (fs::weakly_canonical(folder, ec) == fs::weakly_canonical(c.data_folder, ec)) return c.data_folder;
+// The data a resumed run reads: its own folder, or --data (the same data, moved). Every data file
+// read must have a SHA-256 that the run's manifest recorded, so changed data is never trained on
+// silently.
+fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, const fs::path& run) {
+  const fs::path folder =
+      o.data_root.empty() ? c.data_folder : worlds::dataset_folder(c.world.floor.dataset, o.data_root);
+  const std::string what = o.data_root.empty() ? c.data_folder.string() : "--data: " + folder.string();
   std::set<std::string> recorded;
   try {
     std::ifstream in(run / "manifest.json");
     const json manifest = json::parse(in);
     for (const auto& [file, hash] : manifest.at("data_sha256").items()) recorded.insert(hash.get<std::string>());
   } catch (const std::exception&) {
-    throw InputError("--data: " + (run / "manifest.json").string() +
-                     " has no readable data_sha256 to check the moved data against");
+    throw InputError(what + ": " + (run / "manifest.json").string() +
+                     " has no readable data_sha256 to check the run's data against");
   }
   std::vector<fs::path> files = worlds::load_split(folder, worlds::Split::Train).files;
   for (const fs::path& f : worlds::load_split(folder, worlds::Split::Validation).files) files.push_back(f);
   for (const fs::path& f : files)
     if (!recorded.count(worlds::sha256_file(f)))
-      throw InputError("--data: " + f.string() + " is not one of the files the run at " + run.string() +
+      throw InputError(f.string() + ": not one of the data files the run at " + run.string() +
                        " was trained on (its SHA-256 is not in manifest.json)");
   return folder;
 }
@@ -244,7 +245,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
       throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
     const learn::CheckpointInfo info = learn::read_checkpoint_info(run / "checkpoint.pt");
     check_resume_options(cmd, o, info.config, o.resume);
-    const fs::path data_folder = o.data_root.empty() ? info.config.data_folder : moved_data_folder(o, info.config, run);
+    const fs::path data_folder = resume_data_folder(o, info.config, run);
     trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr, &data_folder);
   } else {
     learn::TrainConfig config;

@@ -320,4 +320,20 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   EXPECT_FALSE(fs::exists(path("o")));
 }
 
+// A resumed run reads only the data it was trained on: changed files are refused by their SHA-256.
+TEST_F(TrainCli, ResumeRefusesDataThatChanged) {
+  write_train_idx(path("data"), 48);
+  std::ofstream(path("world.yaml")) << world_text(path("data"), 3);
+  ASSERT_EQ(run("train " + path("world.yaml") + " --out " + path("run") + " --epochs 1,0,0" + kTiny).status, 0);
+  // The same data again: resumes.
+  const Result same = run("train --resume " + path("run") + " --epochs 2,0,0");
+  ASSERT_EQ(same.status, 0) << same.out << same.err;
+  // Other digits under the same names: refused, and the run is untouched.
+  write_train_idx(path("data"), 50);
+  const std::string before = read_text(path("run") + "/checkpoint.pt");
+  expect_one_line_error(run("train --resume " + path("run") + " --epochs 3,0,0"),
+                        {"train-images-idx3-ubyte", "SHA-256"});
+  EXPECT_EQ(read_text(path("run") + "/checkpoint.pt"), before);
+}
+
 }  // namespace
