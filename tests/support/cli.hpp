@@ -33,4 +33,14 @@ inline void put_u32_be(std::string& out, std::uint32_t v) {
   for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<char>((v >> shift) & 0xFF));
 }
 
+/// Starts raw IDX image and label files of `count` rows x cols images (their headers).
+inline void put_idx_headers(std::string& images, std::string& labels, int count, int rows, int cols) {
+  put_u32_be(images, 0x803);
+  put_u32_be(images, static_cast<std::uint32_t>(count));
+  put_u32_be(images, static_cast<std::uint32_t>(rows));
+  put_u32_be(images, static_cast<std::uint32_t>(cols));
+  put_u32_be(labels, 0x801);
+  put_u32_be(labels, static_cast<std::uint32_t>(count));
+}
+
 }  // namespace scout::testing

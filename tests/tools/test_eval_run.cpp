@@ -32,18 +32,11 @@ Result scout(const std::string& args) { return scout::testing::run_cli(SCOUT_BIN
 constexpr int kSide = 12;
 constexpr int kTestImages = 9;
 
-using scout::testing::put_u32_be;
-
 // Raw IDX files (big-endian header) of `count` 12 x 12 images of three classes: a vertical bar,
 // a horizontal bar, a square.
 void write_idx(const fs::path& folder, const std::string& prefix, int count) {
   std::string images, labels;
-  put_u32_be(images, 0x803);
-  put_u32_be(images, count);
-  put_u32_be(images, kSide);
-  put_u32_be(images, kSide);
-  put_u32_be(labels, 0x801);
-  put_u32_be(labels, count);
+  scout::testing::put_idx_headers(images, labels, count, kSide, kSide);
   for (int i = 0; i < count; ++i) {
     const int label = i % 3, at = 3 + (i * 7) % 6;
     labels.push_back(static_cast<char>(label));

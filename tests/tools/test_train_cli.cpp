@@ -40,19 +40,12 @@ std::vector<std::string> lines_of(const std::string& text) {
   return lines;
 }
 
-using scout::testing::put_u32_be;
-
 // Raw IDX train-* files of `count` 12 x 12 floors of two classes, told apart only by the
 // top-left 3 x 3 block (black or white) over noise in [64, 192).
 void write_train_idx(const fs::path& folder, int count) {
   fs::create_directories(folder);
   std::string images, labels;
-  put_u32_be(images, 0x803);
-  put_u32_be(images, count);
-  put_u32_be(images, kSide);
-  put_u32_be(images, kSide);
-  put_u32_be(labels, 0x801);
-  put_u32_be(labels, count);
+  scout::testing::put_idx_headers(images, labels, count, kSide, kSide);
   std::uint32_t state = 12345;
   auto next = [&] { return state = state * 1664525u + 1013904223u; };
   for (int i = 0; i < count; ++i) {
