@@ -17,6 +17,16 @@ void check_range(const char* field, int value, int lo, int hi) {
 
 }  // namespace
 
+const char* to_string(Precision precision) {
+  return precision == Precision::BFloat16 ? "bf16" : "fp32";
+}
+
+Precision parse_precision(const std::string& text) {
+  if (text == "fp32") return Precision::Float32;
+  if (text == "bf16") return Precision::BFloat16;
+  throw std::invalid_argument("precision: expected one of fp32, bf16, got \"" + text + "\"");
+}
+
 const char* to_string(ClassifierKind kind) {
   switch (kind) {
     case ClassifierKind::Paper:

@@ -15,6 +15,14 @@ const char* to_string(ClassifierKind kind);  ///< "paper", "strided", "resnet18"
 /// Parses "paper" | "strided" | "resnet18"; throws std::invalid_argument naming the choices.
 ClassifierKind parse_classifier_kind(const std::string& text);
 
+/// The arithmetic the networks run in. Weights, gradients and the optimizer always stay fp32;
+/// bf16 runs the convolutions and activations in bfloat16 (AMX / AVX-512 BF16 on this CPU, where
+/// a planner step is several times faster) with fp32 master weights, as mixed-precision training does.
+enum class Precision { Float32, BFloat16 };
+const char* to_string(Precision precision);  ///< "fp32", "bf16"
+/// Parses "fp32" | "bf16"; throws std::invalid_argument naming the choices.
+Precision parse_precision(const std::string& text);
+
 /// Widths and depths of the three networks.
 struct NetworkConfig {
   int image_channels = 1;  ///< c: channels of the floor image (y has c, planners read c + 3)

@@ -23,10 +23,50 @@ void check_input(const torch::Tensor& x, std::int64_t channels, const char* laye
               x.sizes());
 }
 
+// Normalisations that also take bf16 activations (LibTorch's CPU kernels want the input's type to
+// match the fp32 affine parameters): statistics and affine run in fp32, the result returns in the
+// input's type. The parameters keep the names of nn::GroupNorm / nn::BatchNorm2d.
+class GroupNormAnyTypeImpl : public nn::GroupNormImpl {
+ public:
+  using nn::GroupNormImpl::GroupNormImpl;
+  torch::Tensor forward(const torch::Tensor& x) {
+    if (x.scalar_type() == torch::kFloat) return nn::GroupNormImpl::forward(x);
+    return nn::GroupNormImpl::forward(x.to(torch::kFloat)).to(x.scalar_type());
+  }
+};
+TORCH_MODULE(GroupNormAnyType);
+
+// BatchNorm2d's defaults (affine, running statistics, momentum 0.1, eps 1e-5), written out
+// because deriving from nn::BatchNorm2dImpl needs symbols Debian's LibTorch does not export.
+class BatchNormAnyTypeImpl : public nn::Module {
+ public:
+  explicit BatchNormAnyTypeImpl(int channels)
+      : weight_(register_parameter("weight", torch::ones({channels}))),
+        bias_(register_parameter("bias", torch::zeros({channels}))),
+        running_mean_(register_buffer("running_mean", torch::zeros({channels}))),
+        running_var_(register_buffer("running_var", torch::ones({channels}))),
+        batches_tracked_(register_buffer("num_batches_tracked", torch::tensor(0, torch::kLong))) {}
+
+  torch::Tensor forward(const torch::Tensor& x) {
+    if (is_training()) {
+      torch::NoGradGuard no_grad;
+      batches_tracked_ += 1;
+    }
+    const torch::Tensor y = torch::batch_norm(x.to(torch::kFloat), weight_, bias_, running_mean_, running_var_,
+                                              is_training(), kMomentum, kEpsilon, /*cudnn_enabled=*/false);
+    return y.to(x.scalar_type());
+  }
+
+ private:
+  static constexpr double kMomentum = 0.1, kEpsilon = 1e-5;
+  torch::Tensor weight_, bias_, running_mean_, running_var_, batches_tracked_;
+};
+TORCH_MODULE(BatchNormAnyType);
+
 // GroupNorm with up to kNormGroups groups; the group count must divide the width, which may be any
 // classifier_width * 2^k.
 constexpr int kNormGroups = 8;
-nn::GroupNorm group_norm(int channels) { return nn::GroupNorm(std::gcd(kNormGroups, channels), channels); }
+GroupNormAnyType group_norm(int channels) { return GroupNormAnyType(std::gcd(kNormGroups, channels), channels); }
 
 // Global average pooling: [B, C, H, W] -> [B, C]. Any H, W.
 torch::Tensor global_average(const torch::Tensor& x) { return x.mean({2, 3}); }
@@ -99,12 +139,12 @@ class BasicBlockImpl : public nn::Module {
  public:
   BasicBlockImpl(int in, int out, int stride) {
     conv1_ = register_module("conv1", conv3x3(in, out, stride, /*bias=*/false));
-    bn1_ = register_module("bn1", nn::BatchNorm2d(out));
+    bn1_ = register_module("bn1", BatchNormAnyType(out));
     conv2_ = register_module("conv2", conv3x3(out, out, 1, /*bias=*/false));
-    bn2_ = register_module("bn2", nn::BatchNorm2d(out));
+    bn2_ = register_module("bn2", BatchNormAnyType(out));
     if (stride != 1 || in != out) {
       downsample_ =
-          register_module("downsample", nn::Sequential(conv1x1(in, out, stride, false), nn::BatchNorm2d(out)));
+          register_module("downsample", nn::Sequential(conv1x1(in, out, stride, false), BatchNormAnyType(out)));
     }
   }
 
@@ -116,7 +156,7 @@ class BasicBlockImpl : public nn::Module {
 
  private:
   nn::Conv2d conv1_{nullptr}, conv2_{nullptr};
-  nn::BatchNorm2d bn1_{nullptr}, bn2_{nullptr};
+  BatchNormAnyType bn1_{nullptr}, bn2_{nullptr};
   nn::Sequential downsample_{nullptr};
 };
 TORCH_MODULE(BasicBlock);
@@ -130,7 +170,7 @@ class ResNet18ClassifierImpl : public ClassifierImpl {
   explicit ResNet18ClassifierImpl(const NetworkConfig& config) : in_channels_(config.image_channels) {
     const int w = config.classifier_width;
     conv1_ = register_module("conv1", conv3x3(config.image_channels, w, 1, /*bias=*/false));
-    bn1_ = register_module("bn1", nn::BatchNorm2d(w));
+    bn1_ = register_module("bn1", BatchNormAnyType(w));
     int channels = w;
     for (int stage = 0; stage < 4; ++stage) {
       const int width = w << stage;
@@ -153,7 +193,7 @@ class ResNet18ClassifierImpl : public ClassifierImpl {
  private:
   int in_channels_;
   nn::Conv2d conv1_{nullptr};
-  nn::BatchNorm2d bn1_{nullptr};
+  BatchNormAnyType bn1_{nullptr};
   nn::Sequential layers_[4] = {nullptr, nullptr, nullptr, nullptr};
   nn::Linear fc_{nullptr};
 };

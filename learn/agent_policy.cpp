@@ -1,14 +1,19 @@
 #include "learn/agent_policy.hpp"
 
+#include <chrono>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "agent/state.hpp"
+#include "learn/precision.hpp"
 
 namespace scout::learn {
 
 namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 // A uniform double in [0, 1) from the top 53 bits.
 double unit_interval(worlds::Rng& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
@@ -70,6 +75,8 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<s
   }
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling_.with_grad) no_grad.emplace();
+  const ComputePrecision precision(sampling_.precision);
+  auto t0 = Clock::now();
   // Fresh storage each call: autograd keeps the input of the first convolution for backward.
   const int channels = 4;
   torch::Tensor input = torch::empty({count, channels, frame_.height_px, width});
@@ -79,7 +86,10 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<s
                           episode > 0 ? &state.goal[i] : nullptr};
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area);
   }
-  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input), 1);  // [count, H*W]
+  input = network_input(input, sampling_.precision);
+  timing_.state_s += seconds_since(t0);
+  t0 = Clock::now();
+  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input).to(torch::kFloat), 1);  // [count, H*W]
   torch::Tensor p = log_p.detach().exp().contiguous();
   const float* probabilities = p.data_ptr<float>();
   std::vector<std::int64_t> chosen(count);
@@ -93,6 +103,7 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<s
   torch::Tensor index = torch::from_blob(chosen.data(), {count, 1}, torch::kLong).clone();
   log_pi_ = log_pi_ + log_p.gather(1, index).squeeze(1);
   entropy_ = entropy_ - (log_p.exp() * log_p).sum(1);
+  timing_.forward_s += seconds_since(t0);
 }
 
 void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) {
@@ -106,11 +117,16 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   }
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling_.with_grad) no_grad.emplace();
+  const ComputePrecision precision(sampling_.precision);
+  auto t0 = Clock::now();
   // Only the robots with chi = 1 go through the action planner.
   rows_.clear();
   for (int i = 0; i < count; ++i)
     if (need[i]) rows_.push_back(i);
-  if (rows_.empty()) return;
+  if (rows_.empty()) {
+    timing_.state_s += seconds_since(t0);
+    return;
+  }
   const int k = static_cast<int>(rows_.size()), area = frame_.area_px(), channels = 4;
   torch::Tensor input = torch::empty({k, channels, frame_.height_px, frame_.width_px});
   float* data = input.data_ptr<float>();
@@ -120,7 +136,10 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
                           &state.goal[i]};
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area);
   }
-  torch::Tensor log_p = torch::log_softmax(agent_.action->forward(input), 1);  // [k, 2]
+  input = network_input(input, sampling_.precision);
+  timing_.state_s += seconds_since(t0);
+  t0 = Clock::now();
+  torch::Tensor log_p = torch::log_softmax(agent_.action->forward(input).to(torch::kFloat), 1);  // [k, 2]
   torch::Tensor p = log_p.detach().exp().contiguous();
   const float* probabilities = p.data_ptr<float>();
   std::vector<std::int64_t> chosen(k);
@@ -134,6 +153,7 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   torch::Tensor index = torch::from_blob(chosen.data(), {k, 1}, torch::kLong).clone();
   log_pi_ = log_pi_.index_add(0, rows, log_p.gather(1, index).squeeze(1));
   entropy_ = entropy_.index_add(0, rows, -(log_p.exp() * log_p).sum(1));
+  timing_.forward_s += seconds_since(t0);
 }
 
 const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {

@@ -20,6 +20,13 @@ struct Sampling {
   bool greedy = false;            ///< argmax instead of sampling (evaluation extra)
   bool with_grad = false;         ///< keep the autograd graph of log pi (training)
   bool record_goal_maps = false;  ///< keep pi_g of every robot and episode (pictures)
+  agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic
+};
+
+/// Where the policy's time went, seconds (scout bench train).
+struct PolicyTiming {
+  double state_s = 0;    ///< writing y, l, h, g_l into the planners' input tensors
+  double forward_s = 0;  ///< the planners' forward passes, log pi and the sampling
 };
 
 /// Goals and axes from the agent's planners (or i.i.d. where a layer is not learned). Robot i
@@ -43,6 +50,8 @@ class AgentPolicy final : public Policy {
   const std::vector<float>& goal_map(int robot, int episode) const;
   /// Decisions taken by the action planner in this batch (robots x steps with chi = 1).
   long action_decisions() const { return action_decisions_; }
+  const PolicyTiming& timing() const { return timing_; }
+  void reset_timing() { timing_ = {}; }
 
  private:
   int sample(worlds::Rng& rng, const float* probabilities, int n) const;
@@ -54,11 +63,11 @@ class AgentPolicy final : public Policy {
   Sampling sampling_;
   int count_ = 0;
   std::vector<worlds::Rng> rngs_;
-  torch::Tensor input_;  // preallocated planner input [max_robots, c+3, H, W]
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
   std::vector<std::int64_t> rows_;
   long action_decisions_ = 0;
+  PolicyTiming timing_;
 };
 
 /// u_c = y for the first `count` robots of a batch: [count, 1, H, W] floats.

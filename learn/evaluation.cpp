@@ -16,6 +16,7 @@
 #include "learn/agent_policy.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/objective.hpp"
+#include "learn/precision.hpp"
 #include "learn/trained_agent.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
@@ -119,8 +120,8 @@ struct Pass {
 class Evaluator {
  public:
   Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots,
-            const std::function<bool()>& stop)
-      : agent_(agent), world_(world), data_(data), stop_(stop) {
+            agent::Precision precision, const std::function<bool()>& stop)
+      : agent_(agent), world_(world), data_(data), precision_(precision), stop_(stop) {
     const int robots = std::min(batch_robots, data.set.images.count);
     try {
       engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
@@ -169,7 +170,7 @@ class Evaluator {
       const int k = std::min(batch_, n - first);
       torch::Tensor x = full_images(std::span(data_.set.images.image(first), area * k), k, data_.frame);
       const std::vector<std::int64_t> labels(data_.set.labels.begin() + first, data_.set.labels.begin() + first + k);
-      correct += count_correct(torch::log_softmax(agent_.classifier->forward(x), 1), labels, 1);
+      correct += count_correct(classifier_log_probs(agent_, x, precision_), labels, 1);
     }
     return correct;
   }
@@ -178,6 +179,7 @@ class Evaluator {
   agent::AgentImpl& agent_;
   const worlds::World& world_;
   const Data& data_;
+  agent::Precision precision_;
   const std::function<bool()>& stop_;
   std::unique_ptr<RolloutEngine> engine_;
   std::unique_ptr<AgentPolicy> policy_;
@@ -244,11 +246,14 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
   agent->eval();
 
   const LearnedLayers learned = learned_layers(state.history);
+  const agent::Precision precision = config.precision.value_or(state.config.precision);
   Sampling sampling;
   sampling.learned_goals = learned.goals;
   sampling.learned_actions = learned.actions;
+  sampling.precision = precision;
   Sampling iid;
-  Sampling goals_only;
+  iid.precision = precision;
+  Sampling goals_only = iid;
   goals_only.learned_goals = true;
   Sampling greedy = sampling;
   greedy.greedy = true;
@@ -262,10 +267,11 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
   report.seed = config.seed;
   report.learned_goals = learned.goals;
   report.learned_actions = learned.actions;
+  report.precision = precision;
   report.labels.assign(data.set.labels.begin(), data.set.labels.end());
   report.confusion.assign(classes, std::vector<double>(classes, 0.0));
 
-  Evaluator evaluator(*agent, world, data, config.batch_robots, stop);
+  Evaluator evaluator(*agent, world, data, config.batch_robots, precision, stop);
   std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
   torch::Tensor probability_sum = torch::zeros({n, classes}, torch::kDouble);
   std::vector<long> row_counts(classes, 0);
@@ -316,6 +322,7 @@ std::string report_json(const EvalReport& report) {
   j["world"] = report.world;
   j["seed"] = report.seed;
   j["learned"] = {{"goals", report.learned_goals}, {"actions", report.learned_actions}};
+  j["precision"] = agent::to_string(report.precision);
   j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
   j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
   j["confusion"] = report.confusion;

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "agent/config.hpp"
+
 namespace scout::learn {
 
 struct EvalConfig {
@@ -19,6 +21,7 @@ struct EvalConfig {
   int runs = 20;                                    ///< R
   std::uint64_t seed = 1;                           ///< run k uses derive_seed(seed, k)
   int batch_robots = 240;                           ///< robots per rollout batch
+  std::optional<agent::Precision> precision;        ///< default: the precision the checkpoint trained in
 };
 
 /// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).
@@ -44,6 +47,7 @@ struct EvalReport {
   std::uint64_t seed = 0;                          ///< the evaluation's seed
   bool learned_goals = false;                      ///< the checkpoint's history has a mode (ii) or (iii) epoch
   bool learned_actions = false;                    ///< ... a mode (iii) epoch
+  agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic in this evaluation
 };
 
 /// Thrown by evaluate() when `stop` returned true; nothing of the evaluation is kept.

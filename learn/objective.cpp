@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "learn/precision.hpp"
+
 namespace scout::learn {
 
 namespace {
@@ -39,12 +41,13 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
 
 BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
                        const Sampling& sampling, const EstimatorOptions& estimator) {
+  // One guard for the whole batch, so that each weight is cast to bf16 once, not once per move.
+  const ComputePrecision precision(sampling.precision);
   policy.begin(batch.seeds, sampling);
   engine.run(batch.floors, batch.starts, policy, /*record=*/false);
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling.with_grad) no_grad.emplace();
-  torch::Tensor y = revealed_images(engine.state(), batch.count);
-  torch::Tensor log_probs = torch::log_softmax(agent.classifier->forward(y), 1);
+  torch::Tensor log_probs = classifier_log_probs(agent, revealed_images(engine.state(), batch.count), sampling.precision);
   // A copy: autograd keeps the index for backward, which may run after `batch` is gone.
   torch::Tensor labels =
       torch::from_blob(const_cast<std::int64_t*>(batch.labels.data()), {batch.count, 1}, torch::kLong).clone();
@@ -53,6 +56,15 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   torch::Tensor objective = surrogate_objective(learned ? policy.log_pi() : torch::Tensor(), reward, estimator,
                                                 learned ? policy.entropy() : torch::Tensor());
   return {objective, log_probs.detach(), reward.detach()};
+}
+
+Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision) {
+  Sampling s;
+  s.precision = precision;
+  s.learned_goals = stage == Stage::ModeII || stage == Stage::ModeIII;
+  s.learned_actions = stage == Stage::ModeIII;
+  s.with_grad = with_grad;
+  return s;
 }
 
 int count_correct(const torch::Tensor& log_probs, std::span<const std::int64_t> labels, int top) {

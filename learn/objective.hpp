@@ -10,6 +10,7 @@
 #include "learn/agent_policy.hpp"
 #include "learn/estimator.hpp"
 #include "learn/rollout.hpp"
+#include "learn/training.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::learn {
@@ -39,6 +40,9 @@ struct BatchOutcome {
 /// last move, and computes J-hat with `estimator`.
 BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
                        const Sampling& sampling, const EstimatorOptions& estimator);
+
+/// The sampling of a training stage (ModeI..ModeIII): which layers choose, in `precision`.
+Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision);
 
 /// Per-robot correctness of a batch's predictions (argmax == label), and top-2.
 int count_correct(const torch::Tensor& log_probs, std::span<const std::int64_t> labels, int top = 1);

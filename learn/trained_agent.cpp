@@ -8,6 +8,7 @@
 
 #include "learn/agent_policy.hpp"
 #include "learn/checkpoint.hpp"
+#include "learn/precision.hpp"
 
 namespace scout::learn {
 
@@ -63,6 +64,7 @@ void TrainedAgent::begin(const sim::FloorFrame& frame, int patch_px, std::span<c
   sampling.learned_goals = m.learned.goals;
   sampling.learned_actions = m.learned.actions;
   sampling.greedy = greedy;
+  sampling.precision = impl_->state.config.precision;
   // Goal maps exist only where the goal planner chooses.
   sampling.record_goal_maps = record_goal_maps && m.learned.goals;
   m.policy->begin(seeds, sampling);
@@ -83,7 +85,7 @@ std::vector<float> TrainedAgent::classify(const BatchState& state, int count) {
   if (count == 0) return {};
   torch::NoGradGuard no_grad;
   const torch::Tensor y = revealed_images(state, count);
-  const torch::Tensor p = torch::softmax(impl_->agent->classifier->forward(y), 1).contiguous();
+  const torch::Tensor p = classifier_log_probs(*impl_->agent, y, impl_->state.config.precision).exp().contiguous();
   const float* data = p.data_ptr<float>();
   return std::vector<float>(data, data + static_cast<std::size_t>(count) * classes());
 }

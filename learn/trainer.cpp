@@ -13,6 +13,7 @@
 #include "learn/agent_policy.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/objective.hpp"
+#include "learn/precision.hpp"
 #include "learn/training.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
@@ -42,14 +43,6 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 
 std::array<int, 4> stage_epochs(const TrainConfig& c) {
   return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
-}
-
-Sampling sampling_for(Stage stage, bool with_grad) {
-  Sampling s;
-  s.learned_goals = stage == Stage::ModeII || stage == Stage::ModeIII;
-  s.learned_actions = stage == Stage::ModeIII;
-  s.with_grad = with_grad;
-  return s;
 }
 
 torch::nn::Module& layer(agent::AgentImpl& a, Layer l) {
@@ -216,7 +209,7 @@ struct Trainer::Impl {
         labels[i] = train.labels[indices[i]];
       }
       torch::Tensor x = full_images(floors, static_cast<int>(indices.size()), frame);
-      torch::Tensor log_probs = torch::log_softmax(agent->classifier->forward(x), 1);
+      torch::Tensor log_probs = classifier_log_probs(*agent, x, config.precision);
       torch::Tensor target = torch::from_blob(labels.data(), {static_cast<long>(labels.size())}, torch::kLong).clone();
       loss = torch::nll_loss(log_probs, target);
       const torch::Tensor reward = -torch::nll_loss(log_probs.detach(), target, {}, at::Reduction::None);
@@ -228,7 +221,7 @@ struct Trainer::Impl {
           worlds::derive_seed(stage_epoch_seed(config.seed, kBatchStream, cursor.stage, cursor.epoch), batch_index);
       const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
       EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
-      const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true), est);
+      const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
       sums.reward += out.reward.sum().item<double>();
       sums.correct += count_correct(out.log_probs, batch.labels);
@@ -260,12 +253,12 @@ struct Trainer::Impl {
         const auto area = static_cast<std::size_t>(frame.area_px());
         torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
         std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
-        correct += count_correct(torch::log_softmax(agent->classifier->forward(x), 1), labels);
+        correct += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
       } else {
         const RolloutBatch batch =
             make_batch(validation, indices, 1, config.world, frame,
                        worlds::derive_seed(worlds::derive_seed(config.seed, kValidationStream), first));
-        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false), {1, false, 0});
+        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
     }

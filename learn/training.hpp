@@ -35,6 +35,7 @@ struct TrainConfig {
   double learning_rate = 1e-3;                         ///< Adam's step size
   bool leave_one_out = false;                          ///< leave-one-out baseline (beyond the paper)
   double entropy_bonus = 0;                            ///< beta of the entropy bonus (beyond the paper)
+  agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic (weights stay fp32)
   std::array<bool, 3> frozen = {false, false, false};  ///< per Layer: not updated in modes (i)-(iii)
   std::uint64_t seed = 1;                              ///< initialisation, data order, starts and sampling
   int train_limit = 0;                                 ///< train on the first K training digits only (0: all)

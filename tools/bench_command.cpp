@@ -1,4 +1,5 @@
 // scout bench sim: agent-steps per second of the simulation (physics + camera), and of each alone.
+// scout bench train: training images per second in each mode, and where a step's time goes.
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -8,10 +9,13 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 
 #include "learn/rollout.hpp"
+#include "learn/training_bench.hpp"
 #include "render/camera.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
@@ -31,6 +35,27 @@ struct BenchOptions {
   int robots = 240;
   int repeats = 21;
 };
+
+struct TrainBenchOptions {
+  std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
+  std::string data_root;
+  std::string json_out;
+  NetworkOptions net;
+  std::string modes = "i,ii,iii";
+  int batch = 60, rollouts = 4;
+  bool baseline = false;
+  int batches = 5, warmup = 1, threads = 0;
+};
+
+// Find out now, not after minutes of timing, whether the report can be written.
+void check_writable(const std::string& json_out) {
+  if (json_out.empty()) return;
+  const fs::path probe = worlds::temporary_path_beside(json_out);
+  const bool writable = static_cast<bool>(std::ofstream(probe));
+  std::error_code ec;
+  fs::remove(probe, ec);
+  if (!writable) throw InputError("--json: cannot write " + json_out);
+}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -53,14 +78,7 @@ std::vector<double> time_repeats(int repeats, F&& body) {
 void bench_sim(const BenchOptions& opt, const Context& context) {
   if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
   if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
-  if (!opt.json_out.empty()) {
-    // Find out now, not after minutes of timing, whether the report can be written.
-    const fs::path probe = opt.json_out + ".tmp";
-    const bool writable = static_cast<bool>(std::ofstream(probe));
-    std::error_code ec;
-    fs::remove(probe, ec);
-    if (!writable) throw InputError("--json: cannot write " + opt.json_out);
-  }
+  check_writable(opt.json_out);
   const worlds::World world = worlds::load_world(opt.world);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
@@ -189,6 +207,110 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   }
 }
 
+std::vector<learn::Stage> parse_modes(const std::string& text) {
+  std::vector<learn::Stage> modes;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    const learn::Stage stage = part == "i"     ? learn::Stage::ModeI
+                               : part == "ii"  ? learn::Stage::ModeII
+                               : part == "iii" ? learn::Stage::ModeIII
+                                               : learn::Stage::Pretrain;
+    if (stage == learn::Stage::Pretrain || std::find(modes.begin(), modes.end(), stage) != modes.end())
+      throw InputError("expected a comma-separated list of distinct modes i, ii, iii; got '" + one_line(text) + "'");
+    modes.push_back(stage);
+  }
+  if (modes.empty()) throw InputError("expected a comma-separated list of modes i, ii, iii; got nothing");
+  return modes;
+}
+
+void bench_train(const TrainBenchOptions& opt, const Context& context) {
+  check_writable(opt.json_out);
+  learn::TrainBenchConfig config;
+  config.modes = parse_modes(opt.modes);
+  learn::TrainConfig& c = config.train;
+  c.world = worlds::load_world(opt.world);
+  if (c.world.floor.dataset.empty())
+    throw InputError(opt.world + ": floor.dataset: the training bench needs a data set (a PNG floor has no labels)");
+  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
+  c.data_folder = worlds::dataset_folder(c.world.floor.dataset, data_root);
+  c.network = opt.net.network();
+  c.precision = opt.net.arithmetic();
+  c.batch_images = opt.batch;
+  c.rollouts = opt.rollouts;
+  c.leave_one_out = opt.baseline;
+  c.seed = c.world.seed;
+  config.batches = opt.batches;
+  config.warmup = opt.warmup;
+  config.threads = opt.threads;
+
+  const learn::TrainBenchReport report = learn::bench_training(config, [] { return interrupt_requested(); });
+  throw_if_interrupted();
+  const agent::NetworkConfig& n = c.network;
+  fmt::print(
+      "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {} LibTorch threads, "
+      "median of {} batches after {} warm-up\n",
+      opt.world, c.world.task.episodes, c.world.task.steps, c.world.camera.patch_px, c.rollouts, c.batch_images,
+      report.robots, agent::to_string(c.precision), report.threads, opt.batches, opt.warmup);
+  fmt::print("  widths: planners {} x {} (width x depth), classifier {} {} x {}\n", n.planner_width, n.planner_depth,
+             agent::to_string(n.classifier), n.classifier_width, n.classifier_depth);
+  fmt::print("  {:<5} {:>9} {:>9}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12}\n", "mode", "images/s", "s/step",
+             "physics", "render", "state", "forward", "backward", "adam", "chi=1/batch");
+  for (const learn::ModeBench& m : report.modes) {
+    const double total = m.sum.total_s;
+    auto share = [total](double part) { return fmt::format("{:.1f}%", total > 0 ? 100 * part / total : 0.0); };
+    fmt::print("  {:<5} {:>9.1f} {:>9.3f}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12.0f}\n", learn::to_string(m.mode),
+               m.images_per_s, m.median_step_s, share(m.sum.physics_s), share(m.sum.render_s), share(m.sum.state_s),
+               share(m.sum.forward_s), share(m.sum.backward_s), share(m.sum.optimizer_s), m.action_decisions);
+  }
+  // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
+  constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
+  const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3;
+  for (const learn::ModeBench& m : report.modes) {
+    if (!preset || m.mode != learn::Stage::ModeIII) continue;
+    fmt::print("  targets: mode iii >= {:.0f} images/s: {}; simulation (physics + render) < {:.0f}% of a step: {} "
+               "({:.2f}%)\n",
+               kTargetModeIII, m.images_per_s >= kTargetModeIII ? "met" : "NOT met", 100 * kMaxSimulationShare,
+               m.simulation_share() < kMaxSimulationShare ? "met" : "NOT met", 100 * m.simulation_share());
+  }
+
+  if (!opt.json_out.empty()) {
+    nlohmann::ordered_json j;
+    j["robots"] = report.robots;
+    j["rollouts"] = c.rollouts;
+    j["batch_images"] = c.batch_images;
+    j["threads"] = report.threads;
+    j["precision"] = agent::to_string(c.precision);
+    j["batches"] = opt.batches;
+    j["warmup"] = opt.warmup;
+    j["network"] = {{"planner_width", n.planner_width},
+                    {"planner_depth", n.planner_depth},
+                    {"classifier", agent::to_string(n.classifier)},
+                    {"classifier_width", n.classifier_width},
+                    {"classifier_depth", n.classifier_depth}};
+    nlohmann::ordered_json modes = nlohmann::ordered_json::array();
+    for (const learn::ModeBench& m : report.modes) {
+      const double total = m.sum.total_s;
+      auto share = [total](double part) { return total > 0 ? part / total : 0.0; };
+      modes.push_back({{"mode", learn::to_string(m.mode)},
+                       {"images_per_s", m.images_per_s},
+                       {"median_step_s", m.median_step_s},
+                       {"share", {{"physics", share(m.sum.physics_s)},
+                                  {"render", share(m.sum.render_s)},
+                                  {"state", share(m.sum.state_s)},
+                                  {"forward", share(m.sum.forward_s)},
+                                  {"backward", share(m.sum.backward_s)},
+                                  {"optimizer", share(m.sum.optimizer_s)}}},
+                       {"simulation_share", m.simulation_share()},
+                       {"action_decisions_per_batch", m.action_decisions}});
+    }
+    j["modes"] = modes;
+    const worlds::LabeledImages train = worlds::load_split(c.data_folder, worlds::Split::Train);
+    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(c.world), train.files, "");
+    write_file_atomic(opt.json_out, j.dump(2) + "\n");
+  }
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app, const Context& context) {
@@ -210,6 +332,38 @@ void add_bench_command(CLI::App& app, const Context& context) {
   sim_cmd->callback([opt, &context] {
     install_interrupt_handler();
     bench_sim(*opt, context);
+  });
+
+  auto topt = std::make_shared<TrainBenchOptions>();
+  auto* train_cmd = bench->add_subcommand(
+      "train",
+      "Training images/s in each mode with the physics and the camera in the loop (the paper preset: N = 4, B = 60), "
+      "and the share of a step spent in physics, rendering, state building, forward, backward and Adam.");
+  train_cmd->add_option("--world", topt->world, "World file")->capture_default_str();
+  train_cmd->add_option("--data", topt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  add_network_options(*train_cmd, topt->net);
+  train_cmd->add_option("--modes", topt->modes, "Modes to time: a comma-separated list of i, ii, iii")
+      ->capture_default_str();
+  train_cmd->add_option("--batch", topt->batch, "B: images per mini-batch")
+      ->capture_default_str()
+      ->check(decimal_in(1, 4096));
+  train_cmd->add_option("--rollouts", topt->rollouts, "N: rollouts per image")
+      ->capture_default_str()
+      ->check(decimal_in(1, 64));
+  train_cmd->add_flag("--baseline", topt->baseline, "Leave-one-out baseline");
+  train_cmd->add_option("--batches", topt->batches, "Timed batches per mode")
+      ->capture_default_str()
+      ->check(decimal_in(1, 10000));
+  train_cmd->add_option("--warmup", topt->warmup, "Untimed batches per mode first")
+      ->capture_default_str()
+      ->check(decimal_in(0, 1000));
+  train_cmd->add_option("--threads", topt->threads, "LibTorch threads (0: one per core)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 256));
+  train_cmd->add_option("--json", topt->json_out, "Also write the figures to this JSON file");
+  train_cmd->callback([topt, &context] {
+    install_interrupt_handler();
+    bench_train(*topt, context);
   });
 }
 

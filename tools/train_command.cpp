@@ -14,6 +14,7 @@
 
 #include "learn/training.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/error.hpp"
@@ -33,9 +34,7 @@ struct TrainOptions {
   std::string seed;
   std::string epochs = "2,2,2";
   int pretrain_epochs = 0;
-  int planner_width = 16, planner_depth = 3;
-  std::string classifier = "paper";
-  int classifier_width = 16, classifier_depth = 3;
+  NetworkOptions net;
   double lr = 1e-3;
   int batch = 60, rollouts = 4;
   bool baseline = false;
@@ -144,20 +143,21 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
   };
   auto given = [&](const char* name) { return cmd.get_option(name)->count() > 0; };
   if (given("--planner-width"))
-    refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.planner_width));
+    refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.net.planner_width));
   if (given("--planner-depth"))
-    refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.planner_depth));
-  if (given("--classifier")) refuse("--classifier", agent::to_string(c.network.classifier), o.classifier);
+    refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.net.planner_depth));
+  if (given("--classifier")) refuse("--classifier", agent::to_string(c.network.classifier), o.net.classifier);
   if (given("--classifier-width"))
-    refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.classifier_width));
+    refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.net.classifier_width));
   if (given("--classifier-depth"))
-    refuse("--classifier-depth", std::to_string(c.network.classifier_depth), std::to_string(o.classifier_depth));
+    refuse("--classifier-depth", std::to_string(c.network.classifier_depth), std::to_string(o.net.classifier_depth));
   if (given("--lr")) refuse("--lr", fmt::format("{}", c.learning_rate), fmt::format("{}", o.lr));
   if (given("--batch")) refuse("--batch", std::to_string(c.batch_images), std::to_string(o.batch));
   if (given("--rollouts")) refuse("--rollouts", std::to_string(c.rollouts), std::to_string(o.rollouts));
   if (given("--baseline")) refuse("--baseline", c.leave_one_out ? "on" : "off", o.baseline ? "on" : "off");
   if (given("--entropy-bonus"))
     refuse("--entropy-bonus", fmt::format("{}", c.entropy_bonus), fmt::format("{}", o.entropy_bonus));
+  if (given("--precision")) refuse("--precision", agent::to_string(c.precision), o.net.precision);
   if (given("--pretrain-epochs"))
     refuse("--pretrain-epochs", std::to_string(c.pretrain_epochs), std::to_string(o.pretrain_epochs));
   if (given("--seed")) refuse("--seed", std::to_string(c.seed), o.seed);
@@ -256,11 +256,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
       throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
     const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
     config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
-    config.network.planner_width = o.planner_width;
-    config.network.planner_depth = o.planner_depth;
-    config.network.classifier = agent::parse_classifier_kind(o.classifier);  // checked by the option
-    config.network.classifier_width = o.classifier_width;
-    config.network.classifier_depth = o.classifier_depth;
+    config.network = o.net.network();
     config.pretrain_epochs = o.pretrain_epochs;
     config.epochs = epochs;
     config.rollouts = o.rollouts;
@@ -268,6 +264,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     config.learning_rate = o.lr;
     config.leave_one_out = o.baseline;
     config.entropy_bonus = o.entropy_bonus;
+    config.precision = o.net.arithmetic();
     config.frozen = parse_freeze(o.freeze);
     config.train_limit = o.train_limit;
     config.validation_limit = o.validation_limit;
@@ -294,10 +291,10 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   }
   write_manifest(run, context, *trainer, resuming);
   const learn::TrainConfig& c = trainer->config();
-  fmt::print("training {} -> {} ({} LibTorch threads; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
-             c.world.file.string(), run.string(), trainer->threads(), c.network.planner_width, c.network.planner_depth,
-             agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth, c.rollouts,
-             c.batch_images, c.learning_rate);
+  fmt::print("training {} -> {} ({} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
+             c.world.file.string(), run.string(), trainer->threads(), agent::to_string(c.precision),
+             c.network.planner_width, c.network.planner_depth, agent::to_string(c.network.classifier),
+             c.network.classifier_width, c.network.classifier_depth, c.rollouts, c.batch_images, c.learning_rate);
   if (resuming) {
     const learn::ScheduleCursor& k = trainer->cursor();
     fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
@@ -354,30 +351,7 @@ void add_train_command(CLI::App& app, const Context& context) {
       ->check(decimal_in(0, 100000));
   cmd->add_option("--seed", o->seed, "Seed (overrides the world file's): init, data order, starts, sampling")
       ->check(seed_validator());
-  cmd->add_option("--planner-width", o->planner_width, "Channels each planner block adds (d)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxWidth));
-  cmd->add_option("--planner-depth", o->planner_depth, "Planner blocks (r)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxPlannerDepth));
-  cmd->add_option("--classifier", o->classifier, "Classifier: paper | strided | resnet18")
-      ->capture_default_str()
-      ->check(CLI::Validator(
-          [](std::string& text) -> std::string {
-            try {
-              agent::parse_classifier_kind(text);
-              return {};
-            } catch (const std::invalid_argument&) {
-              return "expected one of paper, strided, resnet18, got '" + one_line(text) + "'";
-            }
-          },
-          "KIND"));
-  cmd->add_option("--classifier-width", o->classifier_width, "Classifier's first block width (doubles each block)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxWidth));
-  cmd->add_option("--classifier-depth", o->classifier_depth, "Classifier blocks")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxClassifierDepth));
+  add_network_options(*cmd, o->net);
   cmd->add_option("--lr", o->lr, "Adam's learning rate")->capture_default_str();
   cmd->add_option("--batch", o->batch, "B: images per mini-batch")->capture_default_str()->check(decimal_in(1, 4096));
   cmd->add_option("--rollouts", o->rollouts, "N: rollouts per image")->capture_default_str()->check(decimal_in(1, 64));

@@ -1,0 +1,34 @@
+#include "learn/precision.hpp"
+
+#include <ATen/autocast_mode.h>
+
+namespace scout::learn {
+
+ComputePrecision::ComputePrecision(agent::Precision precision) {
+  if (precision != agent::Precision::BFloat16) return;
+  active_ = true;
+  was_enabled_ = at::autocast::is_cpu_enabled();
+  previous_dtype_ = at::autocast::get_autocast_cpu_dtype();
+  at::autocast::set_cpu_enabled(true);
+  at::autocast::set_autocast_cpu_dtype(at::kBFloat16);
+  at::autocast::increment_nesting();
+}
+
+ComputePrecision::~ComputePrecision() {
+  if (!active_) return;
+  if (at::autocast::decrement_nesting() == 0) at::autocast::clear_cache();
+  at::autocast::set_cpu_enabled(was_enabled_);
+  at::autocast::set_autocast_cpu_dtype(previous_dtype_);
+}
+
+torch::Tensor network_input(const torch::Tensor& x, agent::Precision precision) {
+  if (precision != agent::Precision::BFloat16) return x;
+  return x.to(torch::kBFloat16, /*non_blocking=*/false, /*copy=*/false, torch::MemoryFormat::ChannelsLast);
+}
+
+torch::Tensor classifier_log_probs(agent::AgentImpl& agent, const torch::Tensor& images, agent::Precision precision) {
+  const ComputePrecision guard(precision);
+  return torch::log_softmax(agent.classifier->forward(network_input(images, precision)).to(torch::kFloat), 1);
+}
+
+}  // namespace scout::learn

@@ -1,0 +1,116 @@
+#include "learn/training_bench.hpp"
+
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "learn/agent_policy.hpp"
+#include "learn/objective.hpp"
+#include "worlds/error.hpp"
+#include "worlds/random.hpp"
+
+namespace scout::learn {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace
+
+TrainBenchReport bench_training(const TrainBenchConfig& config, const std::function<bool()>& stop) {
+  const TrainConfig& c = config.train;
+  c.validate();
+  if (config.batches < 1) throw InputError("--batches: expected a positive integer");
+  if (config.warmup < 0) throw InputError("--warmup: expected a non-negative integer");
+  for (Stage s : config.modes)
+    if (s == Stage::Pretrain) throw InputError("--modes: expected i, ii or iii (full-image pretraining has no rollouts)");
+
+  TrainBenchReport report;
+  report.threads = set_torch_threads(config.threads);
+  const worlds::LabeledImages train = worlds::load_split(c.data_folder, worlds::Split::Train);
+  if (train.images.count == 0) throw InputError(c.data_folder.string() + ": no training images");
+  worlds::check_against_floor(c.world, train.images.cols, train.images.rows);
+  const sim::FloorFrame frame{train.images.cols, train.images.rows, c.world.floor.pixel_size_m};
+  agent::NetworkConfig network = c.network;
+  network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
+  const int robots = c.batch_images * c.rollouts;
+  report.robots = robots;
+  RolloutEngine engine(c.world, frame, robots);
+  const EstimatorOptions estimator{c.rollouts, c.leave_one_out, c.entropy_bonus};
+
+  for (Stage mode : config.modes) {
+    // Fresh weights per mode, so that the figures do not depend on which modes ran before.
+    torch::manual_seed(c.seed);
+    agent::Agent agent(network);
+    agent->train();
+    torch::optim::Adam optimizer(agent->parameters(), torch::optim::AdamOptions(c.learning_rate));
+    AgentPolicy policy(*agent, frame, c.world.camera.patch_px, robots);
+    const Sampling sampling = sampling_for(mode, /*with_grad=*/true, c.precision);
+
+    ModeBench bench;
+    bench.mode = mode;
+    std::vector<double> steps;
+    worlds::Rng order(worlds::derive_seed(c.seed, static_cast<std::uint64_t>(mode)));
+    for (int b = 0; b < config.warmup + config.batches; ++b) {
+      if (stop && stop()) return report;
+      std::vector<int> indices(c.batch_images);
+      for (int& i : indices)
+        i = static_cast<int>(worlds::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
+      const RolloutBatch batch = make_batch(train, indices, c.rollouts, c.world, frame, worlds::derive_seed(c.seed, b));
+      engine.reset_timing();
+      policy.reset_timing();
+      StepTimes t;
+      const auto t0 = Clock::now();
+      for (torch::Tensor& p : agent->parameters()) p.mutable_grad() = torch::Tensor();
+      const auto t_run = Clock::now();
+      const BatchOutcome out = run_batch(*agent, engine, policy, batch, sampling, estimator);
+      const double run_s = seconds_since(t_run);
+      torch::Tensor loss = -out.objective;
+      auto t1 = Clock::now();
+      loss.backward();
+      t.backward_s = seconds_since(t1);
+      t1 = Clock::now();
+      optimizer.step();
+      t.optimizer_s = seconds_since(t1);
+      t.total_s = seconds_since(t0);
+
+      const RolloutTiming& rt = engine.timing();
+      const PolicyTiming& pt = policy.timing();
+      const double engine_s = rt.physics_s + rt.render_s + rt.other_s;
+      t.physics_s = rt.physics_s;
+      t.render_s = rt.render_s;
+      // The engine's own bookkeeping (writing patches into y and h, the action protocol) counts
+      // as state building; its "other" time also holds the policy's calls, split out here.
+      t.state_s = pt.state_s + std::max(0.0, rt.other_s - pt.state_s - pt.forward_s);
+      // Classifier, J-hat and everything in run_batch outside the rollout.
+      t.forward_s = pt.forward_s + std::max(0.0, run_s - engine_s);
+      if (b < config.warmup) continue;
+      steps.push_back(t.total_s);
+      bench.sum.physics_s += t.physics_s;
+      bench.sum.render_s += t.render_s;
+      bench.sum.state_s += t.state_s;
+      bench.sum.forward_s += t.forward_s;
+      bench.sum.backward_s += t.backward_s;
+      bench.sum.optimizer_s += t.optimizer_s;
+      bench.sum.total_s += t.total_s;
+      bench.action_decisions += static_cast<double>(policy.action_decisions());
+      ++bench.batches;
+    }
+    bench.median_step_s = median(steps);
+    bench.images_per_s = c.batch_images / bench.median_step_s;
+    bench.action_decisions /= bench.batches;
+    report.modes.push_back(bench);
+  }
+  return report;
+}
+
+}  // namespace scout::learn
