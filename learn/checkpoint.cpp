@@ -201,4 +201,10 @@ agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
   return agent;
 }
 
+void export_model(const fs::path& checkpoint, const fs::path& model_file) {
+  CheckpointState state;
+  agent::Agent agent = load_agent(resolve_checkpoint(checkpoint), &state);
+  save_checkpoint(model_file, *agent, nullptr, state);
+}
+
 }  // namespace scout::learn

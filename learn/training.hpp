@@ -142,6 +142,11 @@ CheckpointInfo read_checkpoint_info(const std::filesystem::path& file);
 /// The checkpoint file a path names: RUN/checkpoint.pt for a run folder, else the path itself.
 std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
 
+/// Writes a model file (what `scout run --checkpoint` and `scout eval` read): the checkpoint's
+/// weights, config and metrics history, without the optimizer's state. Atomic; throws InputError
+/// naming the checkpoint for anything that is not a Scout checkpoint.
+void export_model(const std::filesystem::path& checkpoint, const std::filesystem::path& model_file);
+
 /// The checkpoint format this build writes and reads.
 inline constexpr int kCheckpointFormat = 1;
 

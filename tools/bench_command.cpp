@@ -343,7 +343,17 @@ void add_bench_command(CLI::App& app, const Context& context) {
   train_cmd->add_option("--data", topt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
   add_network_options(*train_cmd, topt->net);
   train_cmd->add_option("--modes", topt->modes, "Modes to time: a comma-separated list of i, ii, iii")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            try {
+              parse_modes(text);
+              return {};
+            } catch (const InputError& e) {
+              return e.what();
+            }
+          },
+          "MODES"));
   train_cmd->add_option("--batch", topt->batch, "B: images per mini-batch")
       ->capture_default_str()
       ->check(decimal_in(1, 4096));

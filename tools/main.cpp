@@ -119,6 +119,7 @@ int main(int argc, char** argv) {
   scout::tools::add_bench_command(app, context);
   scout::tools::add_train_command(app, context);
   scout::tools::add_eval_command(app, context);
+  scout::tools::add_export_command(app, context);
   scout::tools::install_interrupt_handler();
   if (const std::string unknown = check_command_words(app, argc, argv); !unknown.empty()) {
     std::fprintf(stderr, "%s\n", unknown.c_str());

@@ -360,7 +360,8 @@ TEST_F(Cli, HelpVersionAndUsageErrors) {
   const Result version = scout("--version");
   EXPECT_EQ(version.status, 0);
   EXPECT_EQ(version.output.rfind("scout ", 0), 0u) << version.output;
-  for (const char* cmd : {"--help", "run --help", "data --help", "bench --help", "bench sim --help"}) {
+  for (const char* cmd : {"--help", "run --help", "data --help", "bench --help", "bench sim --help", "bench train --help",
+                          "train --help", "eval --help", "export --help"}) {
     const Result help = scout(cmd);
     EXPECT_EQ(help.status, 0) << cmd;
     EXPECT_NE(help.output.find("Usage"), std::string::npos) << cmd;
@@ -372,7 +373,7 @@ TEST_F(Cli, HelpVersionAndUsageErrors) {
   const Result unknown = scout("bench frobnicate");
   EXPECT_EQ(unknown.status, 2);
   EXPECT_EQ(unknown.output,
-            "scout: usage error: unknown command 'frobnicate' (commands: sim; see scout bench --help)\n");
+            "scout: usage error: unknown command 'frobnicate' (commands: sim, train; see scout bench --help)\n");
   const Result zero = scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0");
   EXPECT_EQ(zero.status, 2);
   EXPECT_EQ(zero.output.rfind("scout: usage error: --count", 0), 0u) << zero.output;

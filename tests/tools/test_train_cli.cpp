@@ -141,7 +141,7 @@ void expect_one_line_error(const Result& r, const std::vector<std::string>& name
 TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   const Result r = run("train " + world() + " --out " + path("run") + " --epochs 1,1,1 --seed 7" + kTiny);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  EXPECT_NE(r.out.find("(1 LibTorch threads;"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(1 LibTorch threads, bf16;"), std::string::npos) << r.out;
   for (const char* mode : {"mode i   epoch   1:", "mode ii  epoch   1:", "mode iii epoch   1:"})
     EXPECT_NE(r.out.find(mode), std::string::npos) << mode << " in " << r.out;
   EXPECT_TRUE(fs::is_regular_file(path("run") + "/checkpoint.pt"));
@@ -275,6 +275,7 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   const std::string other = (temp_->path() / "other.yaml").string();
   expect_one_line_error(run("train " + other + " --resume " + copy), {other});
   expect_one_line_error(run("train --resume " + copy + " --out " + path("elsewhere")), {"--out"});
+  expect_one_line_error(run("train --resume " + copy + " --precision fp32"), {"--precision", "bf16", "fp32"});
   EXPECT_EQ(read_text(copy + "/checkpoint.pt"), checkpoint);
   EXPECT_FALSE(fs::exists(path("elsewhere")));
   // The same world and the same options are accepted (and there is nothing left to train).
@@ -310,6 +311,8 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --classifier foo"), {"--classifier", "foo"},
                         2);
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --freeze foo"), {"--freeze", "foo"}, 2);
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --precision fp16"),
+                        {"--precision", "fp16"}, 2);
   EXPECT_FALSE(fs::exists(path("o")));
 }
 
@@ -327,6 +330,75 @@ TEST_F(TrainCli, ResumeRefusesDataThatChanged) {
   expect_one_line_error(run("train --resume " + path("run") + " --epochs 3,0,0"),
                         {"train-images-idx3-ubyte", "SHA-256"});
   EXPECT_EQ(read_text(path("run") + "/checkpoint.pt"), before);
+}
+
+// scout export: a model file (no optimizer state) that eval reads exactly as it reads the run.
+TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
+  const std::string model = path("model.pt");
+  const Result r = run("export " + base() + " --out " + model);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find(model), std::string::npos) << r.out;
+  const auto run_size = fs::file_size(base() + "/checkpoint.pt"), model_size = fs::file_size(model);
+  EXPECT_LT(model_size, run_size);  // Adam's two moments per weight are gone
+  // The same figures from the model as from the run (same weights, history and config).
+  const std::string data = (temp_->path() / "data").string();
+  const std::string inputs =
+      " --images " + data + "/train-images-idx3-ubyte --labels " + data + "/train-labels-idx1-ubyte --runs 2";
+  ASSERT_EQ(run("eval --checkpoint " + base() + inputs + " --json " + path("a.json")).status, 0);
+  ASSERT_EQ(run("eval --checkpoint " + model + inputs + " --json " + path("b.json")).status, 0);
+  json a = json::parse(read_text(path("a.json"))), b = json::parse(read_text(path("b.json")));
+  for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "precision"})
+    EXPECT_EQ(a[key], b[key]) << key;
+  EXPECT_EQ(a["precision"], "bf16");
+
+  // Refusals: an existing file (unless --overwrite), a missing folder, something not a checkpoint.
+  const std::string before = read_text(model);
+  expect_one_line_error(run("export " + base() + " --out " + model), {"--out", model, "--overwrite"});
+  EXPECT_EQ(read_text(model), before);
+  EXPECT_EQ(run("export " + base() + " --out " + model + " --overwrite").status, 0);
+  expect_one_line_error(run("export " + base() + " --out " + path("no/such/m.pt")), {"--out", "no/such"});
+  std::ofstream(path("junk.pt")) << "not a checkpoint";
+  expect_one_line_error(run("export " + path("junk.pt") + " --out " + path("m2.pt")), {path("junk.pt")});
+  EXPECT_FALSE(fs::exists(path("m2.pt")));
+}
+
+// scout bench train: every mode asked for, with its images/s and the shares of a step.
+TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
+  const std::string report = path("bench.json");
+  const Result r = run("bench train --world " + world() +
+                       " --modes i,iii --batch 4 --rollouts 2 --batches 2 --warmup 0 --threads 1 --planner-width 4 "
+                       "--planner-depth 1 --classifier strided --classifier-width 8 --classifier-depth 2 --json " +
+                       report);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("planners 4 x 1"), std::string::npos) << r.out;
+  const json j = json::parse(read_text(report));
+  EXPECT_EQ(j["robots"], 8);
+  EXPECT_EQ(j["precision"], "bf16");
+  EXPECT_EQ(j["network"]["classifier"], "strided");
+  EXPECT_EQ(j["network"]["classifier_width"], 8);
+  ASSERT_EQ(j["modes"].size(), 2u);
+  EXPECT_EQ(j["modes"][0]["mode"], "i");
+  EXPECT_EQ(j["modes"][1]["mode"], "iii");
+  for (const json& m : j["modes"]) {
+    EXPECT_GT(m["images_per_s"].get<double>(), 0) << m;
+    double parts = 0;
+    for (const char* part : {"physics", "render", "state", "forward", "backward", "optimizer"}) {
+      const double share = m["share"][part].get<double>();
+      EXPECT_GE(share, 0) << part;
+      parts += share;
+    }
+    // The parts are disjoint pieces of the step and cover nearly all of it.
+    EXPECT_LE(parts, 1.0 + 1e-9) << m;
+    EXPECT_GT(parts, 0.8) << m;
+    EXPECT_GT(m["share"]["physics"].get<double>(), 0) << m;
+    EXPECT_GT(m["share"]["backward"].get<double>(), 0) << m;
+  }
+  // Mode (i) never consults the action planner; mode (iii) does, where the protocol chooses.
+  EXPECT_EQ(j["modes"][0]["action_decisions_per_batch"].get<double>(), 0);
+  EXPECT_GT(j["modes"][1]["action_decisions_per_batch"].get<double>(), 0);
+
+  expect_one_line_error(run("bench train --world " + world() + " --modes i,iv"), {"--modes", "iv"}, 2);
+  expect_one_line_error(run("bench train --world " + world() + " --modes ii,ii"), {"--modes"}, 2);
 }
 
 }  // namespace

@@ -1,0 +1,54 @@
+// scout export: a model file from a training run (weights, config and metrics history, without
+// the optimizer's state), small enough to commit, e.g. models/mnist.pt.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "learn/training.hpp"
+#include "tools/commands.hpp"
+#include "worlds/error.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ExportOptions {
+  std::string checkpoint, out;
+  bool overwrite = false;
+};
+
+void export_command(const ExportOptions& o) {
+  const fs::path source = learn::resolve_checkpoint(o.checkpoint);
+  std::error_code ec;
+  if (fs::exists(o.out, ec)) {
+    if (!o.overwrite) throw InputError("--out: " + o.out + " exists (add --overwrite to replace it)");
+    if (fs::is_directory(o.out, ec)) throw InputError("--out: " + o.out + " is a folder, expected a file name");
+    if (fs::equivalent(o.out, source, ec)) throw InputError("--out: " + o.out + " is the checkpoint itself");
+  }
+  const fs::path parent = fs::path(o.out).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent, ec))
+    throw InputError("--out: " + o.out + ": the folder " + parent.string() + " does not exist");
+  learn::export_model(source, o.out);
+  const learn::CheckpointInfo info = learn::read_checkpoint_info(o.out);
+  fmt::print("model: {} ({} bytes; {} epoch(s) of training, from {})\n", o.out, fs::file_size(o.out),
+             info.history.size(), source.string());
+}
+
+}  // namespace
+
+void add_export_command(CLI::App& app, const Context& /*context*/) {
+  auto o = std::make_shared<ExportOptions>();
+  auto* cmd = app.add_subcommand(
+      "export", "Writes a model file from a training run: weights, config and metrics history, no optimizer state.");
+  cmd->add_option("CHECKPOINT", o->checkpoint, "A run folder or checkpoint file")->required();
+  cmd->add_option("--out", o->out, "The model file to write, e.g. models/mnist.pt")->required();
+  cmd->add_flag("--overwrite", o->overwrite, "Replace an existing model file");
+  cmd->callback([o] { export_command(*o); });
+}
+
+}  // namespace scout::tools
