@@ -34,11 +34,13 @@ json history_json(const std::vector<EpochMetrics>& history) {
                     {"train_accuracy", m.train_accuracy},
                     {"validation_accuracy", m.validation_accuracy},
                     {"images_per_s", m.images_per_s},
-                    {"seconds", m.seconds}});
+                    {"seconds", m.seconds},
+                    {"learning_rate", m.learning_rate}});
   return rows;
 }
 
-std::vector<EpochMetrics> history_from(const json& rows) {
+// `learning_rate`: the run's configured rate, for rows written before epochs recorded their own.
+std::vector<EpochMetrics> history_from(const json& rows, double learning_rate) {
   std::vector<EpochMetrics> history;
   for (const json& r : rows) {
     EpochMetrics m;
@@ -52,6 +54,7 @@ std::vector<EpochMetrics> history_from(const json& rows) {
     m.validation_accuracy = r.at("validation_accuracy").get<double>();
     m.images_per_s = r.at("images_per_s").get<double>();
     m.seconds = r.at("seconds").get<double>();
+    m.learning_rate = r.contains("learning_rate") ? r.at("learning_rate").get<double>() : learning_rate;
     history.push_back(m);
   }
   return history;
@@ -148,7 +151,7 @@ CheckpointState read_checkpoint_state(const fs::path& file) {
     state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
                      q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
                      q.at("batches").get<long>()};
-    state.history = history_from(p.at("history"));
+    state.history = history_from(p.at("history"), state.config.learning_rate);
   } catch (const std::exception& e) {
     throw InputError(name + ": progress: unreadable (" + one_line(e.what()) + ")");
   }

@@ -80,12 +80,12 @@ int set_torch_threads(int threads) {
 }
 
 std::string metrics_csv_header() {
-  return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds\n";
+  return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate\n";
 }
 
 std::string metrics_csv_row(const EpochMetrics& m) {
-  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f}\n", to_string(m.stage), m.epoch, m.reward, m.loss,
-                     m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds);
+  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{}\n", to_string(m.stage), m.epoch, m.reward,
+                     m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds, m.learning_rate);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -349,6 +349,7 @@ struct Trainer::Impl {
       m.validation_accuracy = validation_accuracy();
       // Wall time: this process's part of the epoch, plus the training time before a resume.
       m.seconds = seconds_before + seconds_since(epoch_start);
+      m.learning_rate = config.learning_rate;
       history.push_back(m);
       sums = {};
       cursor.epoch += 1;
@@ -372,17 +373,21 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : imp
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs,
-                                         const fs::path* data_folder) {
+                                         const fs::path* data_folder, const double* learning_rate) {
   const fs::path file = run_dir / kCheckpointName;
   auto impl = std::make_unique<Impl>();
   CheckpointState state = read_checkpoint_state(file);
   if (epochs) state.config.epochs = *epochs;
   if (data_folder) state.config.data_folder = fs::absolute(*data_folder);
+  if (learning_rate) state.config.learning_rate = *learning_rate;
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;
   impl->setup(threads, /*new_run=*/false);
   load_checkpoint_weights(file, *impl->agent, impl->optimizer.get());
+  // Adam's stored state carries the rate it ran with; the config's (possibly new) rate wins.
+  for (torch::optim::OptimizerParamGroup& group : impl->optimizer->param_groups())
+    static_cast<torch::optim::AdamOptions&>(group.options()).lr(impl->config.learning_rate);
   impl->cursor = state.cursor;
   impl->history = state.history;
   // A saved cursor has already skipped the stages with no epochs left; under a longer schedule,

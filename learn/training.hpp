@@ -58,6 +58,7 @@ struct EpochMetrics {
   double validation_accuracy = 0;  ///< one stochastic pass over the validation digits, this stage's policy
   double images_per_s = 0;         ///< training images per second (validation excluded)
   double seconds = 0;              ///< wall time of the epoch, validation included
+  double learning_rate = 0;        ///< Adam's step size in this epoch (may be lowered on --resume)
 };
 /// metrics.csv's header line and one row.
 std::string metrics_csv_header();
@@ -101,9 +102,12 @@ class Trainer {
   /// precedes one already trained cannot grow (METHOD.md: a learned layer never returns to i.i.d.). Throws
   /// InputError for a bad or foreign checkpoint.
   /// `data_folder` (nullptr: keep) replaces the stored data folder: the same data, moved.
+  /// `learning_rate` (nullptr: keep) sets Adam's step size from the next batch on (fine-tuning
+  /// at a lower rate); metrics.csv records each epoch's rate, so nothing of the history is lost.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
                                          const std::array<int, 3>* epochs = nullptr,
-                                         const std::filesystem::path* data_folder = nullptr);
+                                         const std::filesystem::path* data_folder = nullptr,
+                                         const double* learning_rate = nullptr);
   ~Trainer();
   Trainer(const Trainer&) = delete;
   Trainer& operator=(const Trainer&) = delete;

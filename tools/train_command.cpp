@@ -151,7 +151,6 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
     refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.net.classifier_width));
   if (given("--classifier-depth"))
     refuse("--classifier-depth", std::to_string(c.network.classifier_depth), std::to_string(o.net.classifier_depth));
-  if (given("--lr")) refuse("--lr", fmt::format("{}", c.learning_rate), fmt::format("{}", o.lr));
   if (given("--batch")) refuse("--batch", std::to_string(c.batch_images), std::to_string(o.batch));
   if (given("--rollouts")) refuse("--rollouts", std::to_string(c.rollouts), std::to_string(o.rollouts));
   if (given("--baseline")) refuse("--baseline", c.leave_one_out ? "on" : "off", o.baseline ? "on" : "off");
@@ -246,7 +245,12 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     const learn::CheckpointInfo info = learn::read_checkpoint_info(run / "checkpoint.pt");
     check_resume_options(cmd, o, info.config, o.resume);
     const fs::path data_folder = resume_data_folder(o, info.config, run);
-    trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr, &data_folder);
+    // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
+    const bool lr_given = cmd.get_option("--lr")->count() > 0;
+    trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr, &data_folder,
+                                     lr_given ? &o.lr : nullptr);
+    if (lr_given && o.lr != info.config.learning_rate)
+      fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
   } else {
     learn::TrainConfig config;
     config.world = worlds::load_world(o.world);

@@ -318,6 +318,40 @@ TEST_F(Resume, AddingModeIIIsTheUninterruptedRun) {
   expect_same_checkpoints("a", "b");
 }
 
+// --resume with a learning rate: the same rate as stored changes nothing (bit for bit); a tenth
+// of it moves the weights by far less than the stored rate does (Adam's step scales with it),
+// and each epoch's row records the rate it ran with.
+TEST_F(Resume, ALearningRateGivenOnResumeTakesEffectFromThereOn) {
+  for (const char* name : {"same", "lower", "kept"}) ASSERT_EQ(train(name, {1, 0, 0}).size(), 1u);
+  const agent::Agent start = load_agent(temp_.path() / "same" / kCheckpointName);
+  const std::array<int, 3> more = {2, 0, 0};
+  const double stored = config(more).learning_rate, lower = stored / 10;
+  auto resume = [&](const char* name, const double* lr) {
+    std::unique_ptr<Trainer> t = Trainer::resume(temp_.path() / name, kThreads, &more, nullptr, lr);
+    EXPECT_EQ(t->run({}).outcome, TrainOutcome::Finished);
+    return t->history();
+  };
+  const std::vector<EpochMetrics> same = resume("same", &stored);
+  const std::vector<EpochMetrics> low = resume("lower", &lower);
+  const std::vector<EpochMetrics> kept = resume("kept", nullptr);
+  expect_same_checkpoints("same", "kept");
+  ASSERT_EQ(low.size(), 2u);
+  EXPECT_EQ(low[0].learning_rate, stored);
+  EXPECT_EQ(low[1].learning_rate, lower);
+  EXPECT_EQ(read_checkpoint_info(temp_.path() / "lower" / kCheckpointName).config.learning_rate, lower);
+
+  auto distance = [&](const char* name) {
+    const agent::Agent a = load_agent(temp_.path() / name / kCheckpointName);
+    double sum = 0;
+    const auto pa = a->named_parameters(), ps = start->named_parameters();
+    for (const auto& item : pa) sum += (item.value() - ps[item.key()]).pow(2).sum().item<double>();
+    return std::sqrt(sum);
+  };
+  const double moved_stored = distance("kept"), moved_lower = distance("lower");
+  EXPECT_GT(moved_lower, 0);
+  EXPECT_LT(moved_lower, 0.3 * moved_stored) << moved_lower << " vs " << moved_stored;
+}
+
 // A frozen classifier is the pretrained one, bit for bit, after modes (i) and (ii): Adam must not
 // move it on momentum it gathered while pretraining; a stage with every layer frozen trains nothing
 // and does not fail.

@@ -149,22 +149,23 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
 
   const std::vector<std::string> rows = lines_of(read_text(path("run") + "/metrics.csv"));
   ASSERT_EQ(rows.size(), 4u);
-  EXPECT_EQ(rows[0], "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds");
+  EXPECT_EQ(rows[0], "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate");
   const char* modes[] = {"i", "ii", "iii"};
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(rows[k + 1].rfind(std::string(modes[k]) + ",1,", 0), 0u) << rows[k + 1];
-    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 7) << rows[k + 1];
+    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 8) << rows[k + 1];
     // Accuracies are fractions.
     std::vector<double> fields;
     std::istringstream in(rows[k + 1].substr(rows[k + 1].find(',', rows[k + 1].find(',') + 1) + 1));
     for (std::string f; std::getline(in, f, ',');) fields.push_back(std::stod(f));
-    ASSERT_EQ(fields.size(), 6u);
+    ASSERT_EQ(fields.size(), 7u);
     EXPECT_LE(fields[0], 0.0);  // reward = log pi_c[label]
     for (int a : {2, 3}) {
       EXPECT_GE(fields[a], 0.0);
       EXPECT_LE(fields[a], 1.0);
     }
-    EXPECT_GT(fields[4], 0.0);  // images per second
+    EXPECT_GT(fields[4], 0.0);      // images per second
+    EXPECT_EQ(fields[6], 0.003);    // the epoch's learning rate (--lr)
   }
 
   std::ifstream in(path("run") + "/manifest.json");
@@ -281,6 +282,14 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   // The same world and the same options are accepted (and there is nothing left to train).
   const Result same = run("train " + world() + " --resume " + copy + " --planner-width 4");
   EXPECT_EQ(same.status, 0) << same.out << same.err;
+  // The learning rate is the one option a resumed run may change (fine-tuning at a lower rate).
+  const Result lower = run("train --resume " + copy + " --epochs 2,0,0 --lr 0.001");
+  ASSERT_EQ(lower.status, 0) << lower.out << lower.err;
+  EXPECT_NE(lower.out.find("learning rate 0.003 -> 0.001"), std::string::npos) << lower.out;
+  const std::vector<std::string> rows = lines_of(read_text(copy + "/metrics.csv"));
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[1].substr(rows[1].rfind(',')), ",0.003");
+  EXPECT_EQ(rows[2].substr(rows[2].rfind(',')), ",0.001");
 }
 
 // --epochs on --resume may extend a finished run's schedule (learn/training.hpp): the run
