@@ -210,10 +210,12 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
     try {
       std::ifstream in(file);
       json first = json::parse(in);
-      first["resumed"].push_back({{"command", manifest["command"]},
+      first["resumed"].push_back({{"command_line", manifest["command_line"]},
                                   {"git_commit", manifest["git_commit"]},
                                   {"created_utc", manifest["created_utc"]},
-                                  {"torch_threads", trainer.threads()}});
+                                  {"torch_threads", trainer.threads()},
+                                  {"epochs", trainer.config().epochs},
+                                  {"learning_rate", trainer.config().learning_rate}});
       write_file_atomic(file, first.dump(2) + "\n");
       return;
     } catch (const std::exception&) {

@@ -303,6 +303,15 @@ TEST_F(TrainCli, ResumeExtendsAFinishedSchedule) {
   EXPECT_EQ(rows[1], lines_of(read_text(base() + "/metrics.csv"))[1]);
   EXPECT_EQ(rows[2].rfind("i,2,", 0), 0u) << rows[2];
   EXPECT_EQ(rows[3].rfind("ii,1,", 0), 0u) << rows[3];
+  // The manifest keeps the first command line and records the resumption's.
+  std::ifstream in(copy + "/manifest.json");
+  const json m = json::parse(in);
+  EXPECT_EQ(m["command_line"][1], "train");
+  ASSERT_EQ(m["resumed"].size(), 1u) << m.dump(2);
+  const json& resumed = m["resumed"][0];
+  EXPECT_EQ(resumed["command_line"][2], "--resume") << resumed.dump();
+  EXPECT_EQ(resumed["epochs"], json::array({2, 1, 0}));
+  EXPECT_EQ(resumed["learning_rate"], 0.003);
 }
 
 TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
