@@ -37,6 +37,12 @@ void export_command(const ExportOptions& o) {
   const learn::CheckpointInfo info = learn::read_checkpoint_info(o.out);
   fmt::print("model: {} ({} bytes; {} epoch(s) of training, from {})\n", o.out, fs::file_size(o.out),
              info.history.size(), source.string());
+  const learn::TrainConfig& c = info.config;
+  const agent::NetworkConfig& n = c.network;
+  fmt::print("task: m = {}, E = {}, T = {}, step {} px; N = {}, B = {}; planners {}x{}, classifier {} {}x{}, {}\n",
+             c.world.camera.patch_px, c.world.task.episodes, c.world.task.steps, c.world.task.step_px, c.rollouts,
+             c.batch_images, n.planner_width, n.planner_depth, agent::to_string(n.classifier), n.classifier_width,
+             n.classifier_depth, agent::to_string(c.precision));
 }
 
 }  // namespace

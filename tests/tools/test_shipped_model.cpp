@@ -45,6 +45,8 @@ TEST_F(ShippedModel, IsASmallModelFileOfThePaperPreset) {
   const auto r = scout("export " + kModel.string() + " --out " + path("again.pt"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("epoch(s) of training"), std::string::npos) << r.output;
+  // The observation budget that makes the result comparable with the paper's.
+  EXPECT_NE(r.output.find("task: m = 6, E = 4, T = 5, step 2 px; N = 4, B = 60;"), std::string::npos) << r.output;
 }
 
 TEST_F(ShippedModel, DrivesTheDefaultWorldAndClassifiesTheTestDigits) {
