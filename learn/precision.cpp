@@ -4,19 +4,18 @@
 
 namespace scout::learn {
 
-ComputePrecision::ComputePrecision(agent::Precision precision) {
-  if (precision != agent::Precision::BFloat16) return;
-  active_ = true;
+ComputePrecision::ComputePrecision(agent::Precision precision) : bf16_(precision == agent::Precision::BFloat16) {
   was_enabled_ = at::autocast::is_cpu_enabled();
   previous_dtype_ = at::autocast::get_autocast_cpu_dtype();
-  at::autocast::set_cpu_enabled(true);
+  // Float32 switches autocast off, so that an fp32 guard inside a bf16 one really runs fp32.
+  at::autocast::set_cpu_enabled(bf16_);
+  if (!bf16_) return;
   at::autocast::set_autocast_cpu_dtype(at::kBFloat16);
   at::autocast::increment_nesting();
 }
 
 ComputePrecision::~ComputePrecision() {
-  if (!active_) return;
-  if (at::autocast::decrement_nesting() == 0) at::autocast::clear_cache();
+  if (bf16_ && at::autocast::decrement_nesting() == 0) at::autocast::clear_cache();
   at::autocast::set_cpu_enabled(was_enabled_);
   at::autocast::set_autocast_cpu_dtype(previous_dtype_);
 }

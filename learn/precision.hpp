@@ -7,10 +7,13 @@
 
 namespace scout::learn {
 
-/// While alive, LibTorch's CPU autocast runs convolutions and linear layers in bfloat16 (for
-/// Precision::BFloat16; nothing for Float32). Autocast casts each fp32 weight once and caches the
-/// copy; the cache is cleared when the outermost guard ends, because the optimizer changes the
-/// weights between batches. The graph keeps what backward needs, so backward may run afterwards.
+/// While alive, LibTorch's CPU autocast runs convolutions and linear layers in bfloat16
+/// (Precision::BFloat16), or is off (Float32, also inside a bf16 guard). Autocast casts each fp32
+/// weight that requires grad once and caches the copy (frozen weights are cast at every use); the
+/// cache is cleared when the outermost guard ends, because the optimizer changes the weights
+/// between batches. The graph keeps what backward needs, so backward may run afterwards.
+/// Thread-local, like autocast itself. Caution: the cache does not know grad mode, so one guard
+/// must not span both a no-grad and a with-grad forward of the same weights.
 class ComputePrecision {
  public:
   explicit ComputePrecision(agent::Precision precision);
@@ -19,7 +22,7 @@ class ComputePrecision {
   ComputePrecision& operator=(const ComputePrecision&) = delete;
 
  private:
-  bool active_ = false;
+  bool bf16_ = false;
   bool was_enabled_ = false;
   at::ScalarType previous_dtype_ = at::kBFloat16;
 };

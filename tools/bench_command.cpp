@@ -50,9 +50,10 @@ struct TrainBenchOptions {
 // Find out now, not after minutes of timing, whether the report can be written.
 void check_writable(const std::string& json_out) {
   if (json_out.empty()) return;
+  std::error_code ec;
+  if (fs::is_directory(json_out, ec)) throw InputError("--json: " + json_out + " is a folder, expected a file name");
   const fs::path probe = worlds::temporary_path_beside(json_out);
   const bool writable = static_cast<bool>(std::ofstream(probe));
-  std::error_code ec;
   fs::remove(probe, ec);
   if (!writable) throw InputError("--json: cannot write " + json_out);
 }
@@ -209,6 +210,8 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
 
 std::vector<learn::Stage> parse_modes(const std::string& text) {
   std::vector<learn::Stage> modes;
+  if (!text.empty() && text.back() == ',')
+    throw InputError("expected a comma-separated list of distinct modes i, ii, iii; got '" + one_line(text) + "'");
   std::stringstream in(text);
   std::string part;
   while (std::getline(in, part, ',')) {

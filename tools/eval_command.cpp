@@ -30,6 +30,7 @@ struct EvalOptions {
   std::string seed;  // empty: 1
   int runs = 20;
   std::string json_out, predictions_out;
+  std::string precision;  // empty: the checkpoint's
 };
 
 // Refuses an output file that cannot be written or that is one of the inputs, before minutes of
@@ -77,6 +78,7 @@ void print_table(const learn::EvalReport& r) {
     fmt::print("  {:<26}{:.4f}\n", "goals-only baseline", r.goals_only_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
+  fmt::print("  {:<26}{}\n", "precision", agent::to_string(r.precision));
   fmt::print("  {:<26}{}\n", "runs", r.runs);
   fmt::print("  {:<26}{}\n", "images", r.images);
   fmt::print("  {:<26}{:.1f}\n", "seconds", r.seconds);
@@ -96,6 +98,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
+  if (!opt.precision.empty()) config.precision = agent::parse_precision(opt.precision);  // checked by the option
   learn::EvalReport report;
   try {
     report = learn::evaluate(config, [] { return interrupt_requested(); });
@@ -142,6 +145,8 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--seed", opt->seed,
                   "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
       ->check(seed_validator());
+  cmd->add_option("--precision", opt->precision, "Networks' arithmetic: bf16 | fp32 (default: the checkpoint's)")
+      ->check(CLI::IsMember({"bf16", "fp32"}));
   cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");

@@ -26,8 +26,8 @@ void export_command(const ExportOptions& o) {
   const fs::path source = learn::resolve_checkpoint(o.checkpoint);
   std::error_code ec;
   if (fs::exists(o.out, ec)) {
-    if (!o.overwrite) throw InputError("--out: " + o.out + " exists (add --overwrite to replace it)");
     if (fs::is_directory(o.out, ec)) throw InputError("--out: " + o.out + " is a folder, expected a file name");
+    if (!o.overwrite) throw InputError("--out: " + o.out + " exists (add --overwrite to replace it)");
     if (fs::equivalent(o.out, source, ec)) throw InputError("--out: " + o.out + " is the checkpoint itself");
   }
   const fs::path parent = fs::path(o.out).parent_path();

@@ -251,7 +251,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     const bool lr_given = cmd.get_option("--lr")->count() > 0;
     trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr, &data_folder,
                                      lr_given ? &o.lr : nullptr);
-    if (lr_given && o.lr != info.config.learning_rate)
+    if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
       fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
   } else {
     learn::TrainConfig config;

@@ -1,6 +1,7 @@
 // Mixed precision (agent::Precision, learn/precision.hpp): bf16 runs the same networks as fp32
 // to within bf16's rounding, accumulates the same gradients, the normalisations accept bf16
 // activations without changing fp32 results, and the choice is stored with a run's config.
+#include <ATen/autocast_mode.h>
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
@@ -221,6 +222,34 @@ TEST_F(Precision, ResNetBatchNormKeepsBatchNorm2dSemantics) {
     EXPECT_TRUE(torch::isfinite(log_p).all().item<bool>());
   }
   EXPECT_EQ(buffers["bn1.num_batches_tracked"].item<std::int64_t>(), 2);
+}
+
+// The guard switches autocast on for bf16 and off for fp32 (also nested inside a bf16 guard),
+// restores what was there when it ends, and leaves fp32 results bit for bit as they were.
+TEST_F(Precision, TheGuardNestsAndRestoresAutocast) {
+  agent::NetworkConfig config;
+  config.classifier = agent::ClassifierKind::Strided;
+  torch::manual_seed(9);
+  agent::Agent agent(config);
+  agent->eval();
+  torch::NoGradGuard no_grad;
+  const torch::Tensor y = torch::rand({4, 1, kSide, kSide}) - 0.5;
+  const torch::Tensor before = classifier_log_probs(*agent, y, agent::Precision::Float32);
+  ASSERT_FALSE(at::autocast::is_cpu_enabled());
+  {
+    const ComputePrecision outer(agent::Precision::BFloat16);
+    EXPECT_TRUE(at::autocast::is_cpu_enabled());
+    EXPECT_EQ(at::autocast::get_autocast_cpu_dtype(), at::kBFloat16);
+    {
+      const ComputePrecision inner(agent::Precision::Float32);
+      EXPECT_FALSE(at::autocast::is_cpu_enabled());
+      EXPECT_TRUE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::Float32), before));
+    }
+    EXPECT_TRUE(at::autocast::is_cpu_enabled());
+    EXPECT_FALSE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::BFloat16), before));
+  }
+  EXPECT_FALSE(at::autocast::is_cpu_enabled());
+  EXPECT_TRUE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::Float32), before));
 }
 
 TEST_F(Precision, NamesRoundTripAndUnknownNamesAreRefused) {

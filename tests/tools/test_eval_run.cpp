@@ -162,6 +162,22 @@ TEST_F(EvalRun, EvalPrintsATableAndWritesTheReportAndPredictions) {
   EXPECT_EQ(again["baselines"], j["baselines"]);
 }
 
+// eval runs in the precision the checkpoint was trained in (bf16, the CLI's default) unless
+// --precision says otherwise; the report names it.
+TEST_F(EvalRun, EvalUsesTheCheckpointsPrecisionUnlessTold) {
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --json " + path("bf16.json")).status, 0);
+  ASSERT_EQ(
+      scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --precision fp32 --json " + path("fp32.json"))
+          .status,
+      0);
+  EXPECT_EQ(read_json(path("bf16.json"))["precision"], "bf16");
+  EXPECT_EQ(read_json(path("fp32.json"))["precision"], "fp32");
+  const Result bad = scout("eval --checkpoint " + checkpoint() + test_data() + " --precision fp16");
+  EXPECT_EQ(bad.status, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--precision"), std::string::npos) << bad.output;
+  EXPECT_EQ(bad.output.find('\n'), bad.output.size() - 1) << bad.output;
+}
+
 TEST_F(EvalRun, EvalRefusesBadInputWithOneLine) {
   const std::string text = temp_->write("notes.txt", "not a checkpoint\n").string();
   Result r = scout("eval --checkpoint " + text + test_data() + " --json " + path("r.json"));

@@ -4,6 +4,7 @@
 // baseline (a change to the networks, the state encoding or the camera that breaks it fails here).
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>

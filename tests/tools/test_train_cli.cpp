@@ -417,6 +417,11 @@ TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
 
   expect_one_line_error(run("bench train --world " + world() + " --modes i,iv"), {"--modes", "iv"}, 2);
   expect_one_line_error(run("bench train --world " + world() + " --modes ii,ii"), {"--modes"}, 2);
+  expect_one_line_error(run("bench train --world " + world() + " --modes i,"), {"--modes"}, 2);
+  // A report that cannot be written is refused before any timing.
+  expect_one_line_error(run("bench train --world " + world() + " --json " + path("no/such/b.json")), {"--json"});
+  fs::create_directories(path("folder"));
+  expect_one_line_error(run("bench train --world " + world() + " --json " + path("folder")), {"--json", "folder"});
 }
 
 }  // namespace
