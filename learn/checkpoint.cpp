@@ -204,10 +204,11 @@ agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
   return agent;
 }
 
-void export_model(const fs::path& checkpoint, const fs::path& model_file) {
+CheckpointInfo export_model(const fs::path& checkpoint, const fs::path& model_file) {
   CheckpointState state;
   agent::Agent agent = load_agent(resolve_checkpoint(checkpoint), &state);
   save_checkpoint(model_file, *agent, nullptr, state);
+  return {kCheckpointFormat, std::move(state.config), state.cursor, std::move(state.history)};
 }
 
 }  // namespace scout::learn

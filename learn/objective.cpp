@@ -1,6 +1,8 @@
 #include "learn/objective.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 #include "learn/precision.hpp"
@@ -56,6 +58,26 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   torch::Tensor objective = surrogate_objective(learned ? policy.log_pi() : torch::Tensor(), reward, estimator,
                                                 learned ? policy.entropy() : torch::Tensor());
   return {objective, log_probs.detach(), reward.detach()};
+}
+
+void clear_gradients(torch::nn::Module& module) {
+  for (torch::Tensor& p : module.parameters()) p.mutable_grad() = torch::Tensor();
+}
+
+bool descend(const torch::Tensor& loss, torch::optim::Optimizer& optimizer, double& value, DescentSeconds* seconds) {
+  using Clock = std::chrono::steady_clock;
+  value = loss.item<double>();
+  if (!std::isfinite(value)) return false;
+  if (!loss.requires_grad()) return true;
+  auto t0 = Clock::now();
+  loss.backward();
+  auto t1 = Clock::now();
+  optimizer.step();
+  if (seconds) {
+    seconds->backward_s = std::chrono::duration<double>(t1 - t0).count();
+    seconds->optimizer_s = std::chrono::duration<double>(Clock::now() - t1).count();
+  }
+  return true;
 }
 
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision) {

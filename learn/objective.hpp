@@ -41,6 +41,23 @@ struct BatchOutcome {
 BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
                        const Sampling& sampling, const EstimatorOptions& estimator);
 
+/// Clears every gradient of `module`: undefined, not zero. Adam skips a parameter without a
+/// gradient but would keep moving one with a zero gradient on its momentum (a frozen layer, or an
+/// action planner that no robot consulted in this batch).
+void clear_gradients(torch::nn::Module& module);
+
+/// Seconds in the two halves of an optimisation step (scout bench train).
+struct DescentSeconds {
+  double backward_s = 0;
+  double optimizer_s = 0;
+};
+
+/// The end of a training step: `value` gets the loss; when it is finite, backward and one
+/// optimizer step follow (nothing to do when no layer is trainable: the loss has no graph).
+/// Returns false, having changed nothing, for a NaN or infinite loss.
+bool descend(const torch::Tensor& loss, torch::optim::Optimizer& optimizer, double& value,
+             DescentSeconds* seconds = nullptr);
+
 /// The sampling of a training stage (ModeI..ModeIII): which layers choose, in `precision`.
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision);
 

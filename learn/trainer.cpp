@@ -196,10 +196,7 @@ struct Trainer::Impl {
     if (s != Stage::Pretrain)
       for (int l = 0; l < 3; ++l)
         if (config.frozen[l]) layer(*agent, static_cast<Layer>(l)).eval();
-    // Gradients are cleared, not zeroed: Adam skips a parameter without a gradient but would keep
-    // moving one with a zero gradient on its momentum (a frozen layer, or an action planner that
-    // no robot consulted in this batch).
-    for (torch::Tensor& p : agent->parameters()) p.mutable_grad() = torch::Tensor();
+    clear_gradients(*agent);
     torch::Tensor loss;
     if (s == Stage::Pretrain) {
       std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * indices.size());
@@ -227,14 +224,8 @@ struct Trainer::Impl {
       sums.correct += count_correct(out.log_probs, batch.labels);
       sums.robots += batch.count;
     }
-    loss_out = loss.item<double>();
-    if (!std::isfinite(loss_out)) return false;
-    // A stage whose layers are all frozen has nothing to step.
-    if (loss.requires_grad()) {
-      loss.backward();
-      optimizer->step();
-    }
-    return true;
+    // A stage whose layers are all frozen has nothing to step (descend() sees no graph).
+    return descend(loss, *optimizer, loss_out);
   }
 
   double validation_accuracy() {

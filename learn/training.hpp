@@ -148,8 +148,8 @@ std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
 
 /// Writes a model file (what `scout run --checkpoint` and `scout eval` read): the checkpoint's
 /// weights, config and metrics history, without the optimizer's state. Atomic; throws InputError
-/// naming the checkpoint for anything that is not a Scout checkpoint.
-void export_model(const std::filesystem::path& checkpoint, const std::filesystem::path& model_file);
+/// naming the checkpoint for anything that is not a Scout checkpoint. Returns what the model holds.
+CheckpointInfo export_model(const std::filesystem::path& checkpoint, const std::filesystem::path& model_file);
 
 /// The checkpoint format this build writes and reads.
 inline constexpr int kCheckpointFormat = 1;

@@ -44,6 +44,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
   network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
   const int robots = c.batch_images * c.rollouts;
   report.robots = robots;
+  report.data_files = train.files;
   RolloutEngine engine(c.world, frame, robots);
   const EstimatorOptions estimator{c.rollouts, c.leave_one_out, c.entropy_bonus};
 
@@ -70,17 +71,16 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
       policy.reset_timing();
       StepTimes t;
       const auto t0 = Clock::now();
-      for (torch::Tensor& p : agent->parameters()) p.mutable_grad() = torch::Tensor();
+      clear_gradients(*agent);
       const auto t_run = Clock::now();
       const BatchOutcome out = run_batch(*agent, engine, policy, batch, sampling, estimator);
       const double run_s = seconds_since(t_run);
-      torch::Tensor loss = -out.objective;
-      auto t1 = Clock::now();
-      loss.backward();
-      t.backward_s = seconds_since(t1);
-      t1 = Clock::now();
-      optimizer.step();
-      t.optimizer_s = seconds_since(t1);
+      double loss = 0;
+      DescentSeconds descent;
+      if (!descend(-out.objective, optimizer, loss, &descent))
+        throw std::runtime_error("bench train: the loss is not finite in mode " + std::string(to_string(mode)));
+      t.backward_s = descent.backward_s;
+      t.optimizer_s = descent.optimizer_s;
       t.total_s = seconds_since(t0);
 
       const RolloutTiming& rt = engine.timing();

@@ -2,6 +2,7 @@
 /// The training step's speed (scout bench train): images per second of full training steps in
 /// each mode, with the physics and the camera in the loop, and where the time goes. Torch-free:
 /// the CLI includes this header.
+#include <filesystem>
 #include <functional>
 #include <vector>
 
@@ -46,6 +47,7 @@ struct TrainBenchReport {
   std::vector<ModeBench> modes;
   int threads = 0;
   int robots = 0;  ///< B x N per batch
+  std::vector<std::filesystem::path> data_files;  ///< the IDX files read (for manifests)
 };
 
 /// Times training steps exactly as Trainer runs them (fresh weights from the config's seed, Adam,

@@ -47,17 +47,6 @@ struct TrainBenchOptions {
   int batches = 5, warmup = 1, threads = 0;
 };
 
-// Find out now, not after minutes of timing, whether the report can be written.
-void check_writable(const std::string& json_out) {
-  if (json_out.empty()) return;
-  std::error_code ec;
-  if (fs::is_directory(json_out, ec)) throw InputError("--json: " + json_out + " is a folder, expected a file name");
-  const fs::path probe = worlds::temporary_path_beside(json_out);
-  const bool writable = static_cast<bool>(std::ofstream(probe));
-  fs::remove(probe, ec);
-  if (!writable) throw InputError("--json: cannot write " + json_out);
-}
-
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
@@ -79,7 +68,7 @@ std::vector<double> time_repeats(int repeats, F&& body) {
 void bench_sim(const BenchOptions& opt, const Context& context) {
   if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
   if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
-  check_writable(opt.json_out);
+  check_output_file("--json", opt.json_out);
   const worlds::World world = worlds::load_world(opt.world);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
@@ -228,7 +217,7 @@ std::vector<learn::Stage> parse_modes(const std::string& text) {
 }
 
 void bench_train(const TrainBenchOptions& opt, const Context& context) {
-  check_writable(opt.json_out);
+  check_output_file("--json", opt.json_out);
   learn::TrainBenchConfig config;
   config.modes = parse_modes(opt.modes);
   learn::TrainConfig& c = config.train;
@@ -308,8 +297,7 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
                        {"action_decisions_per_batch", m.action_decisions}});
     }
     j["modes"] = modes;
-    const worlds::LabeledImages train = worlds::load_split(c.data_folder, worlds::Split::Train);
-    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(c.world), train.files, "");
+    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(c.world), report.data_files, "");
     write_file_atomic(opt.json_out, j.dump(2) + "\n");
   }
 }
@@ -347,16 +335,7 @@ void add_bench_command(CLI::App& app, const Context& context) {
   add_network_options(*train_cmd, topt->net);
   train_cmd->add_option("--modes", topt->modes, "Modes to time: a comma-separated list of i, ii, iii")
       ->capture_default_str()
-      ->check(CLI::Validator(
-          [](std::string& text) -> std::string {
-            try {
-              parse_modes(text);
-              return {};
-            } catch (const InputError& e) {
-              return e.what();
-            }
-          },
-          "MODES"));
+      ->check(parsed_by(parse_modes, "MODES"));
   train_cmd->add_option("--batch", topt->batch, "B: images per mini-batch")
       ->capture_default_str()
       ->check(decimal_in(1, 4096));

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "learn/rollout.hpp"
+#include "worlds/error.hpp"
 
 namespace CLI {
 class App;
@@ -41,6 +42,21 @@ CLI::Validator seed_validator();
 /// CLI11 check for an integer option: plain decimal digits (CLI11 itself would read 010 as
 /// octal and 0x2 as hexadecimal) in [lo, hi].
 CLI::Validator decimal_in(long long lo, long long hi);
+/// CLI11 check from a parser that throws InputError, so that a malformed value is a usage error
+/// (exit 2) with the parser's message.
+template <typename Parse>
+CLI::Validator parsed_by(Parse parse, const std::string& name) {
+  return CLI::Validator(
+      [parse](std::string& text) -> std::string {
+        try {
+          parse(text);
+          return {};
+        } catch (const InputError& e) {
+          return e.what();
+        }
+      },
+      name);
+}
 
 /// The rollout engine for a world, with a camera failure (no OSMesa context: an environment
 /// problem, not a bug) reported as an error of exit status 1.

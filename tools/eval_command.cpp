@@ -33,23 +33,6 @@ struct EvalOptions {
   std::string precision;  // empty: the checkpoint's
 };
 
-// Refuses an output file that cannot be written or that is one of the inputs, before minutes of
-// rollouts are spent.
-void check_output(const char* option, const std::string& file, const std::vector<std::string>& inputs) {
-  if (file.empty()) return;
-  for (const std::string& input : inputs) {
-    std::error_code ec;
-    if (!input.empty() && fs::equivalent(file, input, ec))
-      throw InputError(fmt::format("{}: {}: expected a file other than the inputs", option, file));
-  }
-  // A name of our own beside the file, so that no file of the user's is touched.
-  const fs::path probe = fs::path(file).parent_path() / fmt::format(".scout-probe-{}", ::getpid());
-  const bool writable = static_cast<bool>(std::ofstream(probe));
-  std::error_code ec;
-  fs::remove(probe, ec);
-  if (!writable) throw InputError(fmt::format("{}: cannot write {}", option, file));
-}
-
 std::string predictions_csv(const learn::EvalReport& report) {
   const std::size_t classes = report.confusion.size();
   std::string text = "index,label";
@@ -87,8 +70,8 @@ void print_table(const learn::EvalReport& r) {
 
 void eval_command(const EvalOptions& opt, const Context& context) {
   const std::vector<std::string> inputs = {opt.checkpoint, opt.images, opt.labels, opt.world};
-  check_output("--json", opt.json_out, inputs);
-  check_output("--predictions", opt.predictions_out, inputs);
+  check_output_file("--json", opt.json_out, inputs);
+  check_output_file("--predictions", opt.predictions_out, inputs);
   if (!opt.json_out.empty() && !opt.predictions_out.empty() && fs::path(opt.json_out) == fs::path(opt.predictions_out))
     throw InputError("--predictions: expected a file other than --json's");
   learn::EvalConfig config;

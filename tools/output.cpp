@@ -147,4 +147,17 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
   return m;
 }
 
+void check_output_file(const char* option, const std::string& file, const std::vector<std::string>& inputs) {
+  if (file.empty()) return;
+  std::error_code ec;
+  if (fs::is_directory(file, ec)) throw InputError(fmt::format("{}: {} is a folder, expected a file name", option, file));
+  for (const std::string& input : inputs)
+    if (!input.empty() && fs::equivalent(file, input, ec))
+      throw InputError(fmt::format("{}: {}: expected a file other than the inputs", option, file));
+  const fs::path probe = fs::path(file).parent_path() / fmt::format(".scout-probe-{}", ::getpid());
+  const bool writable = static_cast<bool>(std::ofstream(probe));
+  fs::remove(probe, ec);
+  if (!writable) throw InputError(fmt::format("{}: cannot write {}", option, file));
+}
+
 }  // namespace scout::tools

@@ -38,6 +38,11 @@ class OutputDir {
 /// Writes a file atomically: a temporary file beside it, then a rename.
 using worlds::write_file_atomic;
 
+/// Refuses, before minutes of work, an output file (`option`'s value; empty: nothing to check)
+/// that is a folder, one of `inputs`, or in a place that cannot be written. The probe file has a
+/// name of its own, so no file of the user's is touched.
+void check_output_file(const char* option, const std::string& file, const std::vector<std::string>& inputs = {});
+
 /// The manifest every output folder gets: command line, git commit, library versions, the
 /// resolved world (YAML text, may be empty) and the SHA-256 of each data file.
 nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const std::string& world_yaml,

@@ -77,21 +77,6 @@ std::array<bool, 3> parse_freeze(const std::string& text) {
   return frozen;
 }
 
-// A CLI11 check from a parser, so that a malformed value is a usage error (exit 2).
-template <typename Parse>
-CLI::Validator parsed_by(Parse parse, const std::string& name) {
-  return CLI::Validator(
-      [parse](std::string& text) -> std::string {
-        try {
-          parse(text);
-          return {};
-        } catch (const InputError& e) {
-          return e.what();
-        }
-      },
-      name);
-}
-
 std::string duration(double seconds) {
   if (!(seconds >= 0) || seconds > 1e7) return "?";
   const long s = static_cast<long>(seconds + 0.5);
