@@ -7,7 +7,7 @@ namespace scout::agent {
 namespace {
 
 // Sets the window's pixels of one H x W plane to `value`, row by row.
-void fill_window(const sim::Window& w, int width_px, float value, float* plane) {
+void fill_window(const grid::Window& w, int width_px, float value, float* plane) {
   for (int y = w.y0; y < w.y1; ++y) {
     float* row = plane + static_cast<std::size_t>(y) * width_px;
     std::fill(row + w.x0, row + w.x1, value);
@@ -16,13 +16,13 @@ void fill_window(const sim::Window& w, int width_px, float value, float* plane) 
 
 }  // namespace
 
-void write_revealed_image(const sim::FloorFrame& frame, const RobotView& view, float* dst) {
+void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, float* dst) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   // Unseen bytes may be anything (the caller need not clear them), so they must not be read into y.
   for (std::size_t i = 0; i < n; ++i) dst[i] = view.seen[i] != 0 ? pixel_value(view.observed[i]) : 0.0f;
 }
 
-void write_planner_input(const sim::FloorFrame& frame, int patch_px, const RobotView& view, float* dst) {
+void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   float* y = dst;
   float* l = dst + n;
@@ -32,14 +32,14 @@ void write_planner_input(const sim::FloorFrame& frame, int patch_px, const Robot
   write_revealed_image(frame, view, y);
 
   std::fill(l, l + n, 1.0f);
-  fill_window(sim::camera_window(view.pose, patch_px, frame), frame.width_px, 0.0f, l);
+  fill_window(grid::camera_window(view.pose, patch_px, frame), frame.width_px, 0.0f, l);
 
   for (std::size_t i = 0; i < n; ++i) h[i] = view.seen[i] != 0 ? 0.0f : 1.0f;
 
   // The goal's window follows the camera's rule (same offset, same clipping): it is the patch the
   // robot would see standing on the goal.
   std::fill(g, g + n, 1.0f);
-  if (view.goal != nullptr) fill_window(sim::camera_window(*view.goal, patch_px, frame), frame.width_px, 0.0f, g);
+  if (view.goal != nullptr) fill_window(grid::camera_window(*view.goal, patch_px, frame), frame.width_px, 0.0f, g);
 }
 
 }  // namespace scout::agent

@@ -3,7 +3,7 @@
 /// and where it is. Torch-free: callers write straight into a tensor's storage.
 #include <cstdint>
 
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 
 namespace scout::agent {
 
@@ -11,19 +11,19 @@ namespace scout::agent {
 struct RobotView {
   const std::uint8_t* observed = nullptr;  ///< the floor's bytes where seen (anything elsewhere)
   const std::uint8_t* seen = nullptr;      ///< 1 where seen so far, 0 elsewhere
-  sim::Cell pose;                          ///< current grid pose
-  const sim::Cell* goal = nullptr;         ///< goal for g_l; null: no goal yet (g_l all ones)
+  grid::Cell pose;                          ///< current grid pose
+  const grid::Cell* goal = nullptr;         ///< goal for g_l; null: no goal yet (g_l all ones)
 };
 
 /// A floor byte as the networks see it: p / 255 - 0.5 (METHOD.md § Symbols).
 inline float pixel_value(std::uint8_t p) { return static_cast<float>(p) / 255.0f - 0.5f; }
 
 /// y: pixel_value(observed) where seen, 0 elsewhere. Writes H * W floats (c = 1).
-void write_revealed_image(const sim::FloorFrame& frame, const RobotView& view, float* dst);
+void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, float* dst);
 
 /// u = concat(y, l, h, g_l): writes 4 * H * W floats, channel-major.
 /// l: 0 on the camera window at the pose, 1 elsewhere; h: 0 where seen, 1 elsewhere;
 /// g_l: 0 on the m x m window around the goal, 1 elsewhere (all ones without a goal).
-void write_planner_input(const sim::FloorFrame& frame, int patch_px, const RobotView& view, float* dst);
+void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst);
 
 }  // namespace scout::agent

@@ -1,4 +1,4 @@
-#include "learn/agent_policy.hpp"
+#include "learn/internal/agent_policy.hpp"
 
 #include <chrono>
 #include <optional>
@@ -6,21 +6,22 @@
 #include <string>
 
 #include "agent/state.hpp"
-#include "learn/precision.hpp"
+#include "learn/internal/precision.hpp"
+#include "core/timing.hpp"
 
 namespace scout::learn {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using core::Clock;
+using core::seconds_since;
 
 // A uniform double in [0, 1) from the top 53 bits.
-double unit_interval(worlds::Rng& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+double unit_interval(core::Rng& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
 }  // namespace
 
-AgentPolicy::AgentPolicy(agent::AgentImpl& agent, const sim::FloorFrame& frame, int patch_px, int max_robots)
+AgentPolicy::AgentPolicy(agent::AgentImpl& agent, const grid::FloorFrame& frame, int patch_px, int max_robots)
     : agent_(agent), frame_(frame), patch_px_(patch_px), max_robots_(max_robots) {
   if (agent.config().image_channels != 1)
     throw std::invalid_argument("AgentPolicy: floors are single-channel, the agent expects " +
@@ -42,7 +43,7 @@ void AgentPolicy::begin(std::span<const std::uint64_t> seeds, const Sampling& sa
   goal_maps_.assign(sampling.record_goal_maps ? count : 0, {});
 }
 
-int AgentPolicy::sample(worlds::Rng& rng, const float* probabilities, int n) const {
+int AgentPolicy::sample(core::Rng& rng, const float* probabilities, int n) const {
   if (sampling_.greedy) {
     int best = 0;
     for (int k = 1; k < n; ++k)
@@ -62,13 +63,13 @@ int AgentPolicy::sample(worlds::Rng& rng, const float* probabilities, int n) con
   return last;
 }
 
-void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) {
+void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) {
   const int count = static_cast<int>(goals.size());
   if (count != count_) throw std::invalid_argument("AgentPolicy::choose_goals: robot count differs from begin()");
   const int width = frame_.width_px, area = frame_.area_px();
   if (!sampling_.learned_goals) {
     for (int i = 0; i < count; ++i) {
-      const auto pixel = static_cast<int>(worlds::uniform_below(rngs_[i], static_cast<std::uint64_t>(area)));
+      const auto pixel = static_cast<int>(core::uniform_below(rngs_[i], static_cast<std::uint64_t>(area)));
       goals[i] = {pixel % width, pixel / width};
     }
     return;
@@ -106,13 +107,13 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<s
   timing_.forward_s += seconds_since(t0);
 }
 
-void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) {
+void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) {
   const int count = static_cast<int>(need.size());
   if (count != count_ || axes.size() < need.size())
     throw std::invalid_argument("AgentPolicy::choose_axes: robot count differs from begin()");
   if (!sampling_.learned_actions) {
     for (int i = 0; i < count; ++i)
-      if (need[i]) axes[i] = (rngs_[i]() >> 63) ? sim::Axis::Vertical : sim::Axis::Horizontal;
+      if (need[i]) axes[i] = (rngs_[i]() >> 63) ? grid::Axis::Vertical : grid::Axis::Horizontal;
     return;
   }
   std::optional<torch::NoGradGuard> no_grad;
@@ -146,7 +147,7 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   for (int r = 0; r < k; ++r) {
     const auto i = static_cast<std::size_t>(rows_[r]);
     chosen[r] = sample(rngs_[i], probabilities + 2 * r, 2);
-    axes[i] = chosen[r] == 1 ? sim::Axis::Vertical : sim::Axis::Horizontal;
+    axes[i] = chosen[r] == 1 ? grid::Axis::Vertical : grid::Axis::Horizontal;
   }
   action_decisions_ += k;
   torch::Tensor rows = torch::from_blob(rows_.data(), {k}, torch::kLong).clone();
@@ -164,7 +165,7 @@ const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {
 }
 
 torch::Tensor revealed_images(const BatchState& state, int count) {
-  const sim::FloorFrame& frame = state.frame;
+  const grid::FloorFrame& frame = state.frame;
   torch::Tensor y = torch::empty({count, 1, frame.height_px, frame.width_px});
   float* data = y.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
@@ -174,7 +175,7 @@ torch::Tensor revealed_images(const BatchState& state, int count) {
   return y;
 }
 
-torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const sim::FloorFrame& frame) {
+torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const grid::FloorFrame& frame) {
   const auto area = static_cast<std::size_t>(frame.area_px());
   if (floors.size() < area * count) throw std::invalid_argument("full_images: too few floor bytes");
   torch::Tensor x = torch::empty({count, 1, frame.height_px, frame.width_px});

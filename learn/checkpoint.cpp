@@ -1,4 +1,4 @@
-#include "learn/checkpoint.hpp"
+#include "learn/internal/checkpoint.hpp"
 
 #include <ATen/CPUGeneratorImpl.h>
 #include <fmt/format.h>
@@ -7,8 +7,8 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "worlds/error.hpp"
-#include "worlds/files.hpp"
+#include "core/error.hpp"
+#include "core/files.hpp"
 
 namespace scout::learn {
 
@@ -100,7 +100,7 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
   // Sampling uses Scout's own counter-based streams (seed, stage, epoch, batch, robot); LibTorch's
   // generator only initialises weights. Both are kept so that nothing random is lost.
   archive.write("torch_rng_state", at::detail::getDefaultCPUGenerator().get_state());
-  const fs::path tmp = worlds::temporary_path_beside(file);
+  const fs::path tmp = core::temporary_path_beside(file);
   try {
     archive.save_to(tmp.string());
     fs::rename(tmp, file);

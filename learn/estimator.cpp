@@ -1,4 +1,4 @@
-#include "learn/estimator.hpp"
+#include "learn/internal/estimator.hpp"
 
 #include <stdexcept>
 #include <string>

@@ -13,16 +13,16 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
-#include "learn/agent_policy.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/objective.hpp"
-#include "learn/precision.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/internal/objective.hpp"
+#include "learn/internal/precision.hpp"
 #include "learn/trained_agent.hpp"
 #include "worlds/dataset.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
 namespace scout::learn {
 
@@ -82,7 +82,7 @@ double incomplete_beta(double a, double b, double x) {
 
 struct Data {
   worlds::LabeledImages set;
-  sim::FloorFrame frame;
+  grid::FloorFrame frame;
 };
 
 Data read_data(const EvalConfig& config, const worlds::World& world, int classes) {
@@ -144,7 +144,7 @@ class Evaluator {
       RolloutBatch batch;
       for (int image = first; image < first + k; ++image) {
         const RolloutBatch one = make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
-                                            worlds::derive_seed(stream_seed, static_cast<std::uint64_t>(image)));
+                                            core::derive_seed(stream_seed, static_cast<std::uint64_t>(image)));
         batch.floors.insert(batch.floors.end(), one.floors.begin(), one.floors.end());
         batch.labels.push_back(one.labels[0]);
         batch.starts.push_back(one.starts[0]);
@@ -277,7 +277,7 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
   std::vector<long> row_counts(classes, 0);
   for (int label : report.labels) ++row_counts[label];
   for (int k = 0; k < runs; ++k) {
-    const std::uint64_t seed_k = worlds::derive_seed(config.seed, static_cast<std::uint64_t>(k));
+    const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
     const Pass pass = evaluator.run(sampling, seed_k);
     accuracy[k] = static_cast<double>(pass.correct) / n;
     top2[k] = static_cast<double>(pass.top2) / n;
@@ -291,11 +291,11 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
       for (int col = 0; col < classes; ++col)
         if (row_counts[row] > 0)
           report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
-    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, worlds::derive_seed(seed_k, kIidStream)).correct) / n;
+    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, kIidStream)).correct) / n;
     // Without a learned goal layer the baseline would only measure an untrained planner.
     goals_only_accuracy[k] =
         learned.goals
-            ? static_cast<double>(evaluator.run(goals_only, worlds::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n
+            ? static_cast<double>(evaluator.run(goals_only, core::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n
             : std::numeric_limits<double>::quiet_NaN();
   }
   report.accuracy = mean_ci95(accuracy);
@@ -304,7 +304,7 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
   report.goals_only_accuracy = mean_of(goals_only_accuracy);
   report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
   report.greedy_accuracy =
-      static_cast<double>(evaluator.run(greedy, worlds::derive_seed(config.seed, kGreedyStream)).correct) / n;
+      static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, kGreedyStream)).correct) / n;
 
   const torch::Tensor mean_probabilities = (probability_sum / runs).contiguous();
   const double* m = mean_probabilities.data_ptr<double>();

@@ -1,11 +1,11 @@
-#include "learn/objective.hpp"
+#include "learn/internal/objective.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
-#include "learn/precision.hpp"
+#include "learn/internal/precision.hpp"
 
 namespace scout::learn {
 
@@ -16,7 +16,7 @@ constexpr std::uint64_t kPolicyStream = 2;
 }  // namespace
 
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
-                        const worlds::World& world, const sim::FloorFrame& frame, std::uint64_t stream) {
+                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream) {
   if (rollouts <= 0) throw std::invalid_argument("make_batch: rollouts must be positive");
   RolloutBatch batch;
   batch.count = static_cast<int>(indices.size()) * rollouts;
@@ -32,10 +32,10 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       const std::size_t r = i * rollouts + k;
       std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
       batch.labels[r] = data.labels[image];
-      const std::uint64_t robot_seed = worlds::derive_seed(stream, r);
-      worlds::Rng start_rng(worlds::derive_seed(robot_seed, kStartStream));
+      const std::uint64_t robot_seed = core::derive_seed(stream, r);
+      core::Rng start_rng(core::derive_seed(robot_seed, kStartStream));
       batch.starts[r] = draw_start(world, frame, start_rng);
-      batch.seeds[r] = worlds::derive_seed(robot_seed, kPolicyStream);
+      batch.seeds[r] = core::derive_seed(robot_seed, kPolicyStream);
     }
   }
   return batch;

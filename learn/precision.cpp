@@ -1,4 +1,4 @@
-#include "learn/precision.hpp"
+#include "learn/internal/precision.hpp"
 
 #include <ATen/autocast_mode.h>
 

@@ -5,15 +5,16 @@
 #include <string>
 
 #include "render/camera.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
+#include "core/timing.hpp"
 
 namespace scout::learn {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using core::Clock;
+using core::seconds_since;
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 }  // namespace
 
@@ -22,37 +23,37 @@ RandomPolicy::RandomPolicy(std::span<const std::uint64_t> seeds) {
   for (std::uint64_t s : seeds) rngs_.emplace_back(s);
 }
 
-void RandomPolicy::choose_goals(const BatchState& state, int /*episode*/, std::span<sim::Cell> goals) {
+void RandomPolicy::choose_goals(const BatchState& state, int /*episode*/, std::span<grid::Cell> goals) {
   if (goals.size() > rngs_.size()) throw std::invalid_argument("RandomPolicy: more robots than seeds");
   const auto area = static_cast<std::uint64_t>(state.frame.area_px());
   for (std::size_t i = 0; i < goals.size(); ++i) {
-    const auto pixel = static_cast<int>(worlds::uniform_below(rngs_[i], area));
+    const auto pixel = static_cast<int>(core::uniform_below(rngs_[i], area));
     goals[i] = {pixel % state.frame.width_px, pixel / state.frame.width_px};
   }
 }
 
 void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std::uint8_t> need,
-                               std::span<sim::Axis> axes) {
+                               std::span<grid::Axis> axes) {
   if (need.size() > rngs_.size() || axes.size() < need.size())
     throw std::invalid_argument("RandomPolicy: more robots than seeds or axes");
   for (std::size_t i = 0; i < need.size(); ++i)
-    if (need[i]) axes[i] = (rngs_[i]() >> 63) ? sim::Axis::Vertical : sim::Axis::Horizontal;
+    if (need[i]) axes[i] = (rngs_[i]() >> 63) ? grid::Axis::Vertical : grid::Axis::Horizontal;
 }
 
-sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, worlds::Rng& rng) {
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng) {
   if (world.robot.start) return {world.robot.start->first, world.robot.start->second};
-  const auto pixel = static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
+  const auto pixel = static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
   return {pixel % frame.width_px, pixel / frame.width_px};
 }
 
-RolloutEngine::RolloutEngine(const worlds::World& world, const sim::FloorFrame& frame, int max_robots)
+RolloutEngine::RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
     : task_(world.task), max_robots_(max_robots) {
   if (max_robots <= 0) throw std::invalid_argument("RolloutEngine: max_robots must be positive");
   state_.frame = frame;
   state_.patch_px = world.camera.patch_px;
   state_.pose.resize(max_robots);
   state_.goal.resize(max_robots);
-  state_.seen.assign(max_robots, sim::RevealMask(frame));
+  state_.seen.assign(max_robots, grid::RevealMask(frame));
   state_.observed.resize(static_cast<std::size_t>(max_robots) * frame.area_px());
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
   camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, world.camera.patch_px, max_robots);
@@ -79,7 +80,7 @@ void RolloutEngine::observe(int count) {
   const int width = state_.frame.width_px;
   const int half = m / 2;
   for (int i = 0; i < count; ++i) {
-    const sim::Window w = sim::camera_window(state_.pose[i], m, state_.frame);
+    const grid::Window w = grid::camera_window(state_.pose[i], m, state_.frame);
     state_.seen[i].reveal(w);
     std::uint8_t* y = state_.observed.data() + static_cast<std::size_t>(i) * state_.frame.area_px();
     const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
@@ -92,7 +93,7 @@ void RolloutEngine::observe(int count) {
   timing_.other_s += seconds_since(t0);
 }
 
-std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const sim::Cell> starts,
+std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
                                               Policy& policy, bool record) {
   const int count = static_cast<int>(starts.size());
   const std::size_t area = static_cast<std::size_t>(state_.frame.area_px());
@@ -102,7 +103,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
   if (floors.size() != area * count)
     throw std::invalid_argument("RolloutEngine::run: floors hold " + std::to_string(floors.size()) +
                                 " bytes, expected " + std::to_string(area * count));
-  for (const sim::Cell& s : starts)
+  for (const grid::Cell& s : starts)
     if (!state_.frame.contains(s)) throw std::invalid_argument("RolloutEngine::run: a start cell is off the floor");
 
   auto t0 = Clock::now();
@@ -114,10 +115,10 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
     state_.pose[i] = robots_->grid_pose(i);
     state_.seen[i].clear();
   }
-  commands_.assign(count, sim::Cell::Zero());
+  commands_.assign(count, grid::Cell::Zero());
   results_.assign(count, sim::MoveResult{});
   need_.assign(count, 0);
-  axes_.assign(count, sim::Axis::None);
+  axes_.assign(count, grid::Axis::None);
   timing_.other_s += seconds_since(t0);
   observe(count);
 
@@ -152,15 +153,15 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       t0 = Clock::now();
       // The action protocol: forced axes where the goal is in line, the policy elsewhere.
       for (int i = 0; i < count; ++i) {
-        const sim::Decision d = sim::decide(state_.pose[i], state_.goal[i]);
-        need_[i] = d == sim::Decision::Choose;
-        axes_[i] = d == sim::Decision::Vertical     ? sim::Axis::Vertical
-                   : d == sim::Decision::Horizontal ? sim::Axis::Horizontal
-                                                    : sim::Axis::None;
+        const grid::Decision d = grid::decide(state_.pose[i], state_.goal[i]);
+        need_[i] = d == grid::Decision::Choose;
+        axes_[i] = d == grid::Decision::Vertical     ? grid::Axis::Vertical
+                   : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
+                                                    : grid::Axis::None;
       }
       policy.choose_axes(state_, need_, std::span(axes_.data(), count));
       for (int i = 0; i < count; ++i)
-        commands_[i] = sim::move_command(state_.pose[i], state_.goal[i], axes_[i], task_.step_px);
+        commands_[i] = grid::move_command(state_.pose[i], state_.goal[i], axes_[i], task_.step_px);
       timing_.other_s += seconds_since(t0);
 
       t0 = Clock::now();

@@ -10,21 +10,21 @@
 #include <vector>
 
 #include "render/camera.hpp"
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 #include "sim/robots.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
 
 /// What a policy can read: each robot's grid pose, goal and what it has seen (METHOD.md's y and h).
 struct BatchState {
-  sim::FloorFrame frame;
+  grid::FloorFrame frame;
   int patch_px = 0;
   int count = 0;                       ///< robots in this rollout batch
-  std::vector<sim::Cell> pose;         ///< grid pose of the actual position, per robot
-  std::vector<sim::Cell> goal;         ///< current goal per robot
-  std::vector<sim::RevealMask> seen;   ///< pixels seen so far, per robot (h = 1 - seen)
+  std::vector<grid::Cell> pose;         ///< grid pose of the actual position, per robot
+  std::vector<grid::Cell> goal;         ///< current goal per robot
+  std::vector<grid::RevealMask> seen;   ///< pixels seen so far, per robot (h = 1 - seen)
   std::vector<std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
 
   const std::uint8_t* observed_image(int robot) const {
@@ -37,9 +37,9 @@ class Policy {
  public:
   virtual ~Policy() = default;
   /// The goal of `episode` for every robot (cells on the floor).
-  virtual void choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) = 0;
+  virtual void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) = 0;
   /// An axis (Horizontal or Vertical) for every robot i with need[i] != 0; others are ignored.
-  virtual void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) = 0;
+  virtual void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) = 0;
 };
 
 /// Mode (i) of METHOD.md: goals i.i.d. uniform over the floor's pixels, axes i.i.d. 1/2 - 1/2.
@@ -48,41 +48,41 @@ class Policy {
 class RandomPolicy final : public Policy {
  public:
   explicit RandomPolicy(std::span<const std::uint64_t> seeds);
-  void choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) override;
-  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) override;
+  void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override;
+  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override;
 
  private:
-  std::vector<worlds::Rng> rngs_;
+  std::vector<core::Rng> rngs_;
 };
 
 /// One move of one robot, as trajectory.json reports it.
 struct StepRecord {
   int episode = 0;
   int step = 0;
-  sim::Cell goal;
-  sim::Axis axis = sim::Axis::None;  ///< the axis moved along (None: at the goal, no move)
+  grid::Cell goal;
+  grid::Axis axis = grid::Axis::None;  ///< the axis moved along (None: at the goal, no move)
   bool sampled = false;              ///< the axis was chosen by the policy (chi = 1)
-  sim::Cell command;                 ///< commanded move, pixels
+  grid::Cell command;                 ///< commanded move, pixels
   sim::MoveResult result;            ///< ticks, settled, wall contact, peak speed
   Eigen::Vector2d pose_m;            ///< actual centre after the move, metres (floor frame)
-  sim::Cell grid_pose;               ///< grid pose after the move
+  grid::Cell grid_pose;               ///< grid pose after the move
   int revealed_px = 0;               ///< pixels seen so far, cumulative
 };
 
 /// The state shown by one trajectory image.
 struct SnapshotRecord {
   int episode = 0;  ///< episode about to start (E for the final image)
-  sim::Cell robot;
-  std::optional<sim::Cell> goal;
+  grid::Cell robot;
+  std::optional<grid::Cell> goal;
   std::vector<std::uint8_t> seen;  ///< H * W, 1 where seen
   std::size_t path_length = 0;     ///< poses of RolloutRecord::path visited so far
 };
 
 /// Everything one robot did in one rollout.
 struct RolloutRecord {
-  sim::Cell start;
+  grid::Cell start;
   std::vector<StepRecord> steps;          ///< E * T of them, no-op moves included
-  std::vector<sim::Cell> path;            ///< start, then the grid pose after each move
+  std::vector<grid::Cell> path;            ///< start, then the grid pose after each move
   std::vector<SnapshotRecord> snapshots;  ///< at the start of each episode (goal drawn) and at the end
 };
 
@@ -100,14 +100,14 @@ struct RolloutTiming {
 /// (render::PatchCamera). Buffers are allocated once for up to `max_robots`.
 class RolloutEngine {
  public:
-  RolloutEngine(const worlds::World& world, const sim::FloorFrame& frame, int max_robots);
+  RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots);
   ~RolloutEngine();
   RolloutEngine(const RolloutEngine&) = delete;
   RolloutEngine& operator=(const RolloutEngine&) = delete;
 
   /// Runs one rollout per robot: robot i drives over floors[i] (H * W bytes each, concatenated)
   /// from starts[i]. With `record` false only the final state is kept (benchmarks, training).
-  std::vector<RolloutRecord> run(std::span<const std::uint8_t> floors, std::span<const sim::Cell> starts,
+  std::vector<RolloutRecord> run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
                                  Policy& policy, bool record = true);
 
   const BatchState& state() const { return state_; }
@@ -127,15 +127,15 @@ class RolloutEngine {
   std::unique_ptr<sim::RobotBatch> robots_;
   std::unique_ptr<render::PatchCamera> camera_;
   std::vector<std::uint8_t> patches_;  // camera read-back
-  std::vector<sim::Cell> commands_;    // per-move scratch, sized once per batch
+  std::vector<grid::Cell> commands_;    // per-move scratch, sized once per batch
   std::vector<sim::MoveResult> results_;
   std::vector<std::uint8_t> need_;
-  std::vector<sim::Axis> axes_;
+  std::vector<grid::Axis> axes_;
   std::vector<render::PixelPose> pixel_poses_;
   RolloutTiming timing_;
 };
 
 /// The start cell of a rollout: the world file's, or uniform over the floor from `rng`.
-sim::Cell draw_start(const worlds::World& world, const sim::FloorFrame& frame, worlds::Rng& rng);
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng);
 
 }  // namespace scout::learn

@@ -4,7 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "learn/training.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::learn {
 

@@ -6,9 +6,9 @@
 
 #include <stdexcept>
 
-#include "learn/agent_policy.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/precision.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/internal/precision.hpp"
 
 namespace scout::learn {
 
@@ -27,7 +27,7 @@ struct TrainedAgent::Impl {
   LearnedLayers learned;
   std::unique_ptr<AgentPolicy> policy;
   // What the policy was built for: a new frame, patch or a larger batch builds it again.
-  sim::FloorFrame frame{0, 0, 0};
+  grid::FloorFrame frame{0, 0, 0};
   int patch_px = 0;
   int max_robots = 0;
 };
@@ -49,7 +49,7 @@ const TrainConfig& TrainedAgent::config() const { return impl_->state.config; }
 LearnedLayers TrainedAgent::learned() const { return impl_->learned; }
 int TrainedAgent::classes() const { return impl_->state.config.network.classes; }
 
-void TrainedAgent::begin(const sim::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
+void TrainedAgent::begin(const grid::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
                          bool record_goal_maps) {
   Impl& m = *impl_;
   const int count = static_cast<int>(seeds.size());

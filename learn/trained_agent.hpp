@@ -33,7 +33,7 @@ class TrainedAgent {
   LearnedLayers learned() const;
   /// Prepares the policy for a batch on `frame` (floors must have the checkpoint's channels).
   /// Drives with the layers the checkpoint has learned (learned()); `greedy`: argmax.
-  void begin(const sim::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
+  void begin(const grid::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
              bool record_goal_maps);
   Policy& policy();
   /// pi_g of robot i in episode e (H * W), when begin() asked to record goal maps.

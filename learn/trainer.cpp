@@ -10,21 +10,23 @@
 #include <sstream>
 #include <thread>
 
-#include "learn/agent_policy.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/objective.hpp"
-#include "learn/precision.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/internal/objective.hpp"
+#include "learn/internal/precision.hpp"
 #include "learn/training.hpp"
 #include "worlds/dataset.hpp"
-#include "worlds/error.hpp"
-#include "worlds/files.hpp"
-#include "worlds/random.hpp"
+#include "core/error.hpp"
+#include "core/files.hpp"
+#include "core/random.hpp"
+#include "core/timing.hpp"
 
 namespace scout::learn {
 
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
-using Clock = std::chrono::steady_clock;
+using core::Clock;
+using core::seconds_since;
 
 namespace {
 
@@ -36,10 +38,9 @@ constexpr std::uint64_t kBatchStream = 12;       // starts and sampling of (stag
 constexpr std::uint64_t kValidationStream = 13;  // validation passes (the same every epoch)
 
 std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, int stage, int epoch) {
-  return worlds::derive_seed(worlds::derive_seed(worlds::derive_seed(seed, stream), stage), epoch);
+  return core::derive_seed(core::derive_seed(core::derive_seed(seed, stream), stage), epoch);
 }
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 std::array<int, 4> stage_epochs(const TrainConfig& c) {
   return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
@@ -101,7 +102,7 @@ struct Trainer::Impl {
   fs::path run_dir;
   int threads = 1;
   worlds::LabeledImages train, validation;
-  sim::FloorFrame frame;
+  grid::FloorFrame frame;
   agent::Agent agent{nullptr};
   std::unique_ptr<torch::optim::Adam> optimizer;
   std::unique_ptr<RolloutEngine> engine;
@@ -183,8 +184,8 @@ struct Trainer::Impl {
   std::vector<int> epoch_order() const {
     std::vector<int> order(train.images.count);
     for (int i = 0; i < train.images.count; ++i) order[i] = i;
-    worlds::Rng rng(stage_epoch_seed(config.seed, kOrderStream, cursor.stage, cursor.epoch));
-    worlds::shuffle(order, rng);
+    core::Rng rng(stage_epoch_seed(config.seed, kOrderStream, cursor.stage, cursor.epoch));
+    core::shuffle(order, rng);
     return order;
   }
 
@@ -215,7 +216,7 @@ struct Trainer::Impl {
       sums.robots += static_cast<long>(labels.size());
     } else {
       const std::uint64_t stream =
-          worlds::derive_seed(stage_epoch_seed(config.seed, kBatchStream, cursor.stage, cursor.epoch), batch_index);
+          core::derive_seed(stage_epoch_seed(config.seed, kBatchStream, cursor.stage, cursor.epoch), batch_index);
       const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
       EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
@@ -248,7 +249,7 @@ struct Trainer::Impl {
       } else {
         const RolloutBatch batch =
             make_batch(validation, indices, 1, config.world, frame,
-                       worlds::derive_seed(worlds::derive_seed(config.seed, kValidationStream), first));
+                       core::derive_seed(core::derive_seed(config.seed, kValidationStream), first));
         const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
@@ -259,7 +260,7 @@ struct Trainer::Impl {
   void write_metrics() const {
     std::string text = metrics_csv_header();
     for (const EpochMetrics& m : history) text += metrics_csv_row(m);
-    worlds::write_file_atomic(run_dir / "metrics.csv", text);
+    core::write_file_atomic(run_dir / "metrics.csv", text);
   }
 
   void save() {

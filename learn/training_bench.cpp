@@ -6,17 +6,18 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "learn/agent_policy.hpp"
-#include "learn/objective.hpp"
-#include "worlds/error.hpp"
-#include "worlds/random.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/objective.hpp"
+#include "core/error.hpp"
+#include "core/random.hpp"
+#include "core/timing.hpp"
 
 namespace scout::learn {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using core::Clock;
+using core::seconds_since;
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -39,7 +40,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
   const worlds::LabeledImages train = worlds::load_split(c.data_folder, worlds::Split::Train);
   if (train.images.count == 0) throw InputError(c.data_folder.string() + ": no training images");
   worlds::check_against_floor(c.world, train.images.cols, train.images.rows);
-  const sim::FloorFrame frame{train.images.cols, train.images.rows, c.world.floor.pixel_size_m};
+  const grid::FloorFrame frame{train.images.cols, train.images.rows, c.world.floor.pixel_size_m};
   agent::NetworkConfig network = c.network;
   network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
   const int robots = c.batch_images * c.rollouts;
@@ -60,13 +61,13 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
     ModeBench bench;
     bench.mode = mode;
     std::vector<double> steps;
-    worlds::Rng order(worlds::derive_seed(c.seed, static_cast<std::uint64_t>(mode)));
+    core::Rng order(core::derive_seed(c.seed, static_cast<std::uint64_t>(mode)));
     for (int b = 0; b < config.warmup + config.batches; ++b) {
       if (stop && stop()) return report;
       std::vector<int> indices(c.batch_images);
       for (int& i : indices)
-        i = static_cast<int>(worlds::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
-      const RolloutBatch batch = make_batch(train, indices, c.rollouts, c.world, frame, worlds::derive_seed(c.seed, b));
+        i = static_cast<int>(core::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
+      const RolloutBatch batch = make_batch(train, indices, c.rollouts, c.world, frame, core::derive_seed(c.seed, b));
       engine.reset_timing();
       policy.reset_timing();
       StepTimes t;

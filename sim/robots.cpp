@@ -39,22 +39,12 @@ struct RobotBatch::Robot {
 };
 
 RobotParams RobotParams::from_world(const worlds::World& world) {
-  RobotParams p;
-  p.radius_m = world.robot.radius_m;
-  p.mass_kg = world.robot.mass_kg;
-  p.max_speed_mps = world.robot.max_speed_mps;
-  p.kp_per_s = world.controller.kp_per_s;
-  p.tolerance_px = world.controller.tolerance_px;
-  p.dt_s = world.physics.dt_s;
-  p.velocity_iterations = world.physics.velocity_iterations;
-  p.position_iterations = world.physics.position_iterations;
-  p.max_ticks_per_move = world.physics.max_ticks_per_move;
-  return p;
+  return {world.robot, world.controller, world.physics};
 }
 
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
 
-RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int count, int threads)
+RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads)
     : frame_(frame),
       params_(params),
       robots_(new Robot[count > 0 ? count : 0]),
@@ -68,7 +58,7 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
   // Box2D does not care about handedness without gravity or rotation).
   const float px = static_cast<float>(kUnitsPerPx);
   const double units_per_m = kUnitsPerPx / frame.pixel_size_m;
-  const double radius_u = params.radius_m * units_per_m;
+  const double radius_u = params.body.radius_m * units_per_m;
   const float min_x = 0.5f * px, max_x = (frame.width_px - 0.5f) * px;
   const float min_y = 0.5f * px, max_y = (frame.height_px - 0.5f) * px;
   const float off = wall_offset_u(radius_u);
@@ -76,13 +66,13 @@ RobotBatch::RobotBatch(const FloorFrame& frame, const RobotParams& params, int c
   // side faces the floor.
   const b2Vec2 corners[4] = {
       {min_x - off, min_y - off}, {min_x - off, max_y + off}, {max_x + off, max_y + off}, {max_x + off, min_y - off}};
-  const float density = static_cast<float>(params.mass_kg / (M_PI * radius_u * radius_u));
+  const float density = static_cast<float>(params.body.mass_kg / (M_PI * radius_u * radius_u));
 
   // Continuous collision (time of impact) costs about half of a tick here. It is needed only when
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  const bool continuous = params.max_speed_mps * params.dt_s > 0.25 * params.radius_m;  // same ratio in units
+  const bool continuous = params.body.max_speed_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
   for (int i = 0; i < count; ++i) {
     Robot& r = robots_[i];
     r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
@@ -116,10 +106,10 @@ RobotBatch::~RobotBatch() = default;
 
 int RobotBatch::size() const { return count_; }
 int RobotBatch::threads() const { return pool_->threads(); }
-const FloorFrame& RobotBatch::frame() const { return frame_; }
+const grid::FloorFrame& RobotBatch::frame() const { return frame_; }
 const RobotParams& RobotBatch::params() const { return params_; }
 
-void RobotBatch::place(int robot, const Cell& cell) {
+void RobotBatch::place(int robot, const grid::Cell& cell) {
   Robot& r = robots_[robot];
   const Eigen::Vector2d u = frame_.cell_centre_px(cell) * kUnitsPerPx;
   r.body->SetTransform(b2Vec2(static_cast<float>(u.x()), static_cast<float>(u.y())), 0.0f);
@@ -145,15 +135,15 @@ bool RobotBatch::touching_wall(int robot) const {
   return false;
 }
 
-void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> results) {
+void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results) {
   if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size())
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(commands.size()) + " commands for " +
                                 std::to_string(count_) + " robots and " + std::to_string(results.size()) + " results");
-  const float dt = static_cast<float>(params_.dt_s);
+  const float dt = static_cast<float>(params_.physics.dt_s);
   const double units_per_m = kUnitsPerPx / frame_.pixel_size_m;
-  const double tolerance_u = params_.tolerance_px * kUnitsPerPx;
-  const double max_speed_u = params_.max_speed_mps * units_per_m;
-  const double kp = params_.kp_per_s;
+  const double tolerance_u = params_.controller.tolerance_px * kUnitsPerPx;
+  const double max_speed_u = params_.body.max_speed_mps * units_per_m;
+  const double kp = params_.controller.kp_per_s;
   const int n = static_cast<int>(commands.size());
 
   // Each robot lives in its own world, so robots are independent work items: no
@@ -162,7 +152,7 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
     Robot& r = robots_[i];
     MoveResult& out = results[i];
     out = MoveResult{};
-    const Cell target_cell = grid_pose(i) + commands[i];
+    const grid::Cell target_cell = grid_pose(i) + commands[i];
     const Eigen::Vector2d target = frame_.cell_centre_px(target_cell) * kUnitsPerPx;
     double peak_speed_u = 0.0;
     for (;;) {
@@ -173,12 +163,12 @@ void RobotBatch::move(std::span<const Cell> commands, std::span<MoveResult> resu
         out.settled = true;
         break;
       }
-      if (out.ticks >= params_.max_ticks_per_move) break;
+      if (out.ticks >= params_.physics.max_ticks_per_move) break;
       // Saturated P-control of velocity: the body still collides, so a wall stops it.
       const double speed = std::min(max_speed_u, kp * distance);
       const Eigen::Vector2d v = error * (speed / distance);
       r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
-      r.world->Step(dt, params_.velocity_iterations, params_.position_iterations);
+      r.world->Step(dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
       ++out.ticks;
       // The speed reached is the distance actually travelled in the tick (a contact that stops
       // the body mid-tick leaves zero velocity behind, but not zero travel), or the velocity

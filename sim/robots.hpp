@@ -7,22 +7,17 @@
 #include <span>
 #include <string>
 
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::sim {
 
-/// Physical and controller parameters of every robot in a batch (from a world file).
+/// Physical and controller parameters of every robot in a batch: the world file's own sections,
+/// so their defaults and ranges are written once (worlds/world.hpp).
 struct RobotParams {
-  double radius_m = 0.25;        ///< disc radius, metres
-  double mass_kg = 1.0;          ///< body mass, kilograms
-  double max_speed_mps = 2.0;    ///< controller speed limit, metres per second
-  double kp_per_s = 60.0;        ///< velocity = kp * error, saturated; kp * dt = 1 lands in one tick
-  double tolerance_px = 0.05;    ///< settled when the centre is this close to the target cell's centre, pixels
-  double dt_s = 1.0 / 60.0;      ///< tick, seconds
-  int velocity_iterations = 8;   ///< Box2D solver iterations per tick
-  int position_iterations = 3;   ///< Box2D solver iterations per tick
-  int max_ticks_per_move = 120;  ///< a move ends after this many ticks even if not settled
+  worlds::RobotSpec body;              ///< disc radius, mass, speed limit (the start is the caller's)
+  worlds::ControllerSpec controller;   ///< gain and settling tolerance
+  worlds::PhysicsSpec physics;         ///< tick, solver iterations, tick bound per move
 
   static RobotParams from_world(const worlds::World& world);
 };
@@ -41,30 +36,30 @@ struct MoveResult {
 class RobotBatch {
  public:
   /// `count` robots on `frame`; `threads` advance them (0: one per hardware thread).
-  RobotBatch(const FloorFrame& frame, const RobotParams& params, int count, int threads = 0);
+  RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads = 0);
   ~RobotBatch();
   RobotBatch(const RobotBatch&) = delete;
   RobotBatch& operator=(const RobotBatch&) = delete;
 
   int size() const;
   int threads() const;
-  const FloorFrame& frame() const;
+  const grid::FloorFrame& frame() const;
   const RobotParams& params() const;
 
   /// Puts robot `robot` at rest on the centre of `cell` (the start of a rollout: the only
   /// placement that is not driven).
-  void place(int robot, const Cell& cell);
+  void place(int robot, const grid::Cell& cell);
 
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
   /// i < commands.size(), all in one call; results[i] tells how it went. Targets are not
   /// clamped: a command past the floor's edge ends against the wall.
-  void move(std::span<const Cell> commands, std::span<MoveResult> results);
+  void move(std::span<const grid::Cell> commands, std::span<MoveResult> results);
 
   /// The robot centre's continuous position in the floor frame, pixels and metres.
   Eigen::Vector2d position_px(int robot) const;
   Eigen::Vector2d position_m(int robot) const;
   /// The grid pose of the actual position (what the agent reads).
-  Cell grid_pose(int robot) const;
+  grid::Cell grid_pose(int robot) const;
   /// True while the robot touches a wall.
   bool touching_wall(int robot) const;
 
@@ -74,7 +69,7 @@ class RobotBatch {
 
  private:
   struct Robot;
-  FloorFrame frame_;
+  grid::FloorFrame frame_;
   RobotParams params_;
   std::unique_ptr<Robot[]> robots_;
   int count_;

@@ -19,7 +19,7 @@
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
 namespace scout::tools {
 
@@ -72,26 +72,26 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   const worlds::World world = worlds::load_world(opt.world);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  const grid::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
   const int n = opt.robots;
   const int moves_per_rollout = world.task.episodes * world.task.steps;
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
 
   // The batch: n different digits (or the world's one) and starts, as a training batch would have.
-  worlds::Rng rng(world.seed);
+  core::Rng rng(world.seed);
   std::vector<std::uint8_t> batch_floors(area * n);
-  std::vector<sim::Cell> starts(n);
+  std::vector<grid::Cell> starts(n);
   for (int i = 0; i < n; ++i) {
     const int index = world.floor.index
                           ? *world.floor.index
-                          : static_cast<int>(worlds::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
+                          : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
     std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
     starts[i] = learn::draw_start(world, frame, rng);
   }
   auto seeds_for = [n](int repeat) {
     std::vector<std::uint64_t> seeds(n);
     for (int i = 0; i < n; ++i)
-      seeds[i] = worlds::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
+      seeds[i] = core::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
     return seeds;
   };
 
@@ -106,7 +106,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
     for (const auto& s : rec.steps) {
       ticks += s.result.ticks;
       all_moves += 1;
-      driven_moves += s.command != sim::Cell::Zero();
+      driven_moves += s.command != grid::Cell::Zero();
       peak_speed = std::max(peak_speed, s.result.peak_speed_mps);
     }
 
@@ -119,7 +119,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
 
   // Physics alone: the recorded commands replayed on a fresh batch of bodies.
   sim::RobotBatch robots(frame, sim::RobotParams::from_world(world), n);
-  std::vector<std::vector<sim::Cell>> commands(moves_per_rollout, std::vector<sim::Cell>(n));
+  std::vector<std::vector<grid::Cell>> commands(moves_per_rollout, std::vector<grid::Cell>(n));
   std::vector<std::vector<render::PixelPose>> poses(moves_per_rollout, std::vector<render::PixelPose>(n));
   for (int i = 0; i < n; ++i)
     for (int m = 0; m < moves_per_rollout; ++m) {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "learn/rollout.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace CLI {
 class App;
@@ -60,7 +60,7 @@ CLI::Validator parsed_by(Parse parse, const std::string& name) {
 
 /// The rollout engine for a world, with a camera failure (no OSMesa context: an environment
 /// problem, not a bug) reported as an error of exit status 1.
-std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const sim::FloorFrame& frame, int robots);
+std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const grid::FloorFrame& frame, int robots);
 
 void add_run_command(CLI::App& app, const Context& context);
 void add_data_command(CLI::App& app, const Context& context);

@@ -17,7 +17,7 @@
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::tools {
 

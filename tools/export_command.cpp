@@ -9,7 +9,7 @@
 
 #include "learn/training.hpp"
 #include "tools/commands.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::tools {
 

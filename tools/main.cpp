@@ -11,7 +11,7 @@
 
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace {
 

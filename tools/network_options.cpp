@@ -4,7 +4,7 @@
 #include <stdexcept>
 
 #include "tools/commands.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::tools {
 

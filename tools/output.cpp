@@ -12,7 +12,7 @@
 
 #include "tools/commands.hpp"
 #include "worlds/dataset.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout {
 const char* git_commit();  // generated at build time (cmake/GitVersion.cmake)
@@ -105,7 +105,7 @@ void OutputDir::commit() {
   fs::remove_all(old, ec);
 }
 
-std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const sim::FloorFrame& frame,
+std::unique_ptr<learn::RolloutEngine> make_engine(const worlds::World& world, const grid::FloorFrame& frame,
                                                   int robots) {
   try {
     return std::make_unique<learn::RolloutEngine>(world, frame, robots);

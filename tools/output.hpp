@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "worlds/files.hpp"
+#include "core/files.hpp"
 
 namespace scout::tools {
 
@@ -36,7 +36,7 @@ class OutputDir {
 };
 
 /// Writes a file atomically: a temporary file beside it, then a rename.
-using worlds::write_file_atomic;
+using core::write_file_atomic;
 
 /// Refuses, before minutes of work, an output file (`option`'s value; empty: nothing to check)
 /// that is a folder, one of `inputs`, or in a place that cannot be written. The probe file has a

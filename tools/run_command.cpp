@@ -18,7 +18,7 @@
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
 namespace scout::tools {
 
@@ -48,7 +48,7 @@ struct RunOptions {
 struct PlannedRun {
   std::uint64_t seed;
   int index;
-  sim::Cell start;
+  grid::Cell start;
 };
 
 // Streams derived from a run's seed, so that drawing one thing never shifts another.
@@ -57,28 +57,28 @@ enum Stream : std::uint64_t { kStartStream = 2, kPolicyStream = 3 };
 constexpr std::uint64_t kDigitOrderStream = ~std::uint64_t{0};
 
 std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
-                                  const sim::FloorFrame& frame, std::uint64_t seed, int count) {
+                                  const grid::FloorFrame& frame, std::uint64_t seed, int count) {
   // With `index: random`, runs walk a seeded permutation of the split: up to the split's size
   // every run has its own digit, and run k's digit depends on the seed and k, not on --count.
   std::vector<int> digit_order;
   if (!world.floor.index) {
     digit_order.resize(static_cast<std::size_t>(floors.size()));
     for (int i = 0; i < floors.size(); ++i) digit_order[i] = i;
-    worlds::Rng order_rng(worlds::derive_seed(seed, kDigitOrderStream));
-    worlds::shuffle(digit_order, order_rng);
+    core::Rng order_rng(core::derive_seed(seed, kDigitOrderStream));
+    core::shuffle(digit_order, order_rng);
   }
   std::vector<PlannedRun> runs(count);
   for (int k = 0; k < count; ++k) {
     PlannedRun& r = runs[k];
-    r.seed = worlds::derive_seed(seed, static_cast<std::uint64_t>(k));
+    r.seed = core::derive_seed(seed, static_cast<std::uint64_t>(k));
     r.index = world.floor.index ? *world.floor.index : digit_order[static_cast<std::size_t>(k) % digit_order.size()];
-    worlds::Rng start_rng(worlds::derive_seed(r.seed, kStartStream));
+    core::Rng start_rng(core::derive_seed(r.seed, kStartStream));
     r.start = learn::draw_start(world, frame, start_rng);
   }
   return runs;
 }
 
-json cell_json(const sim::Cell& c) { return json::array({c.x(), c.y()}); }
+json cell_json(const grid::Cell& c) { return json::array({c.x(), c.y()}); }
 
 // One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
 // by step, in files of any size). `probabilities`: the trained agent's pi_c at the end (empty
@@ -127,7 +127,7 @@ struct AgentOverlay {
 };
 
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
-                  const sim::FloorFrame& frame, int patch_px, int scale, const AgentOverlay& overlay,
+                  const grid::FloorFrame& frame, int patch_px, int scale, const AgentOverlay& overlay,
                   std::vector<std::string>& written) {
   for (const learn::SnapshotRecord& snap : record.snapshots) {
     render::Snapshot s;
@@ -166,7 +166,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const sim::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  const grid::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
   if (!opt.no_images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
     throw InputError(
         fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
@@ -197,13 +197,13 @@ void run_command(const RunOptions& opt, const Context& context) {
     throw_if_interrupted();
     const int n = std::min(batch_robots, opt.count - first);
     std::vector<std::uint8_t> batch_floors(area * n);
-    std::vector<sim::Cell> starts(n);
+    std::vector<grid::Cell> starts(n);
     std::vector<std::uint64_t> policy_seeds(n);
     for (int i = 0; i < n; ++i) {
       const PlannedRun& r = runs[first + i];
       std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
       starts[i] = r.start;
-      policy_seeds[i] = worlds::derive_seed(r.seed, kPolicyStream);
+      policy_seeds[i] = core::derive_seed(r.seed, kPolicyStream);
     }
     std::vector<learn::RolloutRecord> records;
     std::vector<float> probabilities;  // n * D with a checkpoint

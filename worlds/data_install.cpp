@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "worlds/dataset.hpp"
-#include "worlds/files.hpp"
-#include "worlds/digest.hpp"
+#include "core/files.hpp"
+#include "core/digest.hpp"
 
 extern char** environ;
 
@@ -195,7 +195,7 @@ std::string describe(const ProgramResult& r, const std::string& program) {
 
 // npm's integrity string for a file: "sha512-" and the base64 of the SHA-512 digest.
 std::string sha512_integrity(const fs::path& file) {
-  const std::vector<std::uint8_t> digest = digest_file(file, DigestKind::Sha512);
+  const std::vector<std::uint8_t> digest = core::digest_file(file, core::DigestKind::Sha512);
   std::string b64(4 * ((digest.size() + 2) / 3) + 1, '\0');
   const int written =
       EVP_EncodeBlock(reinterpret_cast<unsigned char*>(b64.data()), digest.data(), static_cast<int>(digest.size()));
@@ -446,7 +446,7 @@ DataInstallReport install(const fs::path& data_root) {
        "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
       {"counts", {{"train", train.size()}, {"validation", held_out[0].size()}, {"test", held_out[1].size()}}},
       {"files", files}};
-  write_file_atomic(report.folder / kSourceFile, source.dump(2) + "\n");
+  core::write_file_atomic(report.folder / kSourceFile, source.dump(2) + "\n");
 
   report.train = static_cast<int>(train.size());
   report.validation = static_cast<int>(held_out[0].size());

@@ -17,8 +17,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "worlds/digest.hpp"
-#include "worlds/random.hpp"
+#include "core/digest.hpp"
+#include "core/random.hpp"
 
 namespace scout::worlds {
 namespace {
@@ -149,7 +149,7 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
   std::array<std::vector<int>, kClasses> by_class;
   for (std::size_t i = 0; i < labels.size(); ++i) by_class[labels[i]].push_back(static_cast<int>(i));
   std::mt19937_64 rng(seed);
-  for (auto& members : by_class) shuffle(members, rng);
+  for (auto& members : by_class) core::shuffle(members, rng);
 
   std::array<std::int64_t, kClasses> left{};  // members of each class not yet given to a part
   for (int c = 0; c < kClasses; ++c) left[c] = static_cast<std::int64_t>(by_class[c].size());
@@ -210,7 +210,7 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
     }
     // Shuffle again so that a part is not a run of 0s, then 1s, ...: an index into a split file
     // then names a digit of any class.
-    shuffle(part, rng);
+    core::shuffle(part, rng);
     parts.push_back(std::move(part));
   }
   return parts;
@@ -218,7 +218,7 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
 
 std::string sha256_file(const fs::path& file) {
   std::string hex;
-  for (std::uint8_t byte : digest_file(file, DigestKind::Sha256)) hex += fmt::format("{:02x}", byte);
+  for (std::uint8_t byte : core::digest_file(file, core::DigestKind::Sha256)) hex += fmt::format("{:02x}", byte);
   return hex;
 }
 

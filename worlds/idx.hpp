@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::worlds {
 

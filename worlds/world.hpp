@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout::worlds {
 

@@ -20,11 +20,11 @@
 
 #include "agent/networks.hpp"
 #include "agent/state.hpp"
-#include "learn/agent_policy.hpp"
-#include "learn/estimator.hpp"
-#include "learn/objective.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/estimator.hpp"
+#include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/world.hpp"
 
@@ -108,7 +108,7 @@ Sampling sampling_for(Mode mode) {
 
 /// Two floors of two classes that differ only in the right-most column, a world and a tiny agent.
 struct Problem {
-  sim::FloorFrame frame{kSide, kSide, 0.1};
+  grid::FloorFrame frame{kSide, kSide, 0.1};
   worlds::World world;
   worlds::LabeledImages data;
   agent::Agent agent{nullptr};
@@ -131,7 +131,7 @@ Problem make_problem(int episodes, int steps) {
   p.world.camera.patch_px = kPatch;
   p.world.task = {.episodes = episodes, .steps = steps, .step_px = 2};
   worlds::check_against_floor(p.world, kSide, kSide);
-  const sim::FloorFrame& frame = p.frame;
+  const grid::FloorFrame& frame = p.frame;
   const int area = frame.area_px();
 
   // A shared high-contrast pattern (every revealed pixel moves the networks), and the class
@@ -174,9 +174,9 @@ Problem make_problem(int episodes, int steps) {
     for (int label = 0; label < 2; ++label)
       for (int a = 0; a < area; ++a)
         for (int b = 0; b < area; ++b) {
-          sim::RevealMask mask(frame);
-          mask.reveal(sim::camera_window({a % kSide, a / kSide}, kPatch, frame));
-          mask.reveal(sim::camera_window({b % kSide, b / kSide}, kPatch, frame));
+          grid::RevealMask mask(frame);
+          mask.reveal(grid::camera_window({a % kSide, a / kSide}, kPatch, frame));
+          mask.reveal(grid::camera_window({b % kSide, b / kSide}, kPatch, frame));
           std::vector<float> y(area);
           agent::write_revealed_image(frame, {p.data.images.image(label), mask.data().data(), {0, 0}, nullptr},
                                       y.data());
@@ -193,7 +193,7 @@ Problem make_problem(int episodes, int steps) {
     std::vector<float> us;
     for (int image = 0; image < 2; ++image)
       for (int s = 0; s < area; ++s) {
-        const sim::GridModel model(frame, kPatch, {s % kSide, s / kSide});
+        const grid::GridModel model(frame, kPatch, {s % kSide, s / kSide});
         std::vector<float> u(4 * area);
         agent::write_planner_input(frame, kPatch,
                                    {p.data.images.image(image), model.revealed().data().data(), model.pose(), nullptr},
@@ -217,19 +217,19 @@ Problem make_problem(int episodes, int steps) {
 /// choose i.i.d. (1/16 per goal, 1/2 per axis). The states are written by the same functions
 /// AgentPolicy uses (write_planner_input, write_revealed_image), from the grid model's pose and mask.
 torch::Tensor exact_objective(Problem& p, Mode mode) {
-  const sim::FloorFrame& frame = p.frame;
+  const grid::FloorFrame& frame = p.frame;
   const int area = frame.area_px(), m = p.world.camera.patch_px;
   const bool learned_goals = mode != Mode::I, learned_actions = mode == Mode::III;
   struct Node {
     int image;
-    sim::GridModel model;
-    sim::Cell goal;
+    grid::GridModel model;
+    grid::Cell goal;
   };
   std::vector<Node> nodes;
   for (int image = 0; image < p.data.images.count; ++image) {
     // make_batch draws the start uniformly over the floor (draw_start): every start, equally likely.
     for (int s = 0; s < area; ++s)
-      nodes.push_back({image, sim::GridModel(frame, m, {s % frame.width_px, s / frame.width_px}), sim::Cell(-1, -1)});
+      nodes.push_back({image, grid::GridModel(frame, m, {s % frame.width_px, s / frame.width_px}), grid::Cell(-1, -1)});
   }
   const double roots = static_cast<double>(nodes.size());
   torch::Tensor log_p = torch::zeros({static_cast<long>(nodes.size())});
@@ -262,14 +262,14 @@ torch::Tensor exact_objective(Problem& p, Mode mode) {
     next.reserve(count * area);
     for (const Node& node : nodes)
       for (int g = 0; g < area; ++g)
-        next.push_back({node.image, node.model, sim::Cell(g % frame.width_px, g / frame.width_px)});
+        next.push_back({node.image, node.model, grid::Cell(g % frame.width_px, g / frame.width_px)});
     nodes = std::move(next);
 
     for (int t = 0; t < p.world.task.steps; ++t) {
       // Action protocol: forced axes keep one child; Choose branches into both axes.
       std::vector<int> choose;
       for (int i = 0; i < static_cast<int>(nodes.size()); ++i)
-        if (sim::decide(nodes[i].model.pose(), nodes[i].goal) == sim::Decision::Choose) choose.push_back(i);
+        if (grid::decide(nodes[i].model.pose(), nodes[i].goal) == grid::Decision::Choose) choose.push_back(i);
       const long c = static_cast<long>(choose.size());
       torch::Tensor log_a;
       if (learned_actions && c > 0) {
@@ -284,22 +284,22 @@ torch::Tensor exact_objective(Problem& p, Mode mode) {
       int k = 0;
       for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
         const Node& node = nodes[i];
-        const sim::Decision d = sim::decide(node.model.pose(), node.goal);
-        auto child = [&](sim::Axis axis, std::int64_t s) {
+        const grid::Decision d = grid::decide(node.model.pose(), node.goal);
+        auto child = [&](grid::Axis axis, std::int64_t s) {
           Node n = node;
-          n.model.move(sim::move_command(node.model.pose(), node.goal, axis, p.world.task.step_px));
+          n.model.move(grid::move_command(node.model.pose(), node.goal, axis, p.world.task.step_px));
           children.push_back(std::move(n));
           parent.push_back(i);
           slot.push_back(s);
         };
-        if (d == sim::Decision::Choose) {
-          child(sim::Axis::Horizontal, 2 * k);
-          child(sim::Axis::Vertical, 2 * k + 1);
+        if (d == grid::Decision::Choose) {
+          child(grid::Axis::Horizontal, 2 * k);
+          child(grid::Axis::Vertical, 2 * k + 1);
           ++k;
         } else {
-          child(d == sim::Decision::Vertical     ? sim::Axis::Vertical
-                : d == sim::Decision::Horizontal ? sim::Axis::Horizontal
-                                                 : sim::Axis::None,
+          child(d == grid::Decision::Vertical     ? grid::Axis::Vertical
+                : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
+                                                 : grid::Axis::None,
                 2 * c);
         }
       }
@@ -444,7 +444,7 @@ Estimates estimate(Problem& p, Mode mode, bool leave_one_out, int batches, std::
   const std::vector<int> indices = {0, 1};
   for (int b = 0; b < batches; ++b) {
     const RolloutBatch batch = make_batch(p.data, indices, kRolloutsPerImage, p.world, p.frame,
-                                          worlds::derive_seed(seed, static_cast<std::uint64_t>(b)));
+                                          core::derive_seed(seed, static_cast<std::uint64_t>(b)));
     const BatchOutcome outcome = run_batch(*p.agent, engine, policy, batch, sampling, options);
     const bool learned = mode != Mode::I;
     const auto g = layer_gradients(p, outcome.objective, learned);
@@ -530,16 +530,16 @@ TEST(EstimatorGradient, TwoEpisodesModeIIIMatchesExactGradientWithLeaveOneOut) {
 
 /// log pi_a[axis] and log pi_g[goal] for one robot, computed here from the grid model's state,
 /// one robot at a time (AgentPolicy batches the robots that choose).
-double action_log_prob(Problem& p, const sim::GridModel& model, const sim::Cell& goal, const std::uint8_t* floor,
-                       sim::Axis axis) {
+double action_log_prob(Problem& p, const grid::GridModel& model, const grid::Cell& goal, const std::uint8_t* floor,
+                       grid::Axis axis) {
   torch::NoGradGuard no_grad;
   torch::Tensor u = torch::empty({1, 4, kSide, kSide});
   agent::write_planner_input(p.frame, kPatch, {floor, model.revealed().data().data(), model.pose(), &goal},
                              u.data_ptr<float>());
-  return torch::log_softmax(p.agent->action->forward(u), 1)[0][axis == sim::Axis::Vertical ? 1 : 0].item<double>();
+  return torch::log_softmax(p.agent->action->forward(u), 1)[0][axis == grid::Axis::Vertical ? 1 : 0].item<double>();
 }
 
-double goal_log_prob(Problem& p, const sim::GridModel& model, const std::uint8_t* floor, const sim::Cell& goal) {
+double goal_log_prob(Problem& p, const grid::GridModel& model, const std::uint8_t* floor, const grid::Cell& goal) {
   torch::NoGradGuard no_grad;
   torch::Tensor u = torch::empty({1, 4, kSide, kSide});
   agent::write_planner_input(p.frame, kPatch, {floor, model.revealed().data().data(), model.pose(), nullptr},
@@ -566,16 +566,16 @@ void check_chi(bool learned_goals) {
   int robots_by_decisions[3] = {0, 0, 0};  // robots with 0, 1, 2 Choose decisions
   for (int r = 0; r < robots; ++r) {
     const std::uint8_t* floor = batch.floors.data() + static_cast<std::size_t>(r) * p.frame.area_px();
-    sim::GridModel model(p.frame, kPatch, batch.starts[r]);
+    grid::GridModel model(p.frame, kPatch, batch.starts[r]);
     double expected = learned_goals ? goal_log_prob(p, model, floor, records[r].steps.front().goal) : 0.0;
     int decisions = 0;
     for (const StepRecord& s : records[r].steps) {
       // The count is independent of the record's own `sampled` flag: the protocol on the grid model.
-      if (sim::decide(model.pose(), s.goal) == sim::Decision::Choose) {
+      if (grid::decide(model.pose(), s.goal) == grid::Decision::Choose) {
         expected += action_log_prob(p, model, s.goal, floor, s.axis);
         ++decisions;
       }
-      model.move(sim::move_command(model.pose(), s.goal, s.axis, p.world.task.step_px));
+      model.move(grid::move_command(model.pose(), s.goal, s.axis, p.world.task.step_px));
       ASSERT_EQ(model.pose(), s.grid_pose);
     }
     choose += decisions;

@@ -13,14 +13,14 @@
 #include <vector>
 
 #include "learn/evaluation.hpp"
-#include "learn/objective.hpp"
+#include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
 #include "learn/training.hpp"
 #include "tests/support/temp_dir.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/idx.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -39,11 +39,11 @@ worlds::ImageSet synthetic_images(const std::vector<std::uint8_t>& labels, std::
   set.count = static_cast<int>(labels.size());
   set.rows = set.cols = kSide;
   set.pixels.resize(static_cast<std::size_t>(set.count) * kSide * kSide);
-  worlds::Rng rng(seed);
+  core::Rng rng(seed);
   for (int i = 0; i < set.count; ++i) {
     std::uint8_t* img = set.pixels.data() + static_cast<std::size_t>(i) * kSide * kSide;
-    for (int k = 0; k < kSide * kSide; ++k) img[k] = static_cast<std::uint8_t>(worlds::uniform_below(rng, 40));
-    const int at = 3 + static_cast<int>(worlds::uniform_below(rng, 6));
+    for (int k = 0; k < kSide * kSide; ++k) img[k] = static_cast<std::uint8_t>(core::uniform_below(rng, 40));
+    const int at = 3 + static_cast<int>(core::uniform_below(rng, 6));
     for (int y = 0; y < kSide; ++y)
       for (int x = 0; x < kSide; ++x) {
         const bool on = labels[i] == 0   ? (x == at || x == at + 1)
@@ -354,25 +354,25 @@ TEST_F(Evaluation, TheTrainedAgentDrivesAndClassifiesABatch) {
   EXPECT_TRUE(agent->learned().goals);
   EXPECT_TRUE(agent->learned().actions);
   const worlds::World& world = agent->config().world;
-  const sim::FloorFrame frame{kSide, kSide, world.floor.pixel_size_m};
+  const grid::FloorFrame frame{kSide, kSide, world.floor.pixel_size_m};
   const worlds::ImageSet floors = synthetic_images(cycling_labels(5, kClasses), 4);
-  std::vector<sim::Cell> starts;
+  std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
-  worlds::Rng rng(1);
+  core::Rng rng(1);
   for (int i = 0; i < 5; ++i) {
     starts.push_back(draw_start(world, frame, rng));
-    seeds.push_back(worlds::derive_seed(7, i));
+    seeds.push_back(core::derive_seed(7, i));
   }
   RolloutEngine engine(world, frame, 5);
   auto drive = [&](bool greedy) {
     agent->begin(frame, world.camera.patch_px, seeds, greedy, true);
     const auto records = engine.run(floors.pixels, starts, agent->policy());
-    std::vector<sim::Cell> goals;
+    std::vector<grid::Cell> goals;
     for (const RolloutRecord& r : records)
       for (const StepRecord& s : r.steps) goals.push_back(s.goal);
     return goals;
   };
-  const std::vector<sim::Cell> sampled = drive(false);
+  const std::vector<grid::Cell> sampled = drive(false);
   const std::vector<float> p = agent->classify(engine.state(), 5);
   ASSERT_EQ(p.size(), 5u * kClasses);
   for (int i = 0; i < 5; ++i) EXPECT_NEAR(p[3 * i] + p[3 * i + 1] + p[3 * i + 2], 1.0f, 1e-5f);
@@ -383,16 +383,16 @@ TEST_F(Evaluation, TheTrainedAgentDrivesAndClassifiesABatch) {
       const std::vector<float>& map = agent->goal_map(i, e);
       ASSERT_EQ(map.size(), static_cast<std::size_t>(kSide * kSide));
       EXPECT_NEAR(std::accumulate(map.begin(), map.end(), 0.0), 1.0, 1e-4);
-      const sim::Cell goal = sampled[static_cast<std::size_t>(i * episodes + e) * steps_per_episode];
+      const grid::Cell goal = sampled[static_cast<std::size_t>(i * episodes + e) * steps_per_episode];
       EXPECT_GT(map[goal.y() * kSide + goal.x()], 0.0f);
     }
   // Greedy: each episode's goal is the argmax of its map.
-  const std::vector<sim::Cell> greedy = drive(true);
+  const std::vector<grid::Cell> greedy = drive(true);
   for (int i = 0; i < 5; ++i)
     for (int e = 0; e < episodes; ++e) {
       const std::vector<float>& map = agent->goal_map(i, e);
       const auto best = std::max_element(map.begin(), map.end()) - map.begin();
-      const sim::Cell goal = greedy[static_cast<std::size_t>(i * episodes + e) * steps_per_episode];
+      const grid::Cell goal = greedy[static_cast<std::size_t>(i * episodes + e) * steps_per_episode];
       EXPECT_EQ(goal.y() * kSide + goal.x(), best) << "robot " << i << " episode " << e;
     }
   EXPECT_EQ(sampled.size(), greedy.size());

@@ -1,4 +1,4 @@
-// Mixed precision (agent::Precision, learn/precision.hpp): bf16 runs the same networks as fp32
+// Mixed precision (agent::Precision, learn/internal/precision.hpp): bf16 runs the same networks as fp32
 // to within bf16's rounding, accumulates the same gradients, the normalisations accept bf16
 // activations without changing fp32 results, and the choice is stored with a run's config.
 #include <ATen/autocast_mode.h>
@@ -13,13 +13,13 @@
 
 #include "agent/networks.hpp"
 #include "agent/state.hpp"
-#include "learn/agent_policy.hpp"
-#include "learn/objective.hpp"
-#include "learn/precision.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/objective.hpp"
+#include "learn/internal/precision.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training.hpp"
-#include "worlds/error.hpp"
-#include "worlds/random.hpp"
+#include "core/error.hpp"
+#include "core/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -34,12 +34,12 @@ worlds::LabeledImages synthetic_digits(int count, std::uint64_t seed) {
   set.images.rows = set.images.cols = kSide;
   set.images.pixels.assign(static_cast<std::size_t>(count) * kSide * kSide, 0);
   set.labels.resize(count);
-  worlds::Rng rng(seed);
+  core::Rng rng(seed);
   for (int i = 0; i < count; ++i) {
     set.labels[i] = static_cast<std::uint8_t>(i % 10);
     std::uint8_t* img = set.images.pixels.data() + static_cast<std::size_t>(i) * kSide * kSide;
     for (int k = 0; k < kSide * kSide; ++k)
-      if (worlds::uniform_below(rng, 4) == 0) img[k] = static_cast<std::uint8_t>(128 + worlds::uniform_below(rng, 128));
+      if (core::uniform_below(rng, 4) == 0) img[k] = static_cast<std::uint8_t>(128 + core::uniform_below(rng, 128));
   }
   return set;
 }
@@ -56,7 +56,7 @@ struct Outputs {
 std::pair<torch::Tensor, torch::Tensor> inputs_after_a_rollout(std::uint64_t seed) {
   const worlds::World world = preset_world();
   const worlds::LabeledImages digits = synthetic_digits(24, seed);
-  const sim::FloorFrame frame{kSide, kSide, world.floor.pixel_size_m};
+  const grid::FloorFrame frame{kSide, kSide, world.floor.pixel_size_m};
   std::vector<int> indices(digits.images.count);
   for (int i = 0; i < digits.images.count; ++i) indices[i] = i;
   const RolloutBatch batch = make_batch(digits, indices, 1, world, frame, seed);
@@ -141,13 +141,13 @@ TEST_F(Precision, Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32) {
   agent->train();
   std::vector<torch::Tensor> inputs;
   for (int move = 0; move < 20; ++move) inputs.push_back(planner_inputs_after_a_rollout(100 + move));
-  worlds::Rng rng(8);
+  core::Rng rng(8);
   std::vector<std::int64_t> goals, axes;
   std::vector<float> weights;
   for (std::size_t k = 0; k < inputs.size() * inputs[0].size(0); ++k) {
-    goals.push_back(static_cast<std::int64_t>(worlds::uniform_below(rng, kSide * kSide)));
-    axes.push_back(static_cast<std::int64_t>(worlds::uniform_below(rng, 2)));
-    weights.push_back(static_cast<float>(worlds::uniform_below(rng, 2001)) / 1000.0f - 1.0f);
+    goals.push_back(static_cast<std::int64_t>(core::uniform_below(rng, kSide * kSide)));
+    axes.push_back(static_cast<std::int64_t>(core::uniform_below(rng, 2)));
+    weights.push_back(static_cast<float>(core::uniform_below(rng, 2001)) / 1000.0f - 1.0f);
   }
   auto gradient = [&](agent::Precision precision, torch::nn::Module& layer, bool goal_layer) {
     for (torch::Tensor& p : agent->parameters()) p.mutable_grad() = torch::Tensor();

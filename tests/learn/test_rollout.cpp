@@ -6,12 +6,12 @@
 #include <random>
 
 #include "learn/rollout.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
 namespace scout::learn {
 namespace {
 
-const sim::FloorFrame kFloor{28, 28, 0.1};
+const grid::FloorFrame kFloor{28, 28, 0.1};
 
 worlds::World preset_world() { return worlds::World{}; }  // the struct's defaults are the paper preset
 
@@ -24,18 +24,18 @@ std::vector<std::uint8_t> random_floors(int count, std::uint64_t seed) {
 
 struct Batch {
   std::vector<std::uint8_t> floors;
-  std::vector<sim::Cell> starts;
+  std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
 };
 
 Batch random_batch(int count, std::uint64_t seed) {
   Batch b;
   b.floors = random_floors(count, seed);
-  worlds::Rng rng(seed + 1);
+  core::Rng rng(seed + 1);
   const worlds::World world = preset_world();
   for (int i = 0; i < count; ++i) {
     b.starts.push_back(draw_start(world, kFloor, rng));
-    b.seeds.push_back(worlds::derive_seed(seed, static_cast<std::uint64_t>(i)));
+    b.seeds.push_back(core::derive_seed(seed, static_cast<std::uint64_t>(i)));
   }
   return b;
 }
@@ -52,22 +52,22 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
     for (int i = 0; i < 240; ++i) {
       const RolloutRecord& rec = records[i];
       ASSERT_EQ(rec.steps.size(), static_cast<std::size_t>(world.task.episodes * world.task.steps));
-      sim::GridModel model(kFloor, world.camera.patch_px, b.starts[i]);
+      grid::GridModel model(kFloor, world.camera.patch_px, b.starts[i]);
       for (const StepRecord& s : rec.steps) {
         // The grid model takes the recorded goal and, only where the protocol lets the policy
         // choose, the recorded axis; everything else it computes itself.
-        const sim::Decision d = sim::decide(model.pose(), s.goal);
-        ASSERT_EQ(s.sampled, d == sim::Decision::Choose);
-        sim::Axis axis = d == sim::Decision::Vertical     ? sim::Axis::Vertical
-                         : d == sim::Decision::Horizontal ? sim::Axis::Horizontal
-                                                          : sim::Axis::None;
-        if (d == sim::Decision::Choose) {
-          ASSERT_NE(s.axis, sim::Axis::None);
+        const grid::Decision d = grid::decide(model.pose(), s.goal);
+        ASSERT_EQ(s.sampled, d == grid::Decision::Choose);
+        grid::Axis axis = d == grid::Decision::Vertical     ? grid::Axis::Vertical
+                         : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
+                                                          : grid::Axis::None;
+        if (d == grid::Decision::Choose) {
+          ASSERT_NE(s.axis, grid::Axis::None);
           axis = s.axis;
           ++sampled;
         }
         ASSERT_EQ(s.axis, axis);
-        const sim::Cell command = sim::move_command(model.pose(), s.goal, axis, world.task.step_px);
+        const grid::Cell command = grid::move_command(model.pose(), s.goal, axis, world.task.step_px);
         ASSERT_EQ(s.command, command);
         model.move(command);
         ASSERT_EQ(s.grid_pose, model.pose()) << "robot " << i << " episode " << s.episode << " step " << s.step;
@@ -174,11 +174,11 @@ TEST(RandomPolicy, GoalsCoverTheFloorUniformlyAndAxesAreFair) {
   BatchState state;
   state.frame = kFloor;
   std::vector<int> hits(static_cast<std::size_t>(kFloor.area_px()), 0);
-  std::vector<sim::Cell> goals(64);
+  std::vector<grid::Cell> goals(64);
   const int draws = 1000;
   for (int d = 0; d < draws; ++d) {
     policy.choose_goals(state, 0, goals);
-    for (const sim::Cell& g : goals) {
+    for (const grid::Cell& g : goals) {
       ASSERT_TRUE(kFloor.contains(g));
       ++hits[static_cast<std::size_t>(g.y()) * kFloor.width_px + g.x()];
     }
@@ -193,16 +193,16 @@ TEST(RandomPolicy, GoalsCoverTheFloorUniformlyAndAxesAreFair) {
 
   std::vector<std::uint8_t> need(64, 1);
   need[3] = 0;
-  std::vector<sim::Axis> axes(64, sim::Axis::None);
+  std::vector<grid::Axis> axes(64, grid::Axis::None);
   int vertical = 0, total = 0;
   for (int d = 0; d < 500; ++d) {
-    std::fill(axes.begin(), axes.end(), sim::Axis::None);
+    std::fill(axes.begin(), axes.end(), grid::Axis::None);
     policy.choose_axes(state, need, axes);
-    EXPECT_EQ(axes[3], sim::Axis::None);  // not asked, not chosen
+    EXPECT_EQ(axes[3], grid::Axis::None);  // not asked, not chosen
     for (int i = 0; i < 64; ++i)
       if (need[i]) {
-        ASSERT_NE(axes[i], sim::Axis::None);
-        vertical += axes[i] == sim::Axis::Vertical;
+        ASSERT_NE(axes[i], grid::Axis::None);
+        vertical += axes[i] == grid::Axis::Vertical;
         ++total;
       }
   }
@@ -226,10 +226,10 @@ TEST(RolloutEngine, RefusesBadBatches) {
   const Batch b = random_batch(5, 1);
   RandomPolicy policy(b.seeds);
   EXPECT_THROW(engine.run(b.floors, b.starts, policy), std::invalid_argument);  // 5 robots > 4
-  std::vector<sim::Cell> off{{28, 0}};
+  std::vector<grid::Cell> off{{28, 0}};
   EXPECT_THROW(engine.run(std::span(b.floors.data(), static_cast<std::size_t>(kFloor.area_px())), off, policy),
                std::invalid_argument);
-  std::vector<sim::Cell> one{{3, 3}};
+  std::vector<grid::Cell> one{{3, 3}};
   EXPECT_THROW(engine.run(std::span(b.floors.data(), 10), one, policy), std::invalid_argument);
 }
 

@@ -18,16 +18,16 @@
 #include <string>
 #include <vector>
 
-#include "learn/agent_policy.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/objective.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "worlds/dataset.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/idx.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -58,11 +58,11 @@ CornerSet corner_set(int count, std::uint64_t seed, bool flip = false) {
   set.images.rows = set.images.cols = kSide;
   set.images.pixels.resize(static_cast<std::size_t>(count) * kSide * kSide);
   set.labels.resize(count);
-  worlds::Rng rng(seed);
+  core::Rng rng(seed);
   for (int i = 0; i < count; ++i) {
-    const int label = static_cast<int>(worlds::uniform_below(rng, 2));
+    const int label = static_cast<int>(core::uniform_below(rng, 2));
     std::uint8_t* img = set.images.pixels.data() + static_cast<std::size_t>(i) * kSide * kSide;
-    for (int k = 0; k < kSide * kSide; ++k) img[k] = static_cast<std::uint8_t>(64 + worlds::uniform_below(rng, 128));
+    for (int k = 0; k < kSide * kSide; ++k) img[k] = static_cast<std::uint8_t>(64 + core::uniform_below(rng, 128));
     for (int y = 0; y < kBlock; ++y)
       for (int x = 0; x < kBlock; ++x) img[y * kSide + x] = label == 1 ? 255 : 0;
     set.labels[i] = static_cast<std::uint8_t>(flip ? 1 - label : label);
@@ -117,7 +117,7 @@ double rollout_accuracy(agent::AgentImpl& agent, const worlds::World& world, con
                         int rollouts, bool learned_goals, std::uint64_t stream) {
   torch::NoGradGuard no_grad;
   agent.eval();
-  const sim::FloorFrame frame{data.images.cols, data.images.rows, world.floor.pixel_size_m};
+  const grid::FloorFrame frame{data.images.cols, data.images.rows, world.floor.pixel_size_m};
   constexpr int kChunk = 50;  // images per batch
   RolloutEngine engine(world, frame, kChunk * rollouts);
   AgentPolicy policy(agent, frame, world.camera.patch_px, kChunk * rollouts);
@@ -128,7 +128,7 @@ double rollout_accuracy(agent::AgentImpl& agent, const worlds::World& world, con
     std::vector<int> indices;
     for (int i = first; i < std::min(first + kChunk, data.images.count); ++i) indices.push_back(i);
     const RolloutBatch batch = make_batch(data, indices, rollouts, world, frame,
-                                          worlds::derive_seed(stream, static_cast<std::uint64_t>(first)));
+                                          core::derive_seed(stream, static_cast<std::uint64_t>(first)));
     const BatchOutcome out = run_batch(agent, engine, policy, batch, sampling, {rollouts, false, 0});
     correct += count_correct(out.log_probs, batch.labels);
     robots += batch.count;

@@ -151,15 +151,15 @@ TEST(RobotBatch, BehavesTheSameInPixelsAtAnyFloorScale) {
   for (double pixel_size_m : {0.005, 0.01, 0.03, 0.1, 1.0, 5.0}) {
     const FloorFrame floor{28, 28, pixel_size_m};
     RobotParams params = preset();
-    params.radius_m = 2.5 * pixel_size_m;
-    params.max_speed_mps = 20.0 * pixel_size_m;  // 20 px/s, 1/3 px per tick
+    params.body.radius_m = 2.5 * pixel_size_m;
+    params.body.max_speed_mps = 20.0 * pixel_size_m;  // 20 px/s, 1/3 px per tick
     RobotBatch batch(floor, params, 1);
     batch.place(0, {1, 14});
     MoveResult r = move_one(batch, 0, {2, 0});
     EXPECT_TRUE(r.settled) << pixel_size_m;
     EXPECT_EQ(r.ticks, 6) << pixel_size_m;
     EXPECT_EQ(batch.grid_pose(0), Cell(3, 14));
-    EXPECT_NEAR(r.peak_speed_mps, params.max_speed_mps, 1e-4 * params.max_speed_mps);
+    EXPECT_NEAR(r.peak_speed_mps, params.body.max_speed_mps, 1e-4 * params.body.max_speed_mps);
     r = move_one(batch, 0, {-8, 0});  // 5 px past the edge
     EXPECT_TRUE(r.touched_wall) << pixel_size_m;
     EXPECT_FALSE(r.settled) << pixel_size_m;
@@ -174,8 +174,8 @@ TEST(RobotBatch, AFastRobotDoesNotTunnelThroughTheWall) {
   // 60 m/s at dt = 1/60 s is 1 m = 10 px per tick, four times the radius: only continuous
   // collision can stop it.
   RobotParams fast = preset();
-  fast.max_speed_mps = 60.0;
-  fast.max_ticks_per_move = 20;
+  fast.body.max_speed_mps = 60.0;
+  fast.physics.max_ticks_per_move = 20;
   const Cell commands[] = {{-60, 0}, {60, 0}, {0, -60}, {0, 60}, {45, 45}};
   for (const Cell& command : commands) {
     RobotBatch batch(kFloor, fast, 1);

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "tests/support/temp_dir.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
 #include "worlds/world.hpp"

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "tests/support/temp_dir.hpp"
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {

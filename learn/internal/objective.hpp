@@ -1,4 +1,7 @@
 #pragma once
+#ifndef SCOUT_LEARN_INTERNAL
+#error "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
+#endif
 /// One batch of rollouts through the agent, ending in the classifier's verdict and J-hat: the
 /// step that training, evaluation and the estimator test share. Torch header: learn/ and tests.
 #include <torch/torch.h>
@@ -7,8 +10,8 @@
 #include <span>
 #include <vector>
 
-#include "learn/agent_policy.hpp"
-#include "learn/estimator.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/estimator.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training.hpp"
 #include "worlds/dataset.hpp"
@@ -20,14 +23,14 @@ struct RolloutBatch {
   int count = 0;
   std::vector<std::uint8_t> floors;  ///< count * H * W bytes
   std::vector<std::int64_t> labels;  ///< one per robot
-  std::vector<sim::Cell> starts;
+  std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
 };
 
 /// N robots per image: robot i*N + k drives over image indices[i]. Robot r's start and sampling
 /// seed derive from (stream, r) only, so a batch is reproducible from its stream seed.
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
-                        const worlds::World& world, const sim::FloorFrame& frame, std::uint64_t stream);
+                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream);
 
 /// What one batch gave.
 struct BatchOutcome {

@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-namespace scout::worlds {
+namespace scout::core {
 
 /// SplitMix64 finaliser: a well-mixed 64-bit value from any 64-bit input.
 constexpr std::uint64_t mix_seed(std::uint64_t x) {
@@ -69,4 +69,4 @@ void shuffle(std::vector<T>& v, Generator& rng) {
   for (std::size_t i = v.size(); i > 1; --i) std::swap(v[i - 1], v[uniform_below(rng, i)]);
 }
 
-}  // namespace scout::worlds
+}  // namespace scout::core

@@ -2,9 +2,9 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 
-namespace scout::sim {
+namespace scout::grid {
 
 Cell FloorFrame::grid_pose(const Eigen::Vector2d& px) const {
   const int x = static_cast<int>(std::floor(px.x()));
@@ -92,4 +92,4 @@ void GridModel::move(const Cell& command) {
   revealed_.reveal(camera_window(pose_, patch_px_, frame_));
 }
 
-}  // namespace scout::sim
+}  // namespace scout::grid

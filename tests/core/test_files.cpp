@@ -4,10 +4,10 @@
 #include <iterator>
 
 #include "tests/support/temp_dir.hpp"
-#include "worlds/error.hpp"
-#include "worlds/files.hpp"
+#include "core/error.hpp"
+#include "core/files.hpp"
 
-namespace scout::worlds {
+namespace scout::core {
 namespace {
 
 namespace fs = std::filesystem;
@@ -56,4 +56,4 @@ TEST(AtomicFile, TemporaryNamesAreHiddenBesideTheFileAndFresh) {
 }
 
 }  // namespace
-}  // namespace scout::worlds
+}  // namespace scout::core

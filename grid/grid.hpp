@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace scout::sim {
+namespace scout::grid {
 
 /// A floor pixel / grid pose: x = column, y = row (y down), in pixels.
 using Cell = Eigen::Vector2i;
@@ -91,4 +91,4 @@ class GridModel {
   RevealMask revealed_;
 };
 
-}  // namespace scout::sim
+}  // namespace scout::grid

@@ -1,4 +1,4 @@
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
 namespace scout {
 

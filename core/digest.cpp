@@ -1,4 +1,4 @@
-#include "worlds/digest.hpp"
+#include "core/digest.hpp"
 
 #include <fmt/format.h>
 #include <openssl/evp.h>
@@ -8,9 +8,9 @@
 #include <fstream>
 #include <memory>
 
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
-namespace scout::worlds {
+namespace scout::core {
 
 std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestKind kind) {
   std::error_code ec;
@@ -34,4 +34,4 @@ std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestK
   return digest;
 }
 
-}  // namespace scout::worlds
+}  // namespace scout::core

@@ -1,9 +1,9 @@
 // The pure pixel arithmetic of METHOD.md: frames, windows, the action protocol, the grid model.
 #include <gtest/gtest.h>
 
-#include "sim/grid.hpp"
+#include "grid/grid.hpp"
 
-namespace scout::sim {
+namespace scout::grid {
 namespace {
 
 const FloorFrame kFloor{28, 28, 0.1};
@@ -83,4 +83,4 @@ TEST(GridModel, LandsOnPosePlusCommandAndStopsAtTheBorder) {
 }
 
 }  // namespace
-}  // namespace scout::sim
+}  // namespace scout::grid

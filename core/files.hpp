@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <string>
 
-namespace scout::worlds {
+namespace scout::core {
 
 /// A fresh hidden name beside `file` (".NAME.tmp-XXXXXXXX"), for writing before a rename; it never
 /// names a file of the user's.
@@ -14,4 +14,4 @@ std::filesystem::path temporary_path_beside(const std::filesystem::path& file);
 /// no temporary file behind.
 void write_file_atomic(const std::filesystem::path& file, const std::string& text);
 
-}  // namespace scout::worlds
+}  // namespace scout::core

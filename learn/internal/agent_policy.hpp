@@ -1,4 +1,7 @@
 #pragma once
+#ifndef SCOUT_LEARN_INTERNAL
+#error "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
+#endif
 /// The learned policy: the agent's goal and action planners choosing for a rollout batch, and
 /// the log-probabilities the estimator needs. Torch header: include from learn/ sources only.
 #include <torch/torch.h>
@@ -9,7 +12,7 @@
 
 #include "agent/networks.hpp"
 #include "learn/rollout.hpp"
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
 namespace scout::learn {
 
@@ -34,12 +37,12 @@ struct PolicyTiming {
 /// Only robots whose action protocol says Choose (chi = 1) are run through the action planner.
 class AgentPolicy final : public Policy {
  public:
-  AgentPolicy(agent::AgentImpl& agent, const sim::FloorFrame& frame, int patch_px, int max_robots);
+  AgentPolicy(agent::AgentImpl& agent, const grid::FloorFrame& frame, int patch_px, int max_robots);
 
   /// Starts a batch: new generators, log pi and entropy reset to zero.
   void begin(std::span<const std::uint64_t> seeds, const Sampling& sampling);
-  void choose_goals(const BatchState& state, int episode, std::span<sim::Cell> goals) override;
-  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<sim::Axis> axes) override;
+  void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override;
+  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override;
 
   /// Sum over the batch so far of the sampled log-probabilities of the learned layers, per robot
   /// [count] (zeros when no layer is learned). Carries the graph when sampling.with_grad.
@@ -54,15 +57,15 @@ class AgentPolicy final : public Policy {
   void reset_timing() { timing_ = {}; }
 
  private:
-  int sample(worlds::Rng& rng, const float* probabilities, int n) const;
+  int sample(core::Rng& rng, const float* probabilities, int n) const;
 
   agent::AgentImpl& agent_;
-  sim::FloorFrame frame_;
+  grid::FloorFrame frame_;
   int patch_px_;
   int max_robots_;
   Sampling sampling_;
   int count_ = 0;
-  std::vector<worlds::Rng> rngs_;
+  std::vector<core::Rng> rngs_;
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
   std::vector<std::int64_t> rows_;
@@ -74,6 +77,6 @@ class AgentPolicy final : public Policy {
 torch::Tensor revealed_images(const BatchState& state, int count);
 
 /// Full floors (u_c = x) as the classifier's input: [count, 1, H, W] from count * H * W bytes.
-torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const sim::FloorFrame& frame);
+torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const grid::FloorFrame& frame);
 
 }  // namespace scout::learn

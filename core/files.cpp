@@ -1,13 +1,13 @@
-#include "worlds/files.hpp"
+#include "core/files.hpp"
 
 #include <fmt/format.h>
 
 #include <fstream>
 #include <random>
 
-#include "worlds/error.hpp"
+#include "core/error.hpp"
 
-namespace scout::worlds {
+namespace scout::core {
 
 namespace fs = std::filesystem;
 
@@ -36,4 +36,4 @@ void write_file_atomic(const fs::path& file, const std::string& text) {
   }
 }
 
-}  // namespace scout::worlds
+}  // namespace scout::core

@@ -5,11 +5,11 @@
 #include <filesystem>
 #include <vector>
 
-namespace scout::worlds {
+namespace scout::core {
 
 enum class DigestKind { Sha256, Sha512 };
 
 /// The digest of a file's bytes. Throws InputError naming the file if it cannot be read.
 std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestKind kind);
 
-}  // namespace scout::worlds
+}  // namespace scout::core

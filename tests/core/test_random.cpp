@@ -6,9 +6,9 @@
 #include <set>
 #include <vector>
 
-#include "worlds/random.hpp"
+#include "core/random.hpp"
 
-namespace scout::worlds {
+namespace scout::core {
 namespace {
 
 TEST(Rng, SameSeedSameSequenceDifferentSeedDifferent) {
@@ -87,4 +87,4 @@ TEST(DeriveSeed, StreamsAreDistinct) {
 }
 
 }  // namespace
-}  // namespace scout::worlds
+}  // namespace scout::core
