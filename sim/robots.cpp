@@ -127,7 +127,7 @@ Eigen::Vector2d RobotBatch::position_m(int robot) const {
   return Eigen::Vector2d(p.x, p.y) * (frame_.pixel_size_m / kUnitsPerPx);
 }
 
-Cell RobotBatch::grid_pose(int robot) const { return frame_.grid_pose(position_px(robot)); }
+grid::Cell RobotBatch::grid_pose(int robot) const { return frame_.grid_pose(position_px(robot)); }
 
 bool RobotBatch::touching_wall(int robot) const {
   for (const b2ContactEdge* e = robots_[robot].body->GetContactList(); e != nullptr; e = e->next)

@@ -105,7 +105,7 @@ std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, 
     step["episode"] = s.episode;
     step["step"] = s.step;
     step["goal"] = cell_json(s.goal);
-    step["axis"] = sim::to_string(s.axis);
+    step["axis"] = grid::to_string(s.axis);
     step["sampled"] = s.sampled;
     step["command"] = cell_json(s.command);
     step["ticks"] = s.result.ticks;

@@ -11,7 +11,7 @@
 namespace scout::sim {
 namespace {
 
-const FloorFrame kFloor{28, 28, 0.1};
+const grid::FloorFrame kFloor{28, 28, 0.1};
 
 // The paper preset: 2 m/s at 0.1 m/px and dt = 1/60 s is 1/3 px per tick.
 RobotParams preset() { return RobotParams{}; }
@@ -20,20 +20,20 @@ RobotParams preset() { return RobotParams{}; }
 // margin plus one tick's travel, and always less than half a pixel (it stays on the border pixel).
 const double kImpactBound_px = RobotBatch::wall_margin_px() + 1.0 / 3.0 + 0.01;
 
-MoveResult move_one(RobotBatch& batch, int robot, const Cell& command) {
-  std::vector<Cell> commands(static_cast<std::size_t>(robot) + 1, Cell(0, 0));
+MoveResult move_one(RobotBatch& batch, int robot, const grid::Cell& command) {
+  std::vector<grid::Cell> commands(static_cast<std::size_t>(robot) + 1, grid::Cell(0, 0));
   commands[robot] = command;
   std::vector<MoveResult> results(commands.size());
   batch.move(commands, results);
   return results[robot];
 }
 
-void expect_on_cell_centre(const RobotBatch& batch, int robot, const Cell& cell) {
+void expect_on_cell_centre(const RobotBatch& batch, int robot, const grid::Cell& cell) {
   const Eigen::Vector2d centre = kFloor.cell_centre_px(cell);
   const Eigen::Vector2d at = batch.position_px(robot);
   EXPECT_EQ(batch.grid_pose(robot), cell);
-  EXPECT_NEAR(at.x(), centre.x(), preset().tolerance_px);
-  EXPECT_NEAR(at.y(), centre.y(), preset().tolerance_px);
+  EXPECT_NEAR(at.x(), centre.x(), preset().controller.tolerance_px);
+  EXPECT_NEAR(at.y(), centre.y(), preset().controller.tolerance_px);
 }
 
 TEST(RobotBatch, PlacedRobotRestsOnTheCellCentre) {
@@ -44,26 +44,26 @@ TEST(RobotBatch, PlacedRobotRestsOnTheCellCentre) {
 }
 
 TEST(RobotBatch, MovesLandOnTheCommandedCellInAllFourDirections) {
-  const Cell commands[] = {{2, 0}, {-2, 0}, {0, 2}, {0, -2}, {1, 0}, {0, -1}};
-  for (const Cell& command : commands) {
+  const grid::Cell commands[] = {{2, 0}, {-2, 0}, {0, 2}, {0, -2}, {1, 0}, {0, -1}};
+  for (const grid::Cell& command : commands) {
     RobotBatch batch(kFloor, preset(), 1);
     batch.place(0, {14, 14});
     const MoveResult r = move_one(batch, 0, command);
     EXPECT_TRUE(r.settled);
     EXPECT_FALSE(r.touched_wall);
-    expect_on_cell_centre(batch, 0, Cell(14, 14) + command);
+    expect_on_cell_centre(batch, 0, grid::Cell(14, 14) + command);
     // Driven, not teleported: 2 px at 1/3 px per tick needs at least 6 ticks, and the speed
     // never exceeds the limit.
     EXPECT_GE(r.ticks, 3 * std::abs(command.x() + command.y()));
-    EXPECT_GT(r.peak_speed_mps, 0.5 * preset().max_speed_mps);
-    EXPECT_LE(r.peak_speed_mps, preset().max_speed_mps * (1 + 1e-5));
+    EXPECT_GT(r.peak_speed_mps, 0.5 * preset().body.max_speed_mps);
+    EXPECT_LE(r.peak_speed_mps, preset().body.max_speed_mps * (1 + 1e-5));
   }
 }
 
 TEST(RobotBatch, MovesOntoAndAwayFromEachBorder) {
   // For each border: onto it by 1 and by 2 pixels, then away from it by 2, and along it.
   struct Case {
-    Cell start, onto1, onto2, away, along;
+    grid::Cell start, onto1, onto2, away, along;
   };
   const Case cases[] = {
       {{2, 10}, {-1, 0}, {-1, 0}, {2, 0}, {0, 2}},   // left: 2 -> 1 -> 0 -> 2
@@ -75,8 +75,8 @@ TEST(RobotBatch, MovesOntoAndAwayFromEachBorder) {
   for (const Case& c : cases) {
     RobotBatch batch(kFloor, preset(), 1);
     batch.place(0, c.start);
-    Cell expected = c.start;
-    for (const Cell& step : {c.onto1, c.onto2, c.away, c.along}) {
+    grid::Cell expected = c.start;
+    for (const grid::Cell& step : {c.onto1, c.onto2, c.away, c.along}) {
       const MoveResult r = move_one(batch, 0, step);
       expected += step;
       ASSERT_TRUE(kFloor.contains(expected));
@@ -92,18 +92,18 @@ TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
   // Drive along all four borders, and from near each border onto it.
   RobotBatch batch(kFloor, preset(), 1);
   batch.place(0, {2, 2});
-  const Cell legs[] = {{-2, 0}, {0, -2}};
-  for (const Cell& c : legs) {
+  const grid::Cell legs[] = {{-2, 0}, {0, -2}};
+  for (const grid::Cell& c : legs) {
     const MoveResult r = move_one(batch, 0, c);
     EXPECT_TRUE(r.settled);
     EXPECT_FALSE(r.touched_wall);
   }
   expect_on_cell_centre(batch, 0, {0, 0});
   const struct {
-    Cell step;
+    grid::Cell step;
     int count;
   } sides[] = {{{1, 0}, 27}, {{0, 1}, 27}, {{-1, 0}, 27}, {{0, -1}, 27}};
-  Cell expected(0, 0);
+  grid::Cell expected(0, 0);
   for (const auto& side : sides) {
     for (int k = 0; k < side.count; ++k) {
       const MoveResult r = move_one(batch, 0, side.step);
@@ -118,7 +118,7 @@ TEST(RobotBatch, MovesReachEveryBorderCellWithoutTouchingTheWall) {
 TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
   ASSERT_LT(kImpactBound_px, 0.5);  // the bound itself keeps the centre on the border pixel
   const struct {
-    Cell start, command;
+    grid::Cell start, command;
   } cases[] = {{{0, 14}, {-2, 0}}, {{1, 14}, {-5, 0}}, {{27, 3}, {2, 0}},   {{14, 0}, {0, -2}},
                {{14, 27}, {0, 2}}, {{27, 27}, {3, 3}}, {{26, 1}, {40, -40}}};
   for (const auto& c : cases) {
@@ -132,7 +132,7 @@ TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
     EXPECT_GT(r.beyond_border_px, 0.0);
     EXPECT_LE(r.beyond_border_px, kImpactBound_px) << c.start.transpose();
     EXPECT_FALSE(r.settled);  // the target is unreachable
-    EXPECT_EQ(r.ticks, preset().max_ticks_per_move);
+    EXPECT_EQ(r.ticks, preset().physics.max_ticks_per_move);
     // The centre stays on the floor's border pixels: within the wall margin of their centres.
     const Eigen::Vector2d at = batch.position_px(0);
     const double margin = RobotBatch::wall_margin_px() + 0.05;
@@ -140,7 +140,7 @@ TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
     EXPECT_LE(at.x(), 27.5 + margin);
     EXPECT_GE(at.y(), 0.5 - margin);
     EXPECT_LE(at.y(), 27.5 + margin);
-    const Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27), std::clamp(c.start.y() + c.command.y(), 0, 27)};
+    const grid::Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27), std::clamp(c.start.y() + c.command.y(), 0, 27)};
     EXPECT_EQ(batch.grid_pose(0), expected);
   }
 }
@@ -149,7 +149,7 @@ TEST(RobotBatch, BehavesTheSameInPixelsAtAnyFloorScale) {
   // Box2D's tolerances are fixed lengths; the robots must still land on cells and stay on the
   // floor whether a pixel is 5 mm or 5 m (sizes and speeds scale with the pixel).
   for (double pixel_size_m : {0.005, 0.01, 0.03, 0.1, 1.0, 5.0}) {
-    const FloorFrame floor{28, 28, pixel_size_m};
+    const grid::FloorFrame floor{28, 28, pixel_size_m};
     RobotParams params = preset();
     params.body.radius_m = 2.5 * pixel_size_m;
     params.body.max_speed_mps = 20.0 * pixel_size_m;  // 20 px/s, 1/3 px per tick
@@ -158,14 +158,14 @@ TEST(RobotBatch, BehavesTheSameInPixelsAtAnyFloorScale) {
     MoveResult r = move_one(batch, 0, {2, 0});
     EXPECT_TRUE(r.settled) << pixel_size_m;
     EXPECT_EQ(r.ticks, 6) << pixel_size_m;
-    EXPECT_EQ(batch.grid_pose(0), Cell(3, 14));
+    EXPECT_EQ(batch.grid_pose(0), grid::Cell(3, 14));
     EXPECT_NEAR(r.peak_speed_mps, params.body.max_speed_mps, 1e-4 * params.body.max_speed_mps);
     r = move_one(batch, 0, {-8, 0});  // 5 px past the edge
     EXPECT_TRUE(r.touched_wall) << pixel_size_m;
     EXPECT_FALSE(r.settled) << pixel_size_m;
     const Eigen::Vector2d at = batch.position_px(0);
     EXPECT_GE(at.x(), 0.5 - RobotBatch::wall_margin_px() - 0.05) << pixel_size_m;
-    EXPECT_EQ(batch.grid_pose(0), Cell(0, 14));
+    EXPECT_EQ(batch.grid_pose(0), grid::Cell(0, 14));
     EXPECT_NEAR(batch.position_m(0).x(), at.x() * pixel_size_m, 1e-6 * pixel_size_m);
   }
 }
@@ -176,8 +176,8 @@ TEST(RobotBatch, AFastRobotDoesNotTunnelThroughTheWall) {
   RobotParams fast = preset();
   fast.body.max_speed_mps = 60.0;
   fast.physics.max_ticks_per_move = 20;
-  const Cell commands[] = {{-60, 0}, {60, 0}, {0, -60}, {0, 60}, {45, 45}};
-  for (const Cell& command : commands) {
+  const grid::Cell commands[] = {{-60, 0}, {60, 0}, {0, -60}, {0, 60}, {45, 45}};
+  for (const grid::Cell& command : commands) {
     RobotBatch batch(kFloor, fast, 1);
     batch.place(0, {14, 14});
     const MoveResult r = move_one(batch, 0, command);
@@ -193,10 +193,10 @@ TEST(RobotBatch, NeverLeavesTheFloorUnderRandomPushes) {
   RobotBatch batch(kFloor, preset(), 8);
   std::mt19937 rng(3);
   for (int i = 0; i < 8; ++i) batch.place(i, {static_cast<int>(rng() % 28), static_cast<int>(rng() % 28)});
-  std::vector<Cell> commands(8);
+  std::vector<grid::Cell> commands(8);
   std::vector<MoveResult> results(8);
   for (int step = 0; step < 60; ++step) {
-    for (Cell& c : commands) c = Cell(static_cast<int>(rng() % 41) - 20, static_cast<int>(rng() % 41) - 20);
+    for (grid::Cell& c : commands) c = grid::Cell(static_cast<int>(rng() % 41) - 20, static_cast<int>(rng() % 41) - 20);
     batch.move(commands, results);
     for (int i = 0; i < 8; ++i) {
       ASSERT_LE(results[i].beyond_border_px, kImpactBound_px);
@@ -224,12 +224,12 @@ std::uint64_t random_drive_hash(std::uint32_t seed, int robots, int moves, int t
   RobotBatch batch(kFloor, preset(), robots, threads);
   std::mt19937 rng(seed);
   for (int i = 0; i < robots; ++i) batch.place(i, {static_cast<int>(rng() % 28), static_cast<int>(rng() % 28)});
-  std::vector<Cell> commands(robots);
+  std::vector<grid::Cell> commands(robots);
   std::vector<MoveResult> results(robots);
   std::uint64_t h = 1469598103934665603ull;
   for (int m = 0; m < moves; ++m) {
-    for (Cell& c : commands)
-      c = (rng() % 2) ? Cell(static_cast<int>(rng() % 5) - 2, 0) : Cell(0, static_cast<int>(rng() % 5) - 2);
+    for (grid::Cell& c : commands)
+      c = (rng() % 2) ? grid::Cell(static_cast<int>(rng() % 5) - 2, 0) : grid::Cell(0, static_cast<int>(rng() % 5) - 2);
     batch.move(commands, results);
     h = hash_positions(batch, h);
   }
@@ -251,12 +251,12 @@ TEST(RobotBatch, ResultDoesNotDependOnTheThreadCount) {
 TEST(RobotBatch, RobotsInOneBatchDoNotInteract) {
   // Robot 0 alone, and robot 0 among 239 others that all start on its very cell and drive
   // through it: its positions are bit-identical.
-  const Cell start{14, 14};
-  const Cell path[] = {{2, 0}, {0, 2}, {-1, 0}, {0, -2}, {-2, 0}, {0, 1}};
+  const grid::Cell start{14, 14};
+  const grid::Cell path[] = {{2, 0}, {0, 2}, {-1, 0}, {0, -2}, {-2, 0}, {0, 1}};
   auto drive = [&](int robots) {
     RobotBatch batch(kFloor, preset(), robots);
     for (int i = 0; i < robots; ++i) batch.place(i, start);
-    std::vector<Cell> commands(robots);
+    std::vector<grid::Cell> commands(robots);
     std::vector<MoveResult> results(robots);
     std::vector<Eigen::Vector2d> trace;
     for (std::size_t m = 0; m < std::size(path); ++m) {
