@@ -9,8 +9,8 @@
 #include <limits>
 #include <string>
 
-#include "tests/support/temp_dir.hpp"
 #include "core/error.hpp"
+#include "tests/support/temp_dir.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {
@@ -573,6 +573,200 @@ TEST(WorldFile, ToYamlRoundTripsEveryFieldExactly) {
   const World back = parse_world(to_yaml(exact), "anywhere.yaml");
   expect_same_world(back, exact);
   EXPECT_EQ(back.floor.image, dir.path() / "f.png");
+}
+
+// --- to_yaml's exact text: pinned, so that a change in how worlds are written is deliberate ---
+
+// clang-format off
+const char* const kMnistYaml = R"(floor:
+  dataset: mnist
+  split: test
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.0166667
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 1
+)";
+
+const char* const kFashionYaml = R"(floor:
+  dataset: fashion-mnist
+  split: test
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.0166667
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 1
+)";
+
+const char* const kDigitFixedYaml = R"(floor:
+  dataset: mnist
+  split: test
+  index: 0
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: [14, 14]
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 7
+)";
+
+const char* const kEveryFieldYaml = R"(floor:
+  dataset: "/data/worlds/odd ~ name: #x"
+  split: validation
+  index: 17
+  pixel_size_m: 0.3
+robot:
+  radius_m: 0.7
+  mass_kg: 3.7
+  max_speed_mps: 0.001
+  start: [5, 9]
+controller:
+  kp_per_s: 12.5
+  tolerance_px: 0.1
+camera:
+  patch_px: 9
+task:
+  episodes: 7
+  steps: 3
+  step_px: 4
+physics:
+  dt_s: 0.001
+  velocity_iterations: 6
+  position_iterations: 2
+  max_ticks_per_move: 999
+seed: 18446744073709551615
+)";
+
+const char* const kImageYaml = R"(floor:
+  image: "/data/worlds/f.PNG"
+  pixel_size_m: 0.02
+robot:
+  radius_m: 0.05
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 0.3333333333333333
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 0
+)";
+
+const char* const kDefaultYaml = R"(floor:
+  dataset: mnist
+  split: train
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 0
+)";
+// clang-format on
+
+TEST(WorldFile, ToYamlTextOfTheShippedWorldsIsPinned) {
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/mnist.yaml")), kMnistYaml);
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/fashion.yaml")), kFashionYaml);
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/digit-fixed.yaml")), kDigitFixedYaml);
+}
+
+TEST(WorldFile, ToYamlTextOfEveryFieldSetIsPinned) {
+  // An absolute origin: relative folders resolve without touching the disk, so the text is fixed.
+  const World every = parse_world(
+      "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
+      "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+      "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
+      "camera: {patch_px: 9}\n"
+      "task: {episodes: 7, steps: 3, step_px: 4}\n"
+      "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
+      "seed: 18446744073709551615\n",
+      "/data/worlds/w.yaml");
+  EXPECT_EQ(to_yaml(every), kEveryFieldYaml);
+  expect_same_world(parse_world(kEveryFieldYaml, "/elsewhere/w.yaml"), every);
+
+  World image =
+      parse_world("floor: {image: f.PNG, pixel_size_m: 0.02}\nrobot: {radius_m: 0.05}\n", "/data/worlds/w.yaml");
+  image.physics.dt_s = 1.0 / 60.0;  // not short decimals: every digit goes out
+  image.controller.kp_per_s = 1.0 / 3.0;
+  EXPECT_EQ(to_yaml(image), kImageYaml);
+  expect_same_world(parse_world(kImageYaml, "/elsewhere/w.yaml"), image);
+
+  EXPECT_EQ(to_yaml(World{}), kDefaultYaml);
 }
 
 }  // namespace
