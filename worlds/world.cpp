@@ -158,6 +158,8 @@ struct Row {
 
 constexpr double kIntMax = std::numeric_limits<int>::max();
 
+// Columns: name, type, member (its initializer is the default), range, rule beyond the range
+// (checked by hand, here for the docs), unit, doc. Rows are in the order to_yaml writes them.
 // clang-format off
 constexpr Row<FloorSpec> kFloorRows[] = {
     {"dataset", Type::Dataset, &FloorSpec::dataset, {}, "non-empty", "",
@@ -196,7 +198,7 @@ constexpr Row<ControllerSpec> kControllerRows[] = {
 constexpr Row<CameraSpec> kCameraRows[] = {
     {"patch_px", Type::Integer, &CameraSpec::patch_px, closed(1, kMaxPatchPx),
      "and at most the floor's smaller side", "pixels",
-     "m: the camera sees an m × m window (64, the most, is the renderer's limit)"},
+     "m: the camera sees an m × m window; the upper bound is the renderer's limit"},
 };
 
 constexpr Row<TaskSpec> kTaskRows[] = {
@@ -221,8 +223,9 @@ constexpr Row<World> kTopRows[] = {
 };
 // clang-format on
 
-/// A row's member matches its type, and integers have closed integral ranges: checked at compile
-/// time, so that a mistyped new row does not build.
+/// A row's member matches its type, and integers have closed, integral, non-negative ranges
+/// (read_int compares magnitudes): checked at compile time, so that a mistyped new row does not
+/// build.
 template <class Spec, std::size_t N>
 constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
   for (const Row<Spec>& row : rows) {
@@ -240,6 +243,7 @@ constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
 static_assert(well_formed(kFloorRows) && well_formed(kRobotRows) && well_formed(kControllerRows) &&
               well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) && well_formed(kTopRows));
 
+/// A table as a span, the one shape the code that walks every section takes.
 template <class Spec, std::size_t N>
 std::span<const Row<Spec>> rows_of(const Row<Spec> (&rows)[N]) {
   return rows;

@@ -79,6 +79,7 @@ struct World {
 
 /// One field of the world file, as the schema table in worlds/README.md lists it. The loader's
 /// checks, its messages and to_yaml are driven by the same table (worlds/world.cpp, "The schema").
+/// Texts may hold Markdown code spans (`random`), as the README shows them.
 struct FieldInfo {
   std::string_view section;  ///< "floor", "robot", ...; empty for a top-level field (seed)
   std::string_view name;     ///< the YAML key
