@@ -17,11 +17,15 @@
 #include <charconv>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <set>
+#include <span>
 #include <sstream>
 #include <string>
 #include <system_error>
+#include <type_traits>
 #include <utility>
+#include <variant>
 #include <vector>
 
 namespace scout::worlds {
@@ -101,6 +105,269 @@ std::string format_double(double v) {
   return std::string(buf.data(), result.ptr);
 }
 
+// ---------------------------------------------------------------------------------------------
+// The schema: one table per section, one row per field. The rows decide which keys a section
+// takes, how each value is read and range-checked, what its messages say, how to_yaml writes it
+// and what worlds/README.md lists (world_schema(); a test holds the README to it). A new integer
+// or number field is one row here, its struct member and its README row.
+
+/// How a field's value is written. The first three are the ordinary kinds, checked against the
+/// row's range alone; each of the others is one special field with its own reader below.
+enum class Type {
+  Integer,        // int: a decimal integer in [lo, hi]
+  Number,         // double: a finite decimal number in the row's interval
+  Unsigned,       // std::uint64_t: any decimal integer in [0, 2^64 - 1]
+  Dataset,        // floor.dataset: a name or a folder, resolved against the file
+  SplitName,      // floor.split
+  IndexOrRandom,  // floor.index: an integer in [lo, hi], or random
+  PngPath,        // floor.image, resolved against the file
+  StartOrRandom,  // robot.start: [x, y] or random
+};
+
+/// The member a row reads and writes: its alternative is the one at the row's Type's position.
+template <class Spec>
+using Member = std::variant<int Spec::*, double Spec::*, std::uint64_t Spec::*, std::string Spec::*, Split Spec::*,
+                            std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*>;
+
+/// The interval a value must lie in; integers take closed ones only.
+struct Bounds {
+  double lo = 0.0;
+  double hi = 0.0;
+  bool lo_open = false;
+  bool hi_open = false;
+};
+
+/// [lo, hi]
+constexpr Bounds closed(double lo, double hi) { return {lo, hi, false, false}; }
+/// (lo, hi]
+constexpr Bounds left_open(double lo, double hi) { return {lo, hi, true, false}; }
+/// (lo, hi)
+constexpr Bounds open_both(double lo, double hi) { return {lo, hi, true, true}; }
+
+/// One field: `name : type = default (from the struct) in range, and rule # doc [unit]`.
+template <class Spec>
+struct Row {
+  std::string_view name;
+  Type type;
+  Member<Spec> member;
+  Bounds range;           // for Integer, Number and IndexOrRandom
+  std::string_view rule;  // what else limits the value (checked by hand elsewhere), for the docs
+  std::string_view unit;  // empty for counts, names and seeds
+  std::string_view doc;
+};
+
+constexpr double kIntMax = std::numeric_limits<int>::max();
+
+// Columns: name, type, member (its initializer is the default), range, rule beyond the range
+// (checked by hand, here for the docs), unit, doc. Rows are in the order to_yaml writes them.
+// clang-format off
+constexpr Row<FloorSpec> kFloorRows[] = {
+    {"dataset", Type::Dataset, &FloorSpec::dataset, {}, "non-empty", "",
+     "`mnist`, `fashion-mnist`, or a folder of IDX files (relative to the world file)"},
+    {"split", Type::SplitName, &FloorSpec::split, {}, "", "",
+     "which split of `dataset` the floor comes from"},
+    {"index", Type::IndexOrRandom, &FloorSpec::index, closed(0, kIntMax), "and below the split's size", "",
+     "which image of the split; `random` draws it from the seed"},
+    {"image", Type::PngPath, &FloorSpec::image, {}, "ends in `.png` (any case)", "",
+     "a grayscale PNG used as the floor instead of a data set (relative to the world file)"},
+    {"pixel_size_m", Type::Number, &FloorSpec::pixel_size_m, left_open(0, 10), "", "m per pixel",
+     "floor scale"},
+};
+
+constexpr Row<RobotSpec> kRobotRows[] = {
+    {"radius_m", Type::Number, &RobotSpec::radius_m, left_open(0, 10),
+     "and 0.5 to 100 pixels (`radius_m` / `pixel_size_m`)", "m",
+     "disc radius; it sets where the walls stand, and with the mass the body Box2D simulates"},
+    {"mass_kg", Type::Number, &RobotSpec::mass_kg, left_open(0, 1e4), "", "kg",
+     "body mass"},
+    {"max_speed_mps", Type::Number, &RobotSpec::max_speed_mps, left_open(0, 1000), "", "m/s",
+     "controller speed limit"},
+    {"start", Type::StartOrRandom, &RobotSpec::start, {}, "non-negative integers, on the floor", "pixels",
+     "start cell (x right, y down); `random` draws it from the seed"},
+};
+
+constexpr Row<ControllerSpec> kControllerRows[] = {
+    {"kp_per_s", Type::Number, &ControllerSpec::kp_per_s, left_open(0, 1e6), "and `kp_per_s` × `dt_s` < 2", "1/s",
+     "proportional gain: velocity = kp × position error, capped at `max_speed_mps`; kp × dt = 1 lands in one tick "
+     "once within reach, 2 or more never settles"},
+    // Below half a pixel, so that a settled robot is always inside its target cell.
+    {"tolerance_px", Type::Number, &ControllerSpec::tolerance_px, open_both(0, 0.5), "", "pixels",
+     "a move has settled when the centre is this close to the cell centre"},
+};
+
+constexpr Row<CameraSpec> kCameraRows[] = {
+    {"patch_px", Type::Integer, &CameraSpec::patch_px, closed(1, kMaxPatchPx),
+     "and at most the floor's smaller side", "pixels",
+     "m: the camera sees an m × m window; the upper bound is the renderer's limit"},
+};
+
+constexpr Row<TaskSpec> kTaskRows[] = {
+    {"episodes", Type::Integer, &TaskSpec::episodes, closed(1, 1000), "", "", "E: goals per rollout"},
+    {"steps", Type::Integer, &TaskSpec::steps, closed(1, 1000), "", "", "T: moves per episode"},
+    {"step_px", Type::Integer, &TaskSpec::step_px, closed(1, 512), "", "pixels", "s: the longest move"},
+};
+
+constexpr Row<PhysicsSpec> kPhysicsRows[] = {
+    {"dt_s", Type::Number, &PhysicsSpec::dt_s, left_open(0, 1), "", "s", "one Box2D tick (1/60 s by default)"},
+    {"velocity_iterations", Type::Integer, &PhysicsSpec::velocity_iterations, closed(1, 100), "", "",
+     "Box2D velocity solver iterations per tick"},
+    {"position_iterations", Type::Integer, &PhysicsSpec::position_iterations, closed(1, 100), "", "",
+     "Box2D position solver iterations per tick"},
+    {"max_ticks_per_move", Type::Integer, &PhysicsSpec::max_ticks_per_move, closed(1, 100000), "", "ticks",
+     "a move not settled after this many ticks ends where the robot is"},
+};
+
+/// Fields at the top level, beside the sections.
+constexpr Row<World> kTopRows[] = {
+    {"seed", Type::Unsigned, &World::seed, {}, "", "", "run seed; the command line's `--seed` overrides it"},
+};
+// clang-format on
+
+/// A row's member matches its type, and integers have closed, integral, non-negative ranges
+/// (read_int compares magnitudes): checked at compile time, so that a mistyped new row does not
+/// build.
+template <class Spec, std::size_t N>
+constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
+  for (const Row<Spec>& row : rows) {
+    if (row.member.index() != static_cast<std::size_t>(row.type)) return false;
+    const Bounds& b = row.range;
+    if (row.type == Type::Integer || row.type == Type::IndexOrRandom) {
+      if (b.lo_open || b.hi_open || b.lo > b.hi || b.lo < 0 || b.hi > kIntMax) return false;
+      if (static_cast<double>(static_cast<int>(b.lo)) != b.lo || static_cast<double>(static_cast<int>(b.hi)) != b.hi)
+        return false;
+    }
+    if (row.type == Type::Number && !(b.lo < b.hi)) return false;
+  }
+  return true;
+}
+static_assert(well_formed(kFloorRows) && well_formed(kRobotRows) && well_formed(kControllerRows) &&
+              well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) && well_formed(kTopRows));
+
+/// A table as a span, the one shape the code that walks every section takes.
+template <class Spec, std::size_t N>
+std::span<const Row<Spec>> rows_of(const Row<Spec> (&rows)[N]) {
+  return rows;
+}
+
+/// Calls f(section, rows, spec) for each section in file order, then f("", top-level rows, world).
+/// `W` is World or const World.
+template <class W, class F>
+void for_each_section(W& world, F&& f) {
+  f(std::string_view("floor"), rows_of(kFloorRows), world.floor);
+  f(std::string_view("robot"), rows_of(kRobotRows), world.robot);
+  f(std::string_view("controller"), rows_of(kControllerRows), world.controller);
+  f(std::string_view("camera"), rows_of(kCameraRows), world.camera);
+  f(std::string_view("task"), rows_of(kTaskRows), world.task);
+  f(std::string_view("physics"), rows_of(kPhysicsRows), world.physics);
+  f(std::string_view(), rows_of(kTopRows), world);
+}
+
+/// The keys allowed at the top level: the sections, then the top-level fields.
+const std::vector<std::string_view>& top_level_keys() {
+  static const std::vector<std::string_view> keys = [] {
+    std::vector<std::string_view> out;
+    const World world;
+    for_each_section(world, [&out](std::string_view section, auto rows, const auto&) {
+      if (!section.empty()) {
+        out.push_back(section);
+      } else {
+        for (const auto& row : rows) out.push_back(row.name);
+      }
+    });
+    return out;
+  }();
+  return keys;
+}
+
+template <class Spec>
+std::vector<std::string_view> names_of(std::span<const Row<Spec>> rows) {
+  std::vector<std::string_view> names;
+  for (const Row<Spec>& row : rows) names.push_back(row.name);
+  return names;
+}
+
+template <class Spec>
+const Row<Spec>& row_named(std::span<const Row<Spec>> rows, std::string_view name) {
+  const auto it = std::find_if(rows.begin(), rows.end(), [name](const Row<Spec>& row) { return row.name == name; });
+  return *it;  // callers pass keys that fields_of has checked against the same rows
+}
+
+/// The interval in messages and docs: "[1, 64]", "(0, 10]"; empty for the special fields but the
+/// index.
+std::string interval_text(Type type, const Bounds& b) {
+  switch (type) {
+    case Type::Integer:
+    case Type::IndexOrRandom:
+      return "[" + std::to_string(static_cast<int>(b.lo)) + ", " + std::to_string(static_cast<int>(b.hi)) + "]";
+    case Type::Number:
+      return (b.lo_open ? "(" : "[") + format_double(b.lo) + ", " + format_double(b.hi) + (b.hi_open ? ")" : "]");
+    case Type::Unsigned:
+      return "[0, " + std::to_string(std::numeric_limits<std::uint64_t>::max()) + "]";
+    case Type::Dataset:
+    case Type::SplitName:
+    case Type::PngPath:
+    case Type::StartOrRandom:
+      break;
+  }
+  return {};
+}
+
+/// What a row's type is called in the docs.
+std::string_view type_text(Type type) {
+  switch (type) {
+    case Type::Integer:
+      return "integer";
+    case Type::Number:
+      return "number";
+    case Type::Unsigned:
+      return "unsigned integer";
+    case Type::Dataset:
+    case Type::PngPath:
+      return "string";
+    case Type::SplitName:
+      return "`train`, `validation` or `test`";
+    case Type::IndexOrRandom:
+      return "integer or `random`";
+    case Type::StartOrRandom:
+      return "`[x, y]` or `random`";
+  }
+  return {};
+}
+
+/// Data sets known by name; any other `dataset` is a folder.
+bool named_dataset(std::string_view dataset) { return dataset == "mnist" || dataset == "fashion-mnist"; }
+
+/// A field's value as plain text, as to_yaml writes it (without its quotes): the docs' defaults.
+template <class Spec>
+std::string value_text(const Row<Spec>& row, const Spec& spec) {
+  switch (row.type) {
+    case Type::Integer:
+      return std::to_string(spec.*std::get<int Spec::*>(row.member));
+    case Type::Number:
+      return format_double(spec.*std::get<double Spec::*>(row.member));
+    case Type::Unsigned:
+      return std::to_string(spec.*std::get<std::uint64_t Spec::*>(row.member));
+    case Type::Dataset: {
+      const std::string& dataset = spec.*std::get<std::string Spec::*>(row.member);
+      return dataset.empty() ? std::string("mnist") : dataset;  // neither dataset nor image: the paper's floor
+    }
+    case Type::SplitName:
+      return to_string(spec.*std::get<Split Spec::*>(row.member));
+    case Type::IndexOrRandom: {
+      const std::optional<int>& index = spec.*std::get<std::optional<int> Spec::*>(row.member);
+      return index ? std::to_string(*index) : std::string("random");
+    }
+    case Type::PngPath:
+      return (spec.*std::get<fs::path Spec::*>(row.member)).string();
+    case Type::StartOrRandom: {
+      const auto& start = spec.*std::get<std::optional<std::pair<int, int>> Spec::*>(row.member);
+      return start ? "[" + std::to_string(start->first) + ", " + std::to_string(start->second) + "]"
+                   : std::string("random");
+    }
+  }
+  return {};
+}
+
 /// Everything that reads one world text: its origin (for messages and relative paths) and the
 /// World being filled in.
 class Loader {
@@ -130,19 +397,30 @@ class Loader {
   };
 
   std::vector<Field> fields_of(const YAML::Node& section, const std::string& section_name,
-                               std::initializer_list<std::string_view> allowed);
+                               const std::vector<std::string_view>& allowed);
 
-  int read_int(const Field& f, int lo, int hi) const;
+  /// `alternative` names what else the field takes (" or random").
+  int read_int(const Field& f, int lo, int hi, std::string_view alternative = "") const;
   std::uint64_t read_u64(const Field& f) const;
-  double read_number(const Field& f, double lo, double hi, bool hi_open) const;
+  double read_number(const Field& f, const Bounds& range) const;
   std::string read_string(const Field& f, std::string_view expected) const;
+  Split read_split(const Field& f) const;
+  std::optional<int> read_index(const Field& f, const Bounds& range) const;
+  fs::path read_png(const Field& f) const;
+  std::optional<std::pair<int, int>> read_start(const Field& f) const;
 
-  void read_floor(const YAML::Node& section);
-  void read_robot(const YAML::Node& section);
-  void read_controller(const YAML::Node& section);
-  void read_camera(const YAML::Node& section);
-  void read_task(const YAML::Node& section);
-  void read_physics(const YAML::Node& section);
+  /// Reads one field into its member, as its row says.
+  template <class Spec>
+  void read_field(const Row<Spec>& row, const Field& f, Spec& spec) const;
+
+  /// Reads a section's fields into `spec`; returns them (keys, lines, values) for checks across
+  /// fields.
+  template <class Spec>
+  std::vector<Field> read_section(const YAML::Node& section, const std::string& section_name,
+                                  std::span<const Row<Spec>> rows, Spec& spec);
+
+  /// The floor's rules across fields: a data set or an image, and paths resolved.
+  void finish_floor(const std::vector<Field>& fields);
 
   fs::path resolve(const fs::path& relative, const Field& f) const;
 
@@ -314,33 +592,29 @@ std::string int_range(long long lo, long long hi) {
   return "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
 }
 
-int Loader::read_int(const Field& f, int lo, int hi) const {
+int Loader::read_int(const Field& f, int lo, int hi, std::string_view alternative) const {
   const auto t = integer_text(f.value);
   const bool ok = t && !t->too_large && (!t->negative || t->magnitude == 0) &&
                   t->magnitude >= static_cast<std::uint64_t>(lo) && t->magnitude <= static_cast<std::uint64_t>(hi);
-  if (!ok) fail_field(f.line, f.dotted, int_range(lo, hi), describe(f.value));
+  if (!ok) fail_field(f.line, f.dotted, int_range(lo, hi) + std::string(alternative), describe(f.value));
   return static_cast<int>(t->magnitude);
 }
 
 std::uint64_t Loader::read_u64(const Field& f) const {
   const auto t = integer_text(f.value);
   if (!t || t->too_large || (t->negative && t->magnitude != 0)) {
-    fail_field(f.line, f.dotted,
-               "an unsigned integer in [0, " + std::to_string(std::numeric_limits<std::uint64_t>::max()) + "]",
-               describe(f.value));
+    fail_field(f.line, f.dotted, "an unsigned integer in " + interval_text(Type::Unsigned, {}), describe(f.value));
   }
   return t->magnitude;
 }
 
-double Loader::read_number(const Field& f, double lo, double hi, bool hi_open) const {
+double Loader::read_number(const Field& f, const Bounds& range) const {
   bool out_of_range = false;
   const auto v = number_text(f.value, out_of_range);
   // Written as !(in range) so that a NaN could never slip through.
-  const bool ok = v && *v > lo && (hi_open ? *v < hi : *v <= hi);
-  if (!ok) {
-    fail_field(f.line, f.dotted, "a number in (" + format_double(lo) + ", " + format_double(hi) + (hi_open ? ")" : "]"),
-               describe(f.value));
-  }
+  const bool ok =
+      v && (range.lo_open ? *v > range.lo : *v >= range.lo) && (range.hi_open ? *v < range.hi : *v <= range.hi);
+  if (!ok) fail_field(f.line, f.dotted, "a number in " + interval_text(Type::Number, range), describe(f.value));
   return *v;
 }
 
@@ -361,8 +635,81 @@ std::string join(const auto& names) {
   return out;
 }
 
+Split Loader::read_split(const Field& f) const {
+  const std::string s = f.value.IsScalar() ? f.value.Scalar() : std::string();
+  for (const Split split : {Split::Train, Split::Validation, Split::Test}) {
+    if (s == to_string(split)) return split;
+  }
+  fail_field(f.line, f.dotted, "train, validation or test", describe(f.value));
+}
+
+std::optional<int> Loader::read_index(const Field& f, const Bounds& range) const {
+  if (f.value.IsScalar() && f.value.Scalar() == "random") return std::nullopt;
+  return read_int(f, static_cast<int>(range.lo), static_cast<int>(range.hi), " or random");
+}
+
+fs::path Loader::read_png(const Field& f) const {
+  const std::string s = read_string(f, "a .png file");
+  std::string ext = s.size() >= 4 ? s.substr(s.size() - 4) : std::string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; });
+  if (ext != ".png" || s.size() == 4) fail_field(f.line, f.dotted, "a .png file", describe(f.value));
+  return s;
+}
+
+std::optional<std::pair<int, int>> Loader::read_start(const Field& f) const {
+  const std::string expected = "[x, y] (two non-negative integers, pixels) or random";
+  if (f.value.IsScalar() && f.value.Scalar() == "random") return std::nullopt;
+  if (!f.value.IsSequence() || f.value.size() != 2) fail_field(f.line, f.dotted, expected, describe(f.value));
+  std::array<int, 2> xy{};
+  for (std::size_t i = 0; i < 2; ++i) {
+    const YAML::Node element = f.value[i];
+    const auto t = integer_text(element);
+    const auto hi = static_cast<std::uint64_t>(std::numeric_limits<int>::max());
+    if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude > hi) {
+      fail_field(f.line, f.dotted, expected, std::string(i == 0 ? "x = " : "y = ") + describe(element));
+    }
+    xy[i] = static_cast<int>(t->magnitude);
+  }
+  return std::make_pair(xy[0], xy[1]);
+}
+
+template <class Spec>
+void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const {
+  const Bounds& range = row.range;
+  switch (row.type) {
+    case Type::Integer:
+      spec.*std::get<int Spec::*>(row.member) = read_int(f, static_cast<int>(range.lo), static_cast<int>(range.hi));
+      return;
+    case Type::Number:
+      spec.*std::get<double Spec::*>(row.member) = read_number(f, range);
+      return;
+    case Type::Unsigned:
+      spec.*std::get<std::uint64_t Spec::*>(row.member) = read_u64(f);
+      return;
+    case Type::Dataset:
+      spec.*std::get<std::string Spec::*>(row.member) = read_string(f, "mnist, fashion-mnist or a folder of IDX files");
+      return;
+    case Type::SplitName:
+      spec.*std::get<Split Spec::*>(row.member) = read_split(f);
+      return;
+    case Type::IndexOrRandom:
+      spec.*std::get<std::optional<int> Spec::*>(row.member) = read_index(f, range);
+      return;
+    case Type::PngPath:
+      spec.*std::get<fs::path Spec::*>(row.member) = read_png(f);
+      return;
+    case Type::StartOrRandom:
+      spec.*std::get<std::optional<std::pair<int, int>> Spec::*>(row.member) = read_start(f);
+      return;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sections
+
 std::vector<Loader::Field> Loader::fields_of(const YAML::Node& section, const std::string& section_name,
-                                             std::initializer_list<std::string_view> allowed) {
+                                             const std::vector<std::string_view>& allowed) {
   std::vector<Field> fields;
   if (section.IsNull()) return fields;  // "camera:" with every line commented out: all defaults
   if (!section.IsMap()) {
@@ -402,53 +749,24 @@ fs::path Loader::resolve(const fs::path& relative, const Field& f) const {
   }
 }
 
-void Loader::read_floor(const YAML::Node& section) {
-  const Field* dataset = nullptr;
-  const Field* image = nullptr;
-  const Field* split = nullptr;
-  const Field* index = nullptr;
-  const auto fields = fields_of(section, "floor", {"dataset", "split", "index", "image", "pixel_size_m"});
+template <class Spec>
+std::vector<Loader::Field> Loader::read_section(const YAML::Node& section, const std::string& section_name,
+                                                std::span<const Row<Spec>> rows, Spec& spec) {
+  std::vector<Field> fields = fields_of(section, section_name, names_of(rows));
+  for (const Field& f : fields) read_field(row_named(rows, f.key), f, spec);
+  return fields;
+}
+
+void Loader::finish_floor(const std::vector<Field>& fields) {
+  const auto given = [&fields](std::string_view key) -> const Field* {
+    const auto it = std::find_if(fields.begin(), fields.end(), [key](const Field& f) { return f.key == key; });
+    return it != fields.end() ? &*it : nullptr;
+  };
+  const Field* dataset = given("dataset");
+  const Field* image = given("image");
+  const Field* split = given("split");
+  const Field* index = given("index");
   FloorSpec& floor = world_.floor;
-  for (const Field& f : fields) {
-    if (f.key == "dataset") {
-      floor.dataset = read_string(f, "mnist, fashion-mnist or a folder of IDX files");
-      dataset = &f;
-    } else if (f.key == "split") {
-      const std::string s = f.value.IsScalar() ? f.value.Scalar() : std::string();
-      if (s == "train") {
-        floor.split = Split::Train;
-      } else if (s == "validation") {
-        floor.split = Split::Validation;
-      } else if (s == "test") {
-        floor.split = Split::Test;
-      } else {
-        fail_field(f.line, f.dotted, "train, validation or test", describe(f.value));
-      }
-      split = &f;
-    } else if (f.key == "index") {
-      if (f.value.IsScalar() && f.value.Scalar() == "random") {
-        floor.index.reset();
-      } else {
-        const auto t = integer_text(f.value);
-        const auto hi = static_cast<std::uint64_t>(std::numeric_limits<int>::max());
-        if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude > hi) {
-          fail_field(f.line, f.dotted, int_range(0, std::numeric_limits<int>::max()) + " or random", describe(f.value));
-        }
-        floor.index = static_cast<int>(t->magnitude);
-      }
-      index = &f;
-    } else if (f.key == "image") {
-      const std::string s = read_string(f, "a .png file");
-      std::string ext = s.size() >= 4 ? s.substr(s.size() - 4) : std::string();
-      std::transform(ext.begin(), ext.end(), ext.begin(),
-                     [](char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; });
-      if (ext != ".png" || s.size() == 4) fail_field(f.line, f.dotted, "a .png file", describe(f.value));
-      floor.image = s;
-      image = &f;
-    } else {  // pixel_size_m
-      floor.pixel_size_m = read_number(f, 0.0, 10.0, false);
-    }
-  }
   if (image != nullptr) {
     if (dataset != nullptr) {
       const Field& later = dataset->line > image->line ? *dataset : *image;
@@ -463,102 +781,22 @@ void Loader::read_floor(const YAML::Node& section) {
   }
   // Neither given: the paper's floor.
   if (dataset == nullptr) floor.dataset = "mnist";
-  if (floor.dataset != "mnist" && floor.dataset != "fashion-mnist") {
-    floor.dataset = resolve(floor.dataset, *dataset).string();
-  }
-}
-
-void Loader::read_robot(const YAML::Node& section) {
-  RobotSpec& robot = world_.robot;
-  for (const Field& f : fields_of(section, "robot", {"radius_m", "mass_kg", "max_speed_mps", "start"})) {
-    if (f.key == "radius_m") {
-      robot.radius_m = read_number(f, 0.0, 10.0, false);
-    } else if (f.key == "mass_kg") {
-      robot.mass_kg = read_number(f, 0.0, 1e4, false);
-    } else if (f.key == "max_speed_mps") {
-      robot.max_speed_mps = read_number(f, 0.0, 1000.0, false);
-    } else {  // start
-      const std::string expected = "[x, y] (two non-negative integers, pixels) or random";
-      if (f.value.IsScalar() && f.value.Scalar() == "random") {
-        robot.start.reset();
-        continue;
-      }
-      if (!f.value.IsSequence() || f.value.size() != 2) fail_field(f.line, f.dotted, expected, describe(f.value));
-      std::array<int, 2> xy{};
-      for (std::size_t i = 0; i < 2; ++i) {
-        const YAML::Node element = f.value[i];
-        const auto t = integer_text(element);
-        const auto hi = static_cast<std::uint64_t>(std::numeric_limits<int>::max());
-        if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude > hi) {
-          fail_field(f.line, f.dotted, expected, std::string(i == 0 ? "x = " : "y = ") + describe(element));
-        }
-        xy[i] = static_cast<int>(t->magnitude);
-      }
-      robot.start = std::make_pair(xy[0], xy[1]);
-    }
-  }
-}
-
-void Loader::read_controller(const YAML::Node& section) {
-  for (const Field& f : fields_of(section, "controller", {"kp_per_s", "tolerance_px"})) {
-    if (f.key == "kp_per_s") {
-      world_.controller.kp_per_s = read_number(f, 0.0, 1e6, false);
-    } else {
-      // Below half a pixel, so that a settled robot is always inside its target cell.
-      world_.controller.tolerance_px = read_number(f, 0.0, 0.5, true);
-    }
-  }
-}
-
-void Loader::read_camera(const YAML::Node& section) {
-  for (const Field& f : fields_of(section, "camera", {"patch_px"})) {
-    world_.camera.patch_px = read_int(f, 1, kMaxPatchPx);
-  }
-}
-
-void Loader::read_task(const YAML::Node& section) {
-  for (const Field& f : fields_of(section, "task", {"episodes", "steps", "step_px"})) {
-    if (f.key == "episodes") {
-      world_.task.episodes = read_int(f, 1, 1000);
-    } else if (f.key == "steps") {
-      world_.task.steps = read_int(f, 1, 1000);
-    } else {
-      world_.task.step_px = read_int(f, 1, 512);
-    }
-  }
-}
-
-void Loader::read_physics(const YAML::Node& section) {
-  PhysicsSpec& physics = world_.physics;
-  for (const Field& f :
-       fields_of(section, "physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"})) {
-    if (f.key == "dt_s") {
-      physics.dt_s = read_number(f, 0.0, 1.0, false);
-    } else if (f.key == "velocity_iterations") {
-      physics.velocity_iterations = read_int(f, 1, 100);
-    } else if (f.key == "position_iterations") {
-      physics.position_iterations = read_int(f, 1, 100);
-    } else {
-      physics.max_ticks_per_move = read_int(f, 1, 100000);
-    }
-  }
+  if (!named_dataset(floor.dataset)) floor.dataset = resolve(floor.dataset, *dataset).string();
 }
 
 void Loader::read(const YAML::Node& root) {
   if (!root.IsMap()) fail(1, "expected a map of sections (floor, robot, ...)");
-  static constexpr std::array<std::string_view, 7> kSections = {"floor", "robot",   "controller", "camera",
-                                                                "task",  "physics", "seed"};
+  const std::vector<std::string_view>& keys = top_level_keys();
   std::set<std::string> seen;
   bool floor_seen = false;
   for (const auto& entry : root) {
     const YAML::Node key = entry.first;
     const int line = line_of(key);
-    if (!key.IsScalar())
-      fail(line, "expected section names (" + join(kSections) + "), got " + describe(key) + " as a key");
+    if (!key.IsScalar()) fail(line, "expected section names (" + join(keys) + "), got " + describe(key) + " as a key");
     const std::string name = key.Scalar();
     if (name == "perturbation") fail(line, "perturbation: not yet supported (slip and push are future work)");
-    if (std::find(kSections.begin(), kSections.end(), name) == kSections.end()) {
-      fail_field(line, clip(name), "a section among " + join(kSections), "unknown key \"" + clip(name) + "\"");
+    if (std::find(keys.begin(), keys.end(), name) == keys.end()) {
+      fail_field(line, clip(name), "a section among " + join(keys), "unknown key \"" + clip(name) + "\"");
     }
     if (!seen.insert(name).second) {
       fail_field(line, name, "each section once",
@@ -566,26 +804,19 @@ void Loader::read(const YAML::Node& root) {
     }
     world_.lines[name] = line;
     const YAML::Node value = entry.second;
+    std::vector<Field> fields;
+    for_each_section(world_, [&](std::string_view section, auto rows, auto& spec) {
+      if (section == name) {
+        fields = read_section(value, name, rows, spec);
+      } else if (section.empty()) {
+        for (const auto& row : rows) {
+          if (row.name == name) read_field(row, Field{name, name, line, value}, spec);
+        }
+      }
+    });
     if (name == "floor") {
-      read_floor(value);
+      finish_floor(fields);
       floor_seen = true;
-    } else if (name == "robot") {
-      read_robot(value);
-    } else if (name == "controller") {
-      read_controller(value);
-    } else if (name == "camera") {
-      read_camera(value);
-    } else if (name == "task") {
-      read_task(value);
-    } else if (name == "physics") {
-      read_physics(value);
-    } else {  // seed
-      Field f;
-      f.key = name;
-      f.dotted = name;
-      f.line = line;
-      f.value = value;
-      world_.seed = read_u64(f);
     }
   }
   if (!floor_seen) world_.floor.dataset = "mnist";  // no floor section: the paper's floor
@@ -643,6 +874,64 @@ int field_line(const World& world, const std::string& field, const std::string& 
   if (const auto it = world.lines.find(field); it != world.lines.end()) return it->second;
   if (const auto it = world.lines.find(section); it != world.lines.end()) return it->second;
   return 1;
+}
+
+/// A floor is written with either its image or its data-set fields, whichever it uses.
+template <class Spec>
+bool written(const Row<Spec>& row, const Spec& spec) {
+  if constexpr (std::is_same_v<Spec, FloorSpec>) {
+    const bool png = !spec.image.empty();
+    if (row.type == Type::PngPath) return png;
+    if (row.type == Type::Dataset || row.type == Type::SplitName || row.type == Type::IndexOrRandom) return !png;
+  }
+  return true;
+}
+
+/// One value in to_yaml's text, which parse_world reads back to the same value.
+template <class Spec>
+void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
+  switch (row.type) {
+    case Type::Integer:
+      out << spec.*std::get<int Spec::*>(row.member);
+      return;
+    case Type::Number:
+      // The shortest round-trip text, so that parse_world(to_yaml(w)) == w exactly.
+      out << format_double(spec.*std::get<double Spec::*>(row.member));
+      return;
+    case Type::Unsigned:
+      out << spec.*std::get<std::uint64_t Spec::*>(row.member);
+      return;
+    case Type::Dataset: {
+      const std::string dataset = value_text(row, spec);
+      if (named_dataset(dataset)) {
+        out << dataset;
+      } else {
+        // Quoted so that no folder name ("~", "null", "123") is read back as anything but a string.
+        out << YAML::DoubleQuoted << dataset;
+      }
+      return;
+    }
+    case Type::SplitName:
+      out << to_string(spec.*std::get<Split Spec::*>(row.member));
+      return;
+    case Type::IndexOrRandom:
+      if (const std::optional<int>& index = spec.*std::get<std::optional<int> Spec::*>(row.member)) {
+        out << *index;
+      } else {
+        out << "random";
+      }
+      return;
+    case Type::PngPath:
+      out << YAML::DoubleQuoted << (spec.*std::get<fs::path Spec::*>(row.member)).string();
+      return;
+    case Type::StartOrRandom:
+      if (const auto& start = spec.*std::get<std::optional<std::pair<int, int>> Spec::*>(row.member)) {
+        out << YAML::Flow << YAML::BeginSeq << start->first << start->second << YAML::EndSeq;
+      } else {
+        out << "random";
+      }
+      return;
+  }
 }
 
 }  // namespace
@@ -730,71 +1019,35 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
 }
 
 std::string to_yaml(const World& world) {
-  // Numbers go out as their shortest round-trip text, so parse_world(to_yaml(w)) == w exactly.
-  const auto number = [](double v) { return format_double(v); };
   YAML::Emitter out;
   out << YAML::BeginMap;
-
-  out << YAML::Key << "floor" << YAML::Value << YAML::BeginMap;
-  if (!world.floor.image.empty()) {
-    out << YAML::Key << "image" << YAML::Value << YAML::DoubleQuoted << world.floor.image.string();
-  } else {
-    const std::string dataset = world.floor.dataset.empty() ? std::string("mnist") : world.floor.dataset;
-    out << YAML::Key << "dataset" << YAML::Value;
-    if (dataset == "mnist" || dataset == "fashion-mnist") {
-      out << dataset;
-    } else {
-      // Quoted so that no folder name ("~", "null", "123") is read back as anything but a string.
-      out << YAML::DoubleQuoted << dataset;
+  for_each_section(world, [&out](std::string_view section, auto rows, const auto& spec) {
+    if (!section.empty()) out << YAML::Key << std::string(section) << YAML::Value << YAML::BeginMap;
+    for (const auto& row : rows) {
+      if (!written(row, spec)) continue;
+      out << YAML::Key << std::string(row.name) << YAML::Value;
+      emit_value(out, row, spec);
     }
-    out << YAML::Key << "split" << YAML::Value << to_string(world.floor.split);
-    out << YAML::Key << "index" << YAML::Value;
-    if (world.floor.index) {
-      out << *world.floor.index;
-    } else {
-      out << "random";
-    }
-  }
-  out << YAML::Key << "pixel_size_m" << YAML::Value << number(world.floor.pixel_size_m);
-  out << YAML::EndMap;
-
-  out << YAML::Key << "robot" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "radius_m" << YAML::Value << number(world.robot.radius_m);
-  out << YAML::Key << "mass_kg" << YAML::Value << number(world.robot.mass_kg);
-  out << YAML::Key << "max_speed_mps" << YAML::Value << number(world.robot.max_speed_mps);
-  out << YAML::Key << "start" << YAML::Value;
-  if (world.robot.start) {
-    out << YAML::Flow << YAML::BeginSeq << world.robot.start->first << world.robot.start->second << YAML::EndSeq;
-  } else {
-    out << "random";
-  }
-  out << YAML::EndMap;
-
-  out << YAML::Key << "controller" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "kp_per_s" << YAML::Value << number(world.controller.kp_per_s);
-  out << YAML::Key << "tolerance_px" << YAML::Value << number(world.controller.tolerance_px);
-  out << YAML::EndMap;
-
-  out << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "patch_px" << YAML::Value << world.camera.patch_px;
-  out << YAML::EndMap;
-
-  out << YAML::Key << "task" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "episodes" << YAML::Value << world.task.episodes;
-  out << YAML::Key << "steps" << YAML::Value << world.task.steps;
-  out << YAML::Key << "step_px" << YAML::Value << world.task.step_px;
-  out << YAML::EndMap;
-
-  out << YAML::Key << "physics" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "dt_s" << YAML::Value << number(world.physics.dt_s);
-  out << YAML::Key << "velocity_iterations" << YAML::Value << world.physics.velocity_iterations;
-  out << YAML::Key << "position_iterations" << YAML::Value << world.physics.position_iterations;
-  out << YAML::Key << "max_ticks_per_move" << YAML::Value << world.physics.max_ticks_per_move;
-  out << YAML::EndMap;
-
-  out << YAML::Key << "seed" << YAML::Value << world.seed;
+    if (!section.empty()) out << YAML::EndMap;
+  });
   out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
+}
+
+std::span<const FieldInfo> world_schema() {
+  static const std::vector<FieldInfo> schema = [] {
+    std::vector<FieldInfo> out;
+    const World defaults{};
+    for_each_section(defaults, [&out](std::string_view section, auto rows, const auto& spec) {
+      for (const auto& row : rows) {
+        std::string range = interval_text(row.type, row.range);
+        if (!row.rule.empty()) range += (range.empty() ? "" : ", ") + std::string(row.rule);
+        out.push_back({section, row.name, type_text(row.type), value_text(row, spec), range, row.doc, row.unit});
+      }
+    });
+    return out;
+  }();
+  return schema;
 }
 
 }  // namespace scout::worlds

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -75,6 +76,22 @@ struct World {
   std::uint64_t seed = 0;            ///< run seed; the command line's --seed overrides it
   std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
 };
+
+/// One field of the world file, as the schema table in worlds/README.md lists it. The loader's
+/// checks, its messages and to_yaml are driven by the same table (worlds/world.cpp, "The schema").
+/// Texts may hold Markdown code spans (`random`), as the README shows them.
+struct FieldInfo {
+  std::string_view section;  ///< "floor", "robot", ...; empty for a top-level field (seed)
+  std::string_view name;     ///< the YAML key
+  std::string_view type;     ///< "integer", "number", "unsigned integer", or a special field's form
+  std::string default_text;  ///< a default World's value as to_yaml writes it; empty where there is none
+  std::string range_text;    ///< the accepted values ("[1, 64]", "(0, 10]"), then any rule beyond them
+  std::string_view doc;      ///< one line: what the field means
+  std::string_view unit;     ///< empty for counts, names and seeds
+};
+
+/// Every field of the world file, in the order to_yaml writes them.
+std::span<const FieldInfo> world_schema();
 
 /// Reads and validates a world file. Relative `dataset` folders and `image` paths are resolved
 /// against the file's directory. Throws InputError.

@@ -3,14 +3,18 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <sstream>
 #include <string>
+#include <vector>
 
-#include "tests/support/temp_dir.hpp"
 #include "core/error.hpp"
+#include "tests/support/temp_dir.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {
@@ -573,6 +577,340 @@ TEST(WorldFile, ToYamlRoundTripsEveryFieldExactly) {
   const World back = parse_world(to_yaml(exact), "anywhere.yaml");
   expect_same_world(back, exact);
   EXPECT_EQ(back.floor.image, dir.path() / "f.png");
+}
+
+// --- to_yaml's exact text: pinned, so that a change in how worlds are written is deliberate ---
+
+// clang-format off
+const char* const kMnistYaml = R"(floor:
+  dataset: mnist
+  split: test
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.0166667
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 1
+)";
+
+const char* const kFashionYaml = R"(floor:
+  dataset: fashion-mnist
+  split: test
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.0166667
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 1
+)";
+
+const char* const kDigitFixedYaml = R"(floor:
+  dataset: mnist
+  split: test
+  index: 0
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: [14, 14]
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 7
+)";
+
+const char* const kEveryFieldYaml = R"(floor:
+  dataset: "/data/worlds/odd ~ name: #x"
+  split: validation
+  index: 17
+  pixel_size_m: 0.3
+robot:
+  radius_m: 0.7
+  mass_kg: 3.7
+  max_speed_mps: 0.001
+  start: [5, 9]
+controller:
+  kp_per_s: 12.5
+  tolerance_px: 0.1
+camera:
+  patch_px: 9
+task:
+  episodes: 7
+  steps: 3
+  step_px: 4
+physics:
+  dt_s: 0.001
+  velocity_iterations: 6
+  position_iterations: 2
+  max_ticks_per_move: 999
+seed: 18446744073709551615
+)";
+
+const char* const kImageYaml = R"(floor:
+  image: "/data/worlds/f.PNG"
+  pixel_size_m: 0.02
+robot:
+  radius_m: 0.05
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 0.3333333333333333
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 0
+)";
+
+const char* const kDefaultYaml = R"(floor:
+  dataset: mnist
+  split: train
+  index: random
+  pixel_size_m: 0.1
+robot:
+  radius_m: 0.25
+  mass_kg: 1
+  max_speed_mps: 2
+  start: random
+controller:
+  kp_per_s: 60
+  tolerance_px: 0.05
+camera:
+  patch_px: 6
+task:
+  episodes: 4
+  steps: 5
+  step_px: 2
+physics:
+  dt_s: 0.016666666666666666
+  velocity_iterations: 8
+  position_iterations: 3
+  max_ticks_per_move: 120
+seed: 0
+)";
+// clang-format on
+
+TEST(WorldFile, ToYamlTextOfTheShippedWorldsIsPinned) {
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/mnist.yaml")), kMnistYaml);
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/fashion.yaml")), kFashionYaml);
+  EXPECT_EQ(to_yaml(load_world(kSource / "worlds/digit-fixed.yaml")), kDigitFixedYaml);
+}
+
+TEST(WorldFile, ToYamlTextOfEveryFieldSetIsPinned) {
+  // An absolute origin: relative folders resolve without touching the disk, so the text is fixed.
+  const World every = parse_world(
+      "floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
+      "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+      "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
+      "camera: {patch_px: 9}\n"
+      "task: {episodes: 7, steps: 3, step_px: 4}\n"
+      "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
+      "seed: 18446744073709551615\n",
+      "/data/worlds/w.yaml");
+  EXPECT_EQ(to_yaml(every), kEveryFieldYaml);
+  expect_same_world(parse_world(kEveryFieldYaml, "/elsewhere/w.yaml"), every);
+
+  World image =
+      parse_world("floor: {image: f.PNG, pixel_size_m: 0.02}\nrobot: {radius_m: 0.05}\n", "/data/worlds/w.yaml");
+  image.physics.dt_s = 1.0 / 60.0;  // not short decimals: every digit goes out
+  image.controller.kp_per_s = 1.0 / 3.0;
+  EXPECT_EQ(to_yaml(image), kImageYaml);
+  expect_same_world(parse_world(kImageYaml, "/elsewhere/w.yaml"), image);
+
+  EXPECT_EQ(to_yaml(World{}), kDefaultYaml);
+}
+
+// --- The schema: the code's table, its messages and worlds/README.md agree ------------------
+
+/// The cells of a Markdown table row, trimmed ("\|" is a '|' inside a cell).
+std::vector<std::string> cells_of(const std::string& row) {
+  std::vector<std::string> cells;
+  std::string cell;
+  for (std::size_t i = 1; i < row.size(); ++i) {  // past the leading '|'
+    if (row[i] == '\\' && i + 1 < row.size() && row[i + 1] == '|') {
+      cell += '|';
+      ++i;
+    } else if (row[i] == '|') {
+      const auto first = cell.find_first_not_of(' ');
+      const auto last = cell.find_last_not_of(' ');
+      cells.push_back(first == std::string::npos ? std::string() : cell.substr(first, last - first + 1));
+      cell.clear();
+    } else {
+      cell += row[i];
+    }
+  }
+  return cells;
+}
+
+/// A schema row as the README writes it: names and defaults as code, "—" for nothing.
+std::vector<std::string> readme_cells(const FieldInfo& f) {
+  const auto text = [](std::string_view s) { return s.empty() ? std::string("—") : std::string(s); };
+  const auto code = [](std::string_view s) { return s.empty() ? std::string("—") : "`" + std::string(s) + "`"; };
+  return {text(f.section),    code(f.name), text(f.type), code(f.default_text),
+          text(f.range_text), text(f.doc),  text(f.unit)};
+}
+
+/// The body rows of the first table under "## Schema" in worlds/README.md.
+std::vector<std::string> readme_schema_rows() {
+  std::ifstream in(kSource / "worlds/README.md");
+  EXPECT_TRUE(in) << "cannot read worlds/README.md";
+  std::vector<std::string> rows;
+  bool in_schema = false;
+  bool in_table = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("## ", 0) == 0) {
+      if (in_schema) break;
+      in_schema = line == "## Schema";
+    } else if (in_schema && line.rfind("|", 0) == 0) {
+      if (!in_table) {
+        in_table = true;  // the header row; the rule follows
+        std::getline(in, line);
+      } else {
+        rows.push_back(line);
+      }
+    } else if (in_table) {
+      break;
+    }
+  }
+  return rows;
+}
+
+TEST(WorldFile, TheReadmeSchemaTableIsTheCodesTable) {
+  const std::vector<std::string> columns = {"section", "field", "type", "default", "range", "meaning", "unit"};
+  std::string table = "| section | field | type | default | range | meaning | unit |\n|---|---|---|---|---|---|---|\n";
+  for (const FieldInfo& f : world_schema()) {
+    table += "|";
+    for (const std::string& cell : readme_cells(f)) table += " " + cell + " |";
+    table += "\n";
+  }
+  const std::vector<std::string> rows = readme_schema_rows();
+  EXPECT_EQ(rows.size(), world_schema().size());
+  for (std::size_t i = 0; i < std::min(rows.size(), world_schema().size()); ++i) {
+    const FieldInfo& f = world_schema()[i];
+    const std::vector<std::string> expected = readme_cells(f);
+    const std::vector<std::string> actual = cells_of(rows[i]);
+    ASSERT_EQ(actual.size(), expected.size()) << "README row " << i + 1 << ": " << rows[i];
+    for (std::size_t c = 0; c < expected.size(); ++c) {
+      EXPECT_EQ(actual[c], expected[c]) << "README row " << i + 1 << " (" << f.section << " " << f.name << "), column "
+                                        << columns[c];
+    }
+  }
+  if (HasFailure()) ADD_FAILURE() << "worlds/README.md's schema table should read:\n" << table;
+}
+
+TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
+  std::map<std::string, std::string> keys;  // section -> "a, b, c"
+  std::vector<std::string> top;             // sections, then top-level fields
+  for (const FieldInfo& f : world_schema()) {
+    const std::string section(f.section);
+    if (section.empty()) {
+      top.emplace_back(f.name);
+      continue;
+    }
+    if (keys.count(section) == 0) top.push_back(section);
+    keys[section] += (keys[section].empty() ? "" : ", ") + std::string(f.name);
+  }
+  for (const auto& [section, names] : keys) {
+    expect_error(section + ":\n  no_such_key: 1\n",
+                 "w.yaml:2: " + section + ".no_such_key: expected a key among " + names + ", got unknown key");
+  }
+  std::string sections;
+  for (const std::string& name : top) sections += (sections.empty() ? "" : ", ") + name;
+  expect_error("no_such_key: 1\n", "w.yaml:1: no_such_key: expected a section among " + sections + ", got");
+
+  // to_yaml writes the fields in the schema's order (a default world has no image).
+  std::string order;
+  for (const FieldInfo& f : world_schema()) {
+    if (f.name != "image") order += std::string(f.section.empty() ? "" : "  ") + std::string(f.name) + ":";
+  }
+  std::string written;
+  std::istringstream yaml(to_yaml(World{}));
+  for (std::string line; std::getline(yaml, line);) {
+    if (line.find(": ") != std::string::npos) written += line.substr(0, line.find(':') + 1);
+  }
+  EXPECT_EQ(written, order);
+}
+
+TEST(WorldFile, EachSchemaDefaultReadsBackAsTheDefault) {
+  const World defaults = parse_world("seed: 0\n", "w.yaml");
+  for (const FieldInfo& f : world_schema()) {
+    if (f.default_text.empty()) continue;  // floor.image: no default
+    const std::string text =
+        f.section.empty() ? std::string(f.name) + ": " + f.default_text + "\n"
+                          : std::string(f.section) + ":\n  " + std::string(f.name) + ": " + f.default_text + "\n";
+    SCOPED_TRACE(text);
+    expect_same_world(parse_world(text, "w.yaml"), defaults);
+  }
+}
+
+TEST(WorldFile, RangeMessagesQuoteTheSchemasRanges) {
+  for (const FieldInfo& f : world_schema()) {
+    const std::string article = f.type == "integer"            ? "an integer in "
+                                : f.type == "number"           ? "a number in "
+                                : f.type == "unsigned integer" ? "an unsigned integer in "
+                                                               : "";
+    if (article.empty()) continue;  // the special fields word their own messages
+    const std::string interval = f.range_text.substr(0, f.range_text.find_first_of(")]") + 1);
+    const bool top = f.section.empty();
+    const std::string dotted = top ? std::string(f.name) : std::string(f.section) + "." + std::string(f.name);
+    const std::string text =
+        top ? std::string(f.name) + ": word\n" : std::string(f.section) + ":\n  " + std::string(f.name) + ": word\n";
+    expect_error(text, "w.yaml:" + std::string(top ? "1" : "2") + ": " + dotted + ": expected " + article + interval +
+                           ", got word");
+  }
 }
 
 }  // namespace
