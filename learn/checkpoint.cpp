@@ -67,7 +67,7 @@ double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
 fs::path resolve_checkpoint(const fs::path& path) {
   std::error_code ec;
-  return fs::is_directory(path, ec) ? path / kCheckpointName : path;
+  return fs::is_directory(path, ec) ? path / kCheckpointFile : path;
 }
 
 void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
@@ -75,7 +75,7 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
   torch::serialize::OutputArchive archive;
   archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat)));
   archive.write("config", c10::IValue(state.config.to_json()));
-  const CheckpointState::Partial& p = state.partial;
+  const EpochSums& p = state.partial;
   json progress = {{"stage", state.cursor.stage},
                    {"epoch", state.cursor.epoch},
                    {"batch", state.cursor.batch},

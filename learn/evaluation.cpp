@@ -23,6 +23,7 @@
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
 #include "core/random.hpp"
+#include "learn/seed_streams.hpp"
 
 namespace scout::learn {
 
@@ -31,12 +32,6 @@ using json = nlohmann::ordered_json;
 
 namespace {
 
-// Streams of a run's seed for the baselines and of the command's seed for the greedy run. Image
-// i of the stochastic run k drives with derive_seed(seed_k, i); these constants lie beyond any
-// image index, so no baseline ever repeats the stochastic run's starts and choices.
-constexpr std::uint64_t kIidStream = std::uint64_t{1} << 40;
-constexpr std::uint64_t kGoalsOnlyStream = kIidStream + 1;
-constexpr std::uint64_t kGreedyStream = kIidStream + 2;
 
 // The continued fraction of the regularized incomplete beta I_x(a, b), evaluated by the modified
 // Lentz method (as Numerical Recipes' betacf).
@@ -120,8 +115,8 @@ struct Pass {
 class Evaluator {
  public:
   Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots,
-            agent::Precision precision, const std::function<bool()>& stop)
-      : agent_(agent), world_(world), data_(data), precision_(precision), stop_(stop) {
+            agent::Precision precision, core::StopToken stop)
+      : agent_(agent), world_(world), data_(data), precision_(precision), stop_(std::move(stop)) {
     const int robots = std::min(batch_robots, data.set.images.count);
     try {
       engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
@@ -139,7 +134,7 @@ class Evaluator {
     Pass pass;
     std::vector<torch::Tensor> parts;
     for (int first = 0; first < n; first += batch_) {
-      if (stop_ && stop_()) throw EvalInterrupted{};
+      stop_.throw_if_requested();
       const int k = std::min(batch_, n - first);
       RolloutBatch batch;
       for (int image = first; image < first + k; ++image) {
@@ -166,7 +161,7 @@ class Evaluator {
     const auto area = static_cast<std::size_t>(data_.frame.area_px());
     int correct = 0;
     for (int first = 0; first < n; first += batch_) {
-      if (stop_ && stop_()) throw EvalInterrupted{};
+      stop_.throw_if_requested();
       const int k = std::min(batch_, n - first);
       torch::Tensor x = full_images(std::span(data_.set.images.image(first), area * k), k, data_.frame);
       const std::vector<std::int64_t> labels(data_.set.labels.begin() + first, data_.set.labels.begin() + first + k);
@@ -180,7 +175,7 @@ class Evaluator {
   const worlds::World& world_;
   const Data& data_;
   agent::Precision precision_;
-  const std::function<bool()>& stop_;
+  core::StopToken stop_;
   std::unique_ptr<RolloutEngine> engine_;
   std::unique_ptr<AgentPolicy> policy_;
   int batch_ = 1;
@@ -227,7 +222,7 @@ Interval mean_ci95(std::span<const double> values) {
   return out;
 }
 
-EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop) {
+EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   const auto t0 = std::chrono::steady_clock::now();
   if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
   if (config.batch_robots < 1)
@@ -291,11 +286,11 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
       for (int col = 0; col < classes; ++col)
         if (row_counts[row] > 0)
           report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
-    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, kIidStream)).correct) / n;
+    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid)).correct) / n;
     // Without a learned goal layer the baseline would only measure an untrained planner.
     goals_only_accuracy[k] =
         learned.goals
-            ? static_cast<double>(evaluator.run(goals_only, core::derive_seed(seed_k, kGoalsOnlyStream)).correct) / n
+            ? static_cast<double>(evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly)).correct) / n
             : std::numeric_limits<double>::quiet_NaN();
   }
   report.accuracy = mean_ci95(accuracy);
@@ -304,7 +299,7 @@ EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop)
   report.goals_only_accuracy = mean_of(goals_only_accuracy);
   report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
   report.greedy_accuracy =
-      static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, kGreedyStream)).correct) / n;
+      static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy)).correct) / n;
 
   const torch::Tensor mean_probabilities = (probability_sum / runs).contiguous();
   const double* m = mean_probabilities.data_ptr<double>();

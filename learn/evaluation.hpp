@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "agent/config.hpp"
+#include "core/stop.hpp"
 
 namespace scout::learn {
 
@@ -50,13 +51,10 @@ struct EvalReport {
   agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic in this evaluation
 };
 
-/// Thrown by evaluate() when `stop` returned true; nothing of the evaluation is kept.
-struct EvalInterrupted {};
-
-/// Runs the evaluation. `stop` is polled between batches (Ctrl-C) and makes it throw
-/// EvalInterrupted; throws InputError for bad files or a mismatch between the data and the
-/// checkpoint.
-EvalReport evaluate(const EvalConfig& config, const std::function<bool()>& stop = {});
+/// Runs the evaluation. `stop` is polled between batches (Ctrl-C): a stop throws core::Stopped
+/// and nothing of the evaluation is kept. Throws InputError for bad files or a mismatch between
+/// the data and the checkpoint.
+EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop = {});
 
 /// The report as JSON text (fractions in [0, 1], intervals as half-widths).
 std::string report_json(const EvalReport& report);

@@ -6,17 +6,14 @@
 #include <stdexcept>
 
 #include "learn/internal/precision.hpp"
+#include "learn/seed_streams.hpp"
 
 namespace scout::learn {
 
-namespace {
-// Streams within a batch's seed: one for the start cell, one for the policy's choices.
-constexpr std::uint64_t kStartStream = 1;
-constexpr std::uint64_t kPolicyStream = 2;
-}  // namespace
 
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
-                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream) {
+                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
+                        std::uint64_t first_robot) {
   if (rollouts <= 0) throw std::invalid_argument("make_batch: rollouts must be positive");
   RolloutBatch batch;
   batch.count = static_cast<int>(indices.size()) * rollouts;
@@ -32,10 +29,10 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       const std::size_t r = i * rollouts + k;
       std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
       batch.labels[r] = data.labels[image];
-      const std::uint64_t robot_seed = core::derive_seed(stream, r);
-      core::Rng start_rng(core::derive_seed(robot_seed, kStartStream));
+      const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + r);
+      core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
       batch.starts[r] = draw_start(world, frame, start_rng);
-      batch.seeds[r] = core::derive_seed(robot_seed, kPolicyStream);
+      batch.seeds[r] = core::derive_seed(robot_seed, streams::kRobotPolicy);
     }
   }
   return batch;
@@ -64,20 +61,37 @@ void clear_gradients(torch::nn::Module& module) {
   for (torch::Tensor& p : module.parameters()) p.mutable_grad() = torch::Tensor();
 }
 
-bool descend(const torch::Tensor& loss, torch::optim::Optimizer& optimizer, double& value, DescentSeconds* seconds) {
-  using Clock = std::chrono::steady_clock;
-  value = loss.item<double>();
-  if (!std::isfinite(value)) return false;
-  if (!loss.requires_grad()) return true;
-  auto t0 = Clock::now();
-  loss.backward();
-  auto t1 = Clock::now();
-  optimizer.step();
-  if (seconds) {
-    seconds->backward_s = std::chrono::duration<double>(t1 - t0).count();
-    seconds->optimizer_s = std::chrono::duration<double>(Clock::now() - t1).count();
+double backward_if_finite(const torch::Tensor& loss) {
+  const double value = loss.item<double>();
+  if (std::isfinite(value) && loss.requires_grad()) loss.backward();
+  return value;
+}
+
+void apply_gradient_hook(torch::nn::Module& module, const std::function<void(std::span<float>)>& hook) {
+  std::vector<torch::Tensor> trainable;
+  std::int64_t total = 0;
+  for (const torch::Tensor& p : module.parameters())
+    if (p.requires_grad()) {
+      trainable.push_back(p);
+      total += p.numel();
+    }
+  torch::Tensor flat = torch::zeros({total}, torch::kFloat32);
+  std::int64_t offset = 0;
+  for (const torch::Tensor& p : trainable) {
+    if (p.grad().defined()) flat.narrow(0, offset, p.numel()).copy_(p.grad().reshape({-1}));
+    offset += p.numel();
   }
-  return true;
+  hook(std::span<float>(flat.data_ptr<float>(), static_cast<std::size_t>(total)));
+  offset = 0;
+  for (torch::Tensor& p : trainable) {
+    const torch::Tensor slice = flat.narrow(0, offset, p.numel()).view(p.sizes());
+    if (p.grad().defined()) {
+      p.mutable_grad().copy_(slice);
+    } else if (slice.ne(0).any().item<bool>()) {
+      p.mutable_grad() = slice.clone();
+    }
+    offset += p.numel();
+  }
 }
 
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision) {

@@ -20,6 +20,7 @@
 #include "core/files.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "learn/seed_streams.hpp"
 
 namespace scout::learn {
 
@@ -32,10 +33,6 @@ namespace {
 
 constexpr std::array<Stage, 4> kStages = {Stage::Pretrain, Stage::ModeI, Stage::ModeII, Stage::ModeIII};
 
-// Seed streams of a run (each derived from the run's seed, so that one seed fixes everything).
-constexpr std::uint64_t kOrderStream = 11;       // data order of (stage, epoch)
-constexpr std::uint64_t kBatchStream = 12;       // starts and sampling of (stage, epoch, batch)
-constexpr std::uint64_t kValidationStream = 13;  // validation passes (the same every epoch)
 
 std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, int stage, int epoch) {
   return core::derive_seed(core::derive_seed(core::derive_seed(seed, stream), stage), epoch);
@@ -91,11 +88,6 @@ std::string metrics_csv_row(const EpochMetrics& m) {
 
 // ---------------------------------------------------------------------------------------------
 // The run.
-
-struct EpochSums {
-  double reward = 0, loss = 0, train_seconds = 0;
-  long correct = 0, robots = 0, images = 0, batches = 0;
-};
 
 struct Trainer::Impl {
   TrainConfig config;
@@ -154,6 +146,13 @@ struct Trainer::Impl {
 
   Stage stage() const { return kStages[cursor.stage]; }
   bool finished() const { return cursor.stage >= static_cast<int>(kStages.size()); }
+  // True when no stage from the cursor on has an epoch left (without moving the cursor).
+  bool schedule_done() const {
+    const auto epochs = stage_epochs(config);
+    for (int st = cursor.stage; st < static_cast<int>(kStages.size()); ++st)
+      if ((st == cursor.stage ? cursor.epoch : 0) < epochs[st]) return false;
+    return true;
+  }
 
   // Skips stages with no epochs left.
   void normalise_cursor() {
@@ -184,13 +183,14 @@ struct Trainer::Impl {
   std::vector<int> epoch_order() const {
     std::vector<int> order(train.images.count);
     for (int i = 0; i < train.images.count; ++i) order[i] = i;
-    core::Rng rng(stage_epoch_seed(config.seed, kOrderStream, cursor.stage, cursor.epoch));
+    core::Rng rng(stage_epoch_seed(config.seed, streams::kTrainOrder, cursor.stage, cursor.epoch));
     core::shuffle(order, rng);
     return order;
   }
 
-  // One optimisation step; returns false when the loss is not finite (nothing is changed then).
-  bool train_batch(std::span<const int> indices, int batch_index, double& loss_out) {
+  // One optimisation step in three parts: (1) forward and backward, (2) the gradient hook,
+  // (3) Adam's step. Returns the loss; when it is not finite nothing has changed.
+  double train_batch(std::span<const int> indices, int batch_index, const TrainHooks& hooks) {
     const Stage s = stage();
     agent->train();
     // Frozen layers keep their BatchNorm statistics too (ResNet-18).
@@ -216,7 +216,7 @@ struct Trainer::Impl {
       sums.robots += static_cast<long>(labels.size());
     } else {
       const std::uint64_t stream =
-          core::derive_seed(stage_epoch_seed(config.seed, kBatchStream, cursor.stage, cursor.epoch), batch_index);
+          core::derive_seed(stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
       const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
       EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
@@ -225,8 +225,13 @@ struct Trainer::Impl {
       sums.correct += count_correct(out.log_probs, batch.labels);
       sums.robots += batch.count;
     }
-    // A stage whose layers are all frozen has nothing to step (descend() sees no graph).
-    return descend(loss, *optimizer, loss_out);
+    const double value = backward_if_finite(loss);
+    if (!std::isfinite(value)) return value;
+    if (hooks.on_gradients) apply_gradient_hook(*agent, hooks.on_gradients);
+    // Adam skips parameters without a gradient: frozen layers, an unconsulted action planner, and
+    // everything in a stage whose layers are all frozen.
+    optimizer->step();
+    return value;
   }
 
   double validation_accuracy() {
@@ -249,7 +254,7 @@ struct Trainer::Impl {
       } else {
         const RolloutBatch batch =
             make_batch(validation, indices, 1, config.world, frame,
-                       core::derive_seed(core::derive_seed(config.seed, kValidationStream), first));
+                       core::derive_seed(core::derive_seed(config.seed, streams::kTrainValidation), first));
         const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
@@ -260,7 +265,7 @@ struct Trainer::Impl {
   void write_metrics() const {
     std::string text = metrics_csv_header();
     for (const EpochMetrics& m : history) text += metrics_csv_row(m);
-    core::write_file_atomic(run_dir / "metrics.csv", text);
+    core::write_file_atomic(run_dir / kMetricsFile, text);
   }
 
   void save() {
@@ -268,8 +273,8 @@ struct Trainer::Impl {
     state.config = config;
     state.cursor = cursor;
     state.history = history;
-    state.partial = {sums.reward, sums.loss, sums.train_seconds, sums.correct, sums.robots, sums.images, sums.batches};
-    save_checkpoint(run_dir / kCheckpointName, *agent, optimizer.get(), state);
+    state.partial = sums;
+    save_checkpoint(run_dir / kCheckpointFile, *agent, optimizer.get(), state);
   }
 
   double remaining_images_after_epoch() const {
@@ -294,22 +299,22 @@ struct Trainer::Impl {
       const auto epoch_start = Clock::now();
       const double seconds_before = sums.train_seconds;
       for (int b = cursor.batch; b < batches; ++b) {
-        if (hooks.stop_requested && hooks.stop_requested()) {
+        if (hooks.stop.requested()) {
           save();
-          return {TrainOutcome::Interrupted,
-                  fmt::format("interrupted in mode {} epoch {} after batch {}/{}; checkpoint saved: {}", to_string(s),
-                              cursor.epoch + 1, cursor.batch, batches, (run_dir / kCheckpointName).string())};
+          throw core::Stopped(fmt::format("interrupted in mode {} epoch {} after batch {}/{}; checkpoint saved: {}",
+                                          to_string(s), cursor.epoch + 1, cursor.batch, batches,
+                                          (run_dir / kCheckpointFile).string()));
         }
         const auto t0 = Clock::now();
         const int first = b * per_batch;
         const int k = std::min(per_batch, train.images.count - first);
-        double loss = 0;
-        if (!train_batch(std::span(order.data() + first, k), b, loss)) {
+        const double loss = train_batch(std::span(order.data() + first, k), b, hooks);
+        if (!std::isfinite(loss)) {
           return {TrainOutcome::NonFinite,
                   fmt::format("the loss is {} in mode {} epoch {} batch {}; training stopped, the last good checkpoint "
                               "is kept ({}); try a smaller --lr",
                               loss, to_string(s), cursor.epoch + 1, b + 1,
-                              history.empty() ? "none was written yet" : (run_dir / kCheckpointName).string())};
+                              history.empty() ? "none was written yet" : (run_dir / kCheckpointFile).string())};
         }
         sums.loss += loss;
         sums.batches += 1;
@@ -364,14 +369,14 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : imp
   impl_->setup(threads, /*new_run=*/true);
 }
 
-std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const std::array<int, 3>* epochs,
-                                         const fs::path* data_folder, const double* learning_rate) {
-  const fs::path file = run_dir / kCheckpointName;
+std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const ResumeOptions& options) {
+  const fs::path file = run_dir / kCheckpointFile;
   auto impl = std::make_unique<Impl>();
   CheckpointState state = read_checkpoint_state(file);
+  const std::optional<std::array<int, 3>>& epochs = options.epochs;
   if (epochs) state.config.epochs = *epochs;
-  if (data_folder) state.config.data_folder = fs::absolute(*data_folder);
-  if (learning_rate) state.config.learning_rate = *learning_rate;
+  if (options.data_folder) state.config.data_folder = fs::absolute(*options.data_folder);
+  if (options.learning_rate) state.config.learning_rate = *options.learning_rate;
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;
@@ -402,8 +407,7 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
     const EpochMetrics& last = impl->history.back();
     impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};
   }
-  const CheckpointState::Partial& p = state.partial;
-  impl->sums = {p.reward, p.loss, p.train_seconds, p.correct, p.robots, p.images, p.batches};
+  impl->sums = state.partial;
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
 }
 
@@ -412,13 +416,10 @@ Trainer::~Trainer() = default;
 TrainResult Trainer::run(const TrainHooks& hooks) { return impl_->run(hooks); }
 const TrainConfig& Trainer::config() const { return impl_->config; }
 const ScheduleCursor& Trainer::cursor() const { return impl_->cursor; }
-bool Trainer::finished() const {
-  impl_->normalise_cursor();
-  return impl_->finished();
-}
+bool Trainer::finished() const { return impl_->schedule_done(); }
 const std::vector<EpochMetrics>& Trainer::history() const { return impl_->history; }
 int Trainer::threads() const { return impl_->threads; }
-fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointName; }
+fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointFile; }
 const std::vector<fs::path>& Trainer::data_files() const { return impl_->data_files; }
 
 CheckpointInfo read_checkpoint_info(const fs::path& file) {

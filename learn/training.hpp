@@ -7,10 +7,13 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "agent/config.hpp"
+#include "core/stop.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -74,13 +77,19 @@ struct Progress {
   double eta_s = 0;            ///< rest of the schedule at this epoch's rate
 };
 
+/// What a caller sees of a run, and the one place it may act inside a training step.
 struct TrainHooks {
-  std::function<bool()> stop_requested;               ///< polled between batches (Ctrl-C)
+  core::StopToken stop;                               ///< polled between batches (Ctrl-C)
   std::function<void(const Progress&)> on_progress;   ///< after every batch
   std::function<void(const EpochMetrics&)> on_epoch;  ///< after every epoch (metrics written)
+  /// Between backward and the optimizer step (the place data-parallel training all-reduces):
+  /// every trainable parameter's gradient, flattened into one fp32 buffer in parameter order (a
+  /// parameter without a gradient contributes zeros). Changes are written back: a non-zero slice
+  /// gives its parameter a gradient, so Adam moves it. Unset: nothing is flattened.
+  std::function<void(std::span<float> gradients)> on_gradients;
 };
 
-enum class TrainOutcome { Finished, Interrupted, NonFinite };
+enum class TrainOutcome { Finished, NonFinite };
 struct TrainResult {
   TrainOutcome outcome = TrainOutcome::Finished;
   std::string message;  ///< one line for the user
@@ -93,27 +102,38 @@ struct ScheduleCursor {
   int batch = 0;  ///< batches done within the next epoch (non-zero only after an interrupt)
 };
 
+/// The files of a run folder.
+inline constexpr const char* kCheckpointFile = "checkpoint.pt";  ///< weights, Adam, config, schedule
+inline constexpr const char* kMetricsFile = "metrics.csv";       ///< one row per epoch
+
+/// What `Trainer::resume` may change; an unset field keeps the run's own.
+struct ResumeOptions {
+  /// A longer schedule; a mode that precedes one already trained cannot grow (METHOD.md: a
+  /// learned layer never returns to i.i.d.).
+  std::optional<std::array<int, 3>> epochs;
+  /// The same data, moved (every file is checked against the run's digests by the CLI).
+  std::optional<std::filesystem::path> data_folder;
+  /// Adam's step size from the next batch on (fine-tuning at a lower rate); metrics.csv records
+  /// each epoch's rate, so nothing of the history is lost.
+  std::optional<double> learning_rate;
+};
+
 /// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.
 class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
   Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads);
-  /// Continues RUN/checkpoint.pt; `epochs` may extend the schedule (nullptr: keep); a mode that
-  /// precedes one already trained cannot grow (METHOD.md: a learned layer never returns to i.i.d.). Throws
-  /// InputError for a bad or foreign checkpoint.
-  /// `data_folder` (nullptr: keep) replaces the stored data folder: the same data, moved.
-  /// `learning_rate` (nullptr: keep) sets Adam's step size from the next batch on (fine-tuning
-  /// at a lower rate); metrics.csv records each epoch's rate, so nothing of the history is lost.
+  /// Continues RUN/checkpoint.pt with what `options` changes. Throws InputError for a bad or
+  /// foreign checkpoint, or an option that contradicts the run.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
-                                         const std::array<int, 3>* epochs = nullptr,
-                                         const std::filesystem::path* data_folder = nullptr,
-                                         const double* learning_rate = nullptr);
+                                         const ResumeOptions& options = {});
   ~Trainer();
   Trainer(const Trainer&) = delete;
   Trainer& operator=(const Trainer&) = delete;
 
-  /// Trains until the schedule is done, a stop is requested (a checkpoint is saved first) or the
-  /// loss is not finite (the last good checkpoint is kept).
+  /// Trains until the schedule is done or the loss is not finite (the last good checkpoint is
+  /// kept). A stop requested through `hooks.stop` saves a checkpoint, then throws core::Stopped
+  /// saying where the run stopped and where the checkpoint is.
   TrainResult run(const TrainHooks& hooks);
 
   const TrainConfig& config() const;

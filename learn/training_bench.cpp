@@ -3,6 +3,7 @@
 #include <torch/torch.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <stdexcept>
 
@@ -27,7 +28,7 @@ double median(std::vector<double> v) {
 
 }  // namespace
 
-TrainBenchReport bench_training(const TrainBenchConfig& config, const std::function<bool()>& stop) {
+TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop) {
   const TrainConfig& c = config.train;
   c.validate();
   if (config.batches < 1) throw InputError("--batches: expected a positive integer");
@@ -63,7 +64,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
     std::vector<double> steps;
     core::Rng order(core::derive_seed(c.seed, static_cast<std::uint64_t>(mode)));
     for (int b = 0; b < config.warmup + config.batches; ++b) {
-      if (stop && stop()) return report;
+      stop.throw_if_requested();
       std::vector<int> indices(c.batch_images);
       for (int& i : indices)
         i = static_cast<int>(core::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
@@ -76,12 +77,14 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const std::funct
       const auto t_run = Clock::now();
       const BatchOutcome out = run_batch(*agent, engine, policy, batch, sampling, estimator);
       const double run_s = seconds_since(t_run);
-      double loss = 0;
-      DescentSeconds descent;
-      if (!descend(-out.objective, optimizer, loss, &descent))
+      // The step's other two parts as Trainer runs them without a gradient hook.
+      const auto t_backward = Clock::now();
+      if (!std::isfinite(backward_if_finite(-out.objective)))
         throw std::runtime_error("bench train: the loss is not finite in mode " + std::string(to_string(mode)));
-      t.backward_s = descent.backward_s;
-      t.optimizer_s = descent.optimizer_s;
+      const auto t_step = Clock::now();
+      optimizer.step();
+      t.backward_s = std::chrono::duration<double>(t_step - t_backward).count();
+      t.optimizer_s = seconds_since(t_step);
       t.total_s = seconds_since(t0);
 
       const RolloutTiming& rt = engine.timing();

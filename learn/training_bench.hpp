@@ -51,8 +51,8 @@ struct TrainBenchReport {
 };
 
 /// Times training steps exactly as Trainer runs them (fresh weights from the config's seed, Adam,
-/// the same batches and estimator), nothing written. `stop` is polled between batches; when it
-/// returns true, bench_training returns what it has (possibly fewer modes).
-TrainBenchReport bench_training(const TrainBenchConfig& config, const std::function<bool()>& stop);
+/// the same batches and estimator), nothing written. `stop` is polled between batches; a stop
+/// throws core::Stopped.
+TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop = {});
 
 }  // namespace scout::learn

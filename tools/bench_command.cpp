@@ -57,7 +57,7 @@ template <typename F>
 std::vector<double> time_repeats(int repeats, F&& body) {
   std::vector<double> seconds;
   for (int r = 0; r < repeats; ++r) {
-    throw_if_interrupted();
+    interrupt_token().throw_if_requested();
     const auto t0 = Clock::now();
     body(r);
     seconds.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
@@ -236,8 +236,7 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   config.warmup = opt.warmup;
   config.threads = opt.threads;
 
-  const learn::TrainBenchReport report = learn::bench_training(config, [] { return interrupt_requested(); });
-  throw_if_interrupted();
+  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token());
   const agent::NetworkConfig& n = c.network;
   fmt::print(
       "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {} LibTorch threads, "

@@ -10,6 +10,7 @@
 
 #include "learn/rollout.hpp"
 #include "core/error.hpp"
+#include "core/stop.hpp"
 
 namespace CLI {
 class App;
@@ -22,18 +23,12 @@ struct Context {
   std::vector<std::string> argv;  ///< the command line, for manifests
 };
 
-/// Thrown between units of work after SIGINT or SIGTERM, so that output folders are cleaned up
-/// by unwinding; main() exits with status 130.
-struct Interrupted {
-  std::string message = "interrupted; nothing was written";  ///< printed after "scout: "
-};
-/// Installs the SIGINT / SIGTERM handler, for commands that check throw_if_interrupted() between
-/// units of work; other commands keep the default (the process ends at once).
+/// Installs the SIGINT / SIGTERM handler, for commands that poll interrupt_token() between units
+/// of work; other commands keep the default (the process ends at once).
 void install_interrupt_handler();
-/// Throws Interrupted if a signal has arrived.
-void throw_if_interrupted();
-/// True once SIGINT or SIGTERM has arrived (for loops that save before they stop).
-bool interrupt_requested();
+/// The stop token of the process: requested once SIGINT or SIGTERM has arrived. Work that sees it
+/// throws core::Stopped (output folders are cleaned up by unwinding); main() exits with 130.
+const core::StopToken& interrupt_token();
 
 /// A --seed value: a decimal integer in [0, 2^64 - 1], nothing else (no sign, no wrap-around).
 std::uint64_t parse_seed(const std::string& text);

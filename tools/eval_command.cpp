@@ -83,13 +83,9 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
   if (!opt.precision.empty()) config.precision = agent::parse_precision(opt.precision);  // checked by the option
   learn::EvalReport report;
-  try {
-    report = learn::evaluate(config, [] { return interrupt_requested(); });
-  } catch (const learn::EvalInterrupted&) {
-    throw Interrupted{};
-  }
+  report = learn::evaluate(config, interrupt_token());
   // Nothing is written when a signal arrives before here; after it the files are complete.
-  throw_if_interrupted();
+  interrupt_token().throw_if_requested();
   print_table(report);
   if (!opt.json_out.empty()) {
     nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));

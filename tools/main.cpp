@@ -62,10 +62,9 @@ void scout::tools::install_interrupt_handler() {
   std::signal(SIGTERM, on_signal);
 }
 
-bool scout::tools::interrupt_requested() { return interrupted != 0; }
-
-void scout::tools::throw_if_interrupted() {
-  if (interrupted) throw Interrupted{};
+const scout::core::StopToken& scout::tools::interrupt_token() {
+  static const scout::core::StopToken token([] { return interrupted != 0; });
+  return token;
 }
 
 namespace {
@@ -129,8 +128,8 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
-  } catch (const scout::tools::Interrupted& e) {
-    std::fprintf(stderr, "scout: %s\n", e.message.c_str());
+  } catch (const scout::core::Stopped& e) {
+    std::fprintf(stderr, "scout: %s\n", scout::one_line(e.what()).c_str());
     return 130;
   } catch (const scout::InputError& e) {
     std::fprintf(stderr, "scout: error: %s\n", scout::one_line(e.what()).c_str());

@@ -19,6 +19,7 @@
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
 #include "core/random.hpp"
+#include "learn/seed_streams.hpp"
 
 namespace scout::tools {
 
@@ -51,10 +52,6 @@ struct PlannedRun {
   grid::Cell start;
 };
 
-// Streams derived from a run's seed, so that drawing one thing never shifts another.
-enum Stream : std::uint64_t { kStartStream = 2, kPolicyStream = 3 };
-// The command's digit order: a stream of the command's seed that no run number reaches.
-constexpr std::uint64_t kDigitOrderStream = ~std::uint64_t{0};
 
 std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
                                   const grid::FloorFrame& frame, std::uint64_t seed, int count) {
@@ -64,7 +61,7 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
   if (!world.floor.index) {
     digit_order.resize(static_cast<std::size_t>(floors.size()));
     for (int i = 0; i < floors.size(); ++i) digit_order[i] = i;
-    core::Rng order_rng(core::derive_seed(seed, kDigitOrderStream));
+    core::Rng order_rng(core::derive_seed(seed, learn::streams::kRunDigitOrder));
     core::shuffle(digit_order, order_rng);
   }
   std::vector<PlannedRun> runs(count);
@@ -72,7 +69,7 @@ std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::Floo
     PlannedRun& r = runs[k];
     r.seed = core::derive_seed(seed, static_cast<std::uint64_t>(k));
     r.index = world.floor.index ? *world.floor.index : digit_order[static_cast<std::size_t>(k) % digit_order.size()];
-    core::Rng start_rng(core::derive_seed(r.seed, kStartStream));
+    core::Rng start_rng(core::derive_seed(r.seed, learn::streams::kRunStart));
     r.start = learn::draw_start(world, frame, start_rng);
   }
   return runs;
@@ -194,7 +191,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   std::vector<std::string> images;
   long moves = 0, ticks = 0, revealed = 0;
   for (int first = 0; first < opt.count; first += batch_robots) {
-    throw_if_interrupted();
+    interrupt_token().throw_if_requested();
     const int n = std::min(batch_robots, opt.count - first);
     std::vector<std::uint8_t> batch_floors(area * n);
     std::vector<grid::Cell> starts(n);
@@ -203,7 +200,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       const PlannedRun& r = runs[first + i];
       std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
       starts[i] = r.start;
-      policy_seeds[i] = core::derive_seed(r.seed, kPolicyStream);
+      policy_seeds[i] = core::derive_seed(r.seed, learn::streams::kRunPolicy);
     }
     std::vector<learn::RolloutRecord> records;
     std::vector<float> probabilities;  // n * D with a checkpoint
@@ -225,7 +222,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
       if (!opt.no_images) {
-        throw_if_interrupted();
+        interrupt_token().throw_if_requested();
         const AgentOverlay overlay{p, opt.heat_map ? agent.get() : nullptr, i};
         write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
                      opt.scale, overlay, images);

@@ -234,8 +234,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     const fs::path data_folder = resume_data_folder(o, info.config, run);
     // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
     const bool lr_given = cmd.get_option("--lr")->count() > 0;
-    trainer = learn::Trainer::resume(run, o.threads, epochs_given ? &epochs : nullptr, &data_folder,
-                                     lr_given ? &o.lr : nullptr);
+    learn::ResumeOptions resume;
+    if (epochs_given) resume.epochs = epochs;
+    resume.data_folder = data_folder;
+    if (lr_given) resume.learning_rate = o.lr;
+    trainer = learn::Trainer::resume(run, o.threads, resume);
     if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
       fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
   } else {
@@ -296,7 +299,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
 
   ProgressPrinter progress;
   learn::TrainHooks hooks;
-  hooks.stop_requested = [] { return interrupt_requested(); };
+  hooks.stop = interrupt_token();
   hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
   hooks.on_epoch = [&](const learn::EpochMetrics& m) {
     progress.end_line();
@@ -313,8 +316,6 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     case learn::TrainOutcome::Finished:
       fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / "checkpoint.pt").string(), (run / "metrics.csv").string());
       return;
-    case learn::TrainOutcome::Interrupted:
-      throw Interrupted{result.message};
     case learn::TrainOutcome::NonFinite:
       throw InputError(result.message);
   }

@@ -15,18 +15,23 @@
 
 namespace scout::learn {
 
-inline constexpr const char* kCheckpointName = "checkpoint.pt";
+/// Running sums of an epoch in progress: what its metrics row is made of.
+struct EpochSums {
+  double reward = 0;         ///< sum of r over the epoch's rollouts
+  double loss = 0;           ///< sum of the batches' -J-hat
+  double train_seconds = 0;  ///< time in training steps (validation excluded)
+  long correct = 0;          ///< rollouts classified right
+  long robots = 0;           ///< rollouts
+  long images = 0;           ///< training images
+  long batches = 0;          ///< batches
+};
 
 /// Everything in a checkpoint besides tensors.
 struct CheckpointState {
   TrainConfig config;
   ScheduleCursor cursor;
   std::vector<EpochMetrics> history;
-  /// Sums of the epoch in progress (after an interrupt), so that a resumed epoch reports the same.
-  struct Partial {
-    double reward = 0, loss = 0, train_seconds = 0;
-    long correct = 0, robots = 0, images = 0, batches = 0;
-  } partial;
+  EpochSums partial;  ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
 };
 
 /// Writes the checkpoint atomically (a temporary file beside it, then a rename). `optimizer`

@@ -7,6 +7,7 @@
 #include <torch/torch.h>
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -27,10 +28,13 @@ struct RolloutBatch {
   std::vector<std::uint64_t> seeds;
 };
 
-/// N robots per image: robot i*N + k drives over image indices[i]. Robot r's start and sampling
-/// seed derive from (stream, r) only, so a batch is reproducible from its stream seed.
+/// N robots per image: robot i*N + k drives over image indices[i]. These are robots
+/// first_robot, first_robot + 1, ... of the global batch (the whole mini-batch, which several
+/// processes may share): robot r's start and sampling seed derive from (stream, first_robot + r)
+/// only, so a robot draws the same whichever process drives it.
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
-                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream);
+                        const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
+                        std::uint64_t first_robot = 0);
 
 /// What one batch gave.
 struct BatchOutcome {
@@ -49,17 +53,20 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
 /// action planner that no robot consulted in this batch).
 void clear_gradients(torch::nn::Module& module);
 
-/// Seconds in the two halves of an optimisation step (scout bench train).
-struct DescentSeconds {
-  double backward_s = 0;
-  double optimizer_s = 0;
-};
+// A training step has three parts, in the shape data-parallel training needs (the LibTorch
+// distributed example): (1) forward and backward, (2) a hook on the gradients (an all-reduce
+// across processes), (3) the optimizer's step. Trainer and the bench both run these.
 
-/// The end of a training step: `value` gets the loss; when it is finite, backward and one
-/// optimizer step follow (nothing to do when no layer is trainable: the loss has no graph).
-/// Returns false, having changed nothing, for a NaN or infinite loss.
-bool descend(const torch::Tensor& loss, torch::optim::Optimizer& optimizer, double& value,
-             DescentSeconds* seconds = nullptr);
+/// The end of part (1): the loss's value and, when it is finite and has a graph, backward.
+/// A NaN or infinite loss changes nothing (the caller stops); a loss without a graph (every layer
+/// of the stage frozen) has nothing to differentiate.
+double backward_if_finite(const torch::Tensor& loss);
+
+/// Part (2): hands `hook` every trainable parameter's gradient flattened into one fp32 buffer
+/// (parameter order; zeros for a parameter without a gradient) and writes the buffer back. A
+/// parameter that had no gradient gets one only if its slice came back non-zero, so that Adam
+/// still skips what no process used.
+void apply_gradient_hook(torch::nn::Module& module, const std::function<void(std::span<float>)>& hook);
 
 /// The sampling of a training stage (ModeI..ModeIII): which layers choose, in `precision`.
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision);

@@ -278,7 +278,7 @@ TEST_F(Evaluation, OneRunHasNoInterval) {
 
 TEST_F(Evaluation, AStopRequestInterrupts) {
   int polls = 0;
-  EXPECT_THROW(evaluate(config(2, 1), [&] { return ++polls > 2; }), EvalInterrupted);
+  EXPECT_THROW(evaluate(config(2, 1), core::StopToken([&] { return ++polls > 2; })), core::Stopped);
   EXPECT_EQ(polls, 3);
 }
 

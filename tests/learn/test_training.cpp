@@ -281,8 +281,8 @@ class Resume : public Training {
     return trainer.history();
   }
   void expect_same_checkpoints(const std::string& a, const std::string& b) {
-    agent::Agent agent_a = load_agent(temp_.path() / a / kCheckpointName);
-    agent::Agent agent_b = load_agent(temp_.path() / b / kCheckpointName);
+    agent::Agent agent_a = load_agent(temp_.path() / a / kCheckpointFile);
+    agent::Agent agent_b = load_agent(temp_.path() / b / kCheckpointFile);
     expect_same_weights(*agent_a, *agent_b);
   }
   void interrupted_run_resumed_is_the_uninterrupted_run();
@@ -296,7 +296,7 @@ TEST_F(Resume, ExtendingModeIIsTheUninterruptedRun) {
   const std::vector<EpochMetrics> full = train("a", {2, 0, 0});
   ASSERT_EQ(train("b", {1, 0, 0}).size(), 1u);
   const std::array<int, 3> more = {2, 0, 0};
-  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "b", kThreads, &more);
+  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "b", kThreads, {.epochs = more});
   const TrainResult r = resumed->run({});
   ASSERT_EQ(r.outcome, TrainOutcome::Finished) << r.message;
   ASSERT_EQ(full.size(), 2u);
@@ -311,7 +311,7 @@ TEST_F(Resume, AddingModeIIIsTheUninterruptedRun) {
   const std::vector<EpochMetrics> full = train("a", {1, 1, 0});
   ASSERT_EQ(train("b", {1, 0, 0}).size(), 1u);
   const std::array<int, 3> more = {1, 1, 0};
-  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "b", kThreads, &more);
+  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "b", kThreads, {.epochs = more});
   const TrainResult r = resumed->run({});
   ASSERT_EQ(r.outcome, TrainOutcome::Finished) << r.message;
   ASSERT_EQ(full.size(), 2u);
@@ -326,11 +326,12 @@ TEST_F(Resume, AddingModeIIIsTheUninterruptedRun) {
 // and each epoch's row records the rate it ran with.
 TEST_F(Resume, ALearningRateGivenOnResumeTakesEffectFromThereOn) {
   for (const char* name : {"same", "lower", "kept"}) ASSERT_EQ(train(name, {1, 0, 0}).size(), 1u);
-  const agent::Agent start = load_agent(temp_.path() / "same" / kCheckpointName);
+  const agent::Agent start = load_agent(temp_.path() / "same" / kCheckpointFile);
   const std::array<int, 3> more = {2, 0, 0};
   const double stored = config(more).learning_rate, lower = stored / 10;
   auto resume = [&](const char* name, const double* lr) {
-    std::unique_ptr<Trainer> t = Trainer::resume(temp_.path() / name, kThreads, &more, nullptr, lr);
+    std::unique_ptr<Trainer> t = Trainer::resume(temp_.path() / name, kThreads,
+                                                 {.epochs = more, .learning_rate = lr ? std::optional<double>(*lr) : std::nullopt});
     EXPECT_EQ(t->run({}).outcome, TrainOutcome::Finished);
     return t->history();
   };
@@ -341,10 +342,10 @@ TEST_F(Resume, ALearningRateGivenOnResumeTakesEffectFromThereOn) {
   ASSERT_EQ(low.size(), 2u);
   EXPECT_EQ(low[0].learning_rate, stored);
   EXPECT_EQ(low[1].learning_rate, lower);
-  EXPECT_EQ(read_checkpoint_info(temp_.path() / "lower" / kCheckpointName).config.learning_rate, lower);
+  EXPECT_EQ(read_checkpoint_info(temp_.path() / "lower" / kCheckpointFile).config.learning_rate, lower);
 
   auto distance = [&](const char* name) {
-    const agent::Agent a = load_agent(temp_.path() / name / kCheckpointName);
+    const agent::Agent a = load_agent(temp_.path() / name / kCheckpointFile);
     double sum = 0;
     const auto pa = a->named_parameters(), ps = start->named_parameters();
     for (const auto& item : pa) sum += (item.value() - ps[item.key()]).pow(2).sum().item<double>();
@@ -366,13 +367,13 @@ TEST_F(Resume, AFrozenLayerStaysExactlyAsItWas) {
     Trainer trainer(pretrain, run_dir("pre"), kThreads);
     ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
   }
-  agent::Agent before = load_agent(temp_.path() / "pre" / kCheckpointName);
+  agent::Agent before = load_agent(temp_.path() / "pre" / kCheckpointFile);
   const std::array<int, 3> more = {1, 1, 0};
-  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "pre", kThreads, &more);
+  std::unique_ptr<Trainer> resumed = Trainer::resume(temp_.path() / "pre", kThreads, {.epochs = more});
   const TrainResult r = resumed->run({});
   ASSERT_EQ(r.outcome, TrainOutcome::Finished) << r.message;  // mode (i) has nothing to train here
   ASSERT_EQ(resumed->history().size(), 3u);
-  agent::Agent after = load_agent(temp_.path() / "pre" / kCheckpointName);
+  agent::Agent after = load_agent(temp_.path() / "pre" / kCheckpointFile);
   expect_same_weights(*before->classifier, *after->classifier);
   // ... while the goal planner, trained in mode (ii), did change.
   const torch::Tensor g0 = before->goal->parameters()[0], g1 = after->goal->parameters()[0];
@@ -384,7 +385,7 @@ TEST_F(Resume, AnEarlierModeCannotGrowAfterALaterOne) {
   ASSERT_EQ(train("b", {1, 1, 0}).size(), 2u);
   const std::array<int, 3> more = {2, 1, 0};
   try {
-    Trainer::resume(temp_.path() / "b", kThreads, &more);
+    Trainer::resume(temp_.path() / "b", kThreads, {.epochs = more});
     ADD_FAILURE() << "resume accepted more mode (i) after mode (ii)";
   } catch (const InputError& e) {
     const std::string what = e.what();
@@ -406,10 +407,13 @@ void Resume::interrupted_run_resumed_is_the_uninterrupted_run() {
     Trainer trainer(config({1, 1, 1}), run, kThreads);
     int polls = 0;
     TrainHooks hooks;
-    hooks.stop_requested = [&] { return ++polls == 3; };
-    const TrainResult r = trainer.run(hooks);
-    ASSERT_EQ(r.outcome, TrainOutcome::Interrupted) << r.message;
-    EXPECT_NE(r.message.find("checkpoint saved"), std::string::npos) << r.message;
+    hooks.stop = core::StopToken([&] { return ++polls == 3; });
+    try {
+      trainer.run(hooks);
+      FAIL() << "the run did not stop";
+    } catch (const core::Stopped& e) {
+      EXPECT_NE(std::string(e.what()).find("checkpoint saved"), std::string::npos) << e.what();
+    }
     EXPECT_EQ(trainer.cursor().stage, static_cast<int>(Stage::ModeI));
     EXPECT_EQ(trainer.cursor().batch, 2);
   }
@@ -417,9 +421,8 @@ void Resume::interrupted_run_resumed_is_the_uninterrupted_run() {
     std::unique_ptr<Trainer> trainer = Trainer::resume(run, kThreads);
     int polls = 0;
     TrainHooks hooks;
-    hooks.stop_requested = [&] { return ++polls == stop_after + 1; };
-    const TrainResult r = trainer->run(hooks);
-    ASSERT_EQ(r.outcome, TrainOutcome::Interrupted) << r.message;
+    hooks.stop = core::StopToken([&] { return ++polls == stop_after + 1; });
+    EXPECT_THROW(trainer->run(hooks), core::Stopped);
     EXPECT_EQ(trainer->cursor().stage, static_cast<int>(stage));
     EXPECT_EQ(trainer->cursor().batch, 4);
   }
@@ -454,10 +457,10 @@ TEST_F(Resume, ANonFiniteLossStopsAndKeepsTheLastGoodCheckpoint) {
     // One epoch of two, then stop: a checkpoint that has more to train.
     Trainer trainer(config({2, 0, 0}), run, kThreads);
     TrainHooks hooks;
-    hooks.stop_requested = [&] { return trainer.history().size() == 1; };
-    ASSERT_EQ(trainer.run(hooks).outcome, TrainOutcome::Interrupted);
+    hooks.stop = core::StopToken([&] { return trainer.history().size() == 1; });
+    EXPECT_THROW(trainer.run(hooks), core::Stopped);
   }
-  const fs::path file = run / kCheckpointName;
+  const fs::path file = run / kCheckpointFile;
   {
     // The same checkpoint with one classifier weight NaN (optimizer state and schedule kept).
     CheckpointState state;
@@ -507,24 +510,24 @@ TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
     Trainer trainer(config({1, 0, 0}), good, kThreads);
     ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
   }
-  const std::string bytes = read_bytes(good / kCheckpointName);
+  const std::string bytes = read_bytes(good / kCheckpointFile);
 
   // A future format version, otherwise well-formed.
   const fs::path future = run_dir("future");
   {
-    const CheckpointState state = read_checkpoint_state(good / kCheckpointName);
+    const CheckpointState state = read_checkpoint_state(good / kCheckpointFile);
     torch::serialize::OutputArchive archive;
     archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat + 1)));
     archive.write("config", c10::IValue(state.config.to_json()));
     archive.write("progress", c10::IValue(std::string("{}")));
-    archive.save_to((future / kCheckpointName).string());
+    archive.save_to((future / kCheckpointFile).string());
   }
   const std::string line = resume_refusal(future);
-  EXPECT_NE(line.find((future / kCheckpointName).string()), std::string::npos) << line;
+  EXPECT_NE(line.find((future / kCheckpointFile).string()), std::string::npos) << line;
   EXPECT_NE(line.find("format"), std::string::npos) << line;
   EXPECT_NE(line.find(std::to_string(kCheckpointFormat + 1)), std::string::npos) << line;
   try {
-    read_checkpoint_info(future / kCheckpointName);
+    read_checkpoint_info(future / kCheckpointFile);
     ADD_FAILURE() << "a future format was read";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), line);
@@ -532,12 +535,12 @@ TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
 
   // Garbage, a truncated checkpoint, an empty file, no file.
   const fs::path garbage = run_dir("garbage"), truncated = run_dir("truncated"), empty = run_dir("empty");
-  std::ofstream(garbage / kCheckpointName, std::ios::binary) << "this is not a checkpoint\n";
-  std::ofstream(truncated / kCheckpointName, std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
-  std::ofstream(empty / kCheckpointName, std::ios::binary);
+  std::ofstream(garbage / kCheckpointFile, std::ios::binary) << "this is not a checkpoint\n";
+  std::ofstream(truncated / kCheckpointFile, std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
+  std::ofstream(empty / kCheckpointFile, std::ios::binary);
   for (const fs::path& run : {garbage, truncated, empty, run_dir("none")}) {
     const std::string message = resume_refusal(run);
-    EXPECT_NE(message.find((run / kCheckpointName).string()), std::string::npos) << run << ": " << message;
+    EXPECT_NE(message.find((run / kCheckpointFile).string()), std::string::npos) << run << ": " << message;
     EXPECT_EQ(message.find('\n'), std::string::npos) << message;
   }
   // The good one still resumes (and has nothing left to do).
@@ -556,20 +559,20 @@ TEST_F(Resume, WeightsThatDoNotFitTheConfigAreRefused) {
   const fs::path mismatched = run_dir("mismatched");
   {
     CheckpointState state;
-    agent::Agent agent = load_agent(good / kCheckpointName, &state);
+    agent::Agent agent = load_agent(good / kCheckpointFile, &state);
     torch::optim::Adam adam(agent->parameters(), torch::optim::AdamOptions(state.config.learning_rate));
-    load_checkpoint_weights(good / kCheckpointName, *agent, &adam);
+    load_checkpoint_weights(good / kCheckpointFile, *agent, &adam);
     state.config.network.planner_width *= 2;
     state.config.epochs = {1, 1, 0};
-    save_checkpoint(mismatched / kCheckpointName, *agent, &adam, state);
+    save_checkpoint(mismatched / kCheckpointFile, *agent, &adam, state);
   }
-  const std::string file = (mismatched / kCheckpointName).string();
+  const std::string file = (mismatched / kCheckpointFile).string();
   const std::string line = resume_refusal(mismatched);
   EXPECT_NE(line.find(file), std::string::npos) << line;
   EXPECT_NE(line.find("agent"), std::string::npos) << line;
   EXPECT_EQ(line.find('\n'), std::string::npos) << line;
   try {
-    load_agent(mismatched / kCheckpointName);
+    load_agent(mismatched / kCheckpointFile);
     ADD_FAILURE() << "weights 4 wide were loaded into planners 8 wide";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();

@@ -1,0 +1,35 @@
+#pragma once
+/// Every seed stream of Scout in one place. A stream number s gives an independent seed
+/// core::derive_seed(parent, s) below a parent seed; each constant names one use. The values are
+/// part of every pinned result (trajectory hashes, the pinned weights, eval reports): never
+/// change one, and give a new use a new name and a new number. (The data split's seed is the
+/// data set's, worlds/dataset.cpp's kSplitSeed.)
+#include <cstdint>
+
+namespace scout::learn::streams {
+
+// `scout run`: run k's seed is derive_seed(command seed, k); below it:
+inline constexpr std::uint64_t kRunStart = 2;   ///< run k's start cell
+inline constexpr std::uint64_t kRunPolicy = 3;  ///< run k's goal and axis choices
+/// Below the command seed itself: the permutation of the split that `index: random` walks.
+inline constexpr std::uint64_t kRunDigitOrder = ~std::uint64_t{0};
+
+// A robot of a rollout batch (make_batch): its seed is derive_seed(batch stream, global robot
+// index); below it:
+inline constexpr std::uint64_t kRobotStart = 1;   ///< the robot's start cell
+inline constexpr std::uint64_t kRobotPolicy = 2;  ///< the robot's goal and axis choices
+
+// A training run's seed; below it, then the stage and the epoch:
+inline constexpr std::uint64_t kTrainOrder = 11;       ///< data order of (stage, epoch)
+inline constexpr std::uint64_t kTrainBatch = 12;       ///< batch streams of (stage, epoch), then the batch index
+inline constexpr std::uint64_t kTrainValidation = 13;  ///< validation passes (the same every epoch)
+
+// An evaluation: stochastic run k's seed is derive_seed(eval seed, k), and image i of a pass
+// drives with derive_seed(pass seed, i). The baselines' passes take these streams below run k's
+// seed (the greedy pass below the eval seed); they lie beyond any image index, so no baseline
+// ever repeats the stochastic run's starts and choices.
+inline constexpr std::uint64_t kEvalIid = std::uint64_t{1} << 40;      ///< i.i.d. goals and actions
+inline constexpr std::uint64_t kEvalGoalsOnly = kEvalIid + 1;         ///< learned goals, i.i.d. actions
+inline constexpr std::uint64_t kEvalGreedy = kEvalIid + 2;            ///< the greedy run (below the eval seed)
+
+}  // namespace scout::learn::streams
