@@ -35,6 +35,7 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+# CI sets SCOUT_WARNINGS_AS_ERRORS=ON: a compiler warning fails its build.
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DSCOUT_WARNINGS_AS_ERRORS="${SCOUT_WARNINGS_AS_ERRORS:-OFF}"
 cmake --build build -j"$(nproc)"
 ./build/tools/scout data
