@@ -6,7 +6,10 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <span>
+#include <vector>
 #include <cstring>
 #include <filesystem>
 
@@ -42,8 +45,8 @@ std::uint64_t weights_digest(agent::AgentImpl& agent) {
   return h;
 }
 
-TEST(TrainerPin, AShortFp32RunThroughAllModesEndsInThePinnedWeights) {
-  scout::testing::TempDir temp("trainer-pin");
+// The pinned run's config: 96 training and 32 validation digits, tiny networks, every stage.
+TrainConfig pinned_config() {
   TrainConfig config;
   config.world = worlds::load_world(fs::path(SCOUT_SOURCE_DIR) / "worlds/mnist.yaml");
   config.data_folder = fs::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-subset";
@@ -58,12 +61,65 @@ TEST(TrainerPin, AShortFp32RunThroughAllModesEndsInThePinnedWeights) {
   config.rollouts = 3;
   config.leave_one_out = true;
   config.seed = 2024;
+  return config;
+}
+
+constexpr std::uint64_t kPinnedDigest = 8833687337048772615ull;
+
+TEST(TrainerPin, AShortFp32RunThroughAllModesEndsInThePinnedWeights) {
+  scout::testing::TempDir temp("trainer-pin");
+  const TrainConfig config = pinned_config();
   Trainer trainer(config, temp.path(), /*threads=*/1);
   ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
   ASSERT_EQ(trainer.history().size(), 4u);
   agent::Agent agent = load_agent(trainer.checkpoint_file());
   const std::uint64_t digest = weights_digest(*agent);
-  EXPECT_EQ(digest, 8833687337048772615ull) << "weights digest " << digest;
+  EXPECT_EQ(digest, kPinnedDigest) << "weights digest " << digest;
+}
+
+// The gradient hook sits between backward and Adam's step: a hook that leaves the gradients as
+// they are changes nothing (the pinned weights), sees one buffer per batch holding every
+// trainable parameter (the classifier's alone when pretraining on full images), and a hook that
+// zeroes them makes every Adam step a no-op, so the run ends with its initial weights.
+TEST(TrainerGradientHook, AnIdentityHookKeepsThePinnedWeightsAndSeesEveryBatch) {
+  scout::testing::TempDir temp("trainer-hook");
+  const TrainConfig config = pinned_config();
+  Trainer trainer(config, temp.path(), /*threads=*/1);
+  std::vector<std::size_t> sizes;
+  TrainHooks hooks;
+  hooks.on_gradients = [&](std::span<float> gradients) { sizes.push_back(gradients.size()); };
+  ASSERT_EQ(trainer.run(hooks).outcome, TrainOutcome::Finished);
+  agent::Agent agent = load_agent(trainer.checkpoint_file());
+  EXPECT_EQ(weights_digest(*agent), kPinnedDigest);
+
+  torch::manual_seed(config.seed);
+  agent::NetworkConfig network = config.network;
+  network.classes = 10;
+  const agent::Agent fresh(network);
+  std::size_t all = 0, classifier = 0;
+  for (const torch::Tensor& p : fresh->parameters()) all += static_cast<std::size_t>(p.numel());
+  for (const torch::Tensor& p : fresh->classifier->parameters()) classifier += static_cast<std::size_t>(p.numel());
+  // 96 digits: 2 pretraining batches of 16 x 3 images, then 6 batches of 16 images per mode.
+  ASSERT_EQ(sizes.size(), 2u + 3u * 6u);
+  EXPECT_EQ(sizes[0], classifier);
+  EXPECT_EQ(sizes[1], classifier);
+  for (std::size_t k = 2; k < sizes.size(); ++k) EXPECT_EQ(sizes[k], all) << "batch " << k;
+}
+
+TEST(TrainerGradientHook, AHookThatZeroesTheGradientsLeavesTheInitialWeights) {
+  scout::testing::TempDir temp("trainer-hook-zero");
+  const TrainConfig config = pinned_config();
+  Trainer trainer(config, temp.path(), /*threads=*/1);
+  TrainHooks hooks;
+  hooks.on_gradients = [](std::span<float> gradients) { std::fill(gradients.begin(), gradients.end(), 0.0f); };
+  ASSERT_EQ(trainer.run(hooks).outcome, TrainOutcome::Finished);
+  agent::Agent trained = load_agent(trainer.checkpoint_file());
+  torch::manual_seed(config.seed);
+  agent::NetworkConfig network = config.network;
+  network.classes = 10;
+  agent::Agent initial(network);
+  EXPECT_EQ(weights_digest(*trained), weights_digest(*initial));
+  EXPECT_NE(weights_digest(*trained), kPinnedDigest);
 }
 
 }  // namespace
