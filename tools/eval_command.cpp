@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -15,6 +16,7 @@
 #include "learn/evaluation.hpp"
 #include "learn/training.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "core/error.hpp"
@@ -81,7 +83,11 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
-  if (!opt.precision.empty()) config.precision = agent::parse_precision(opt.precision);  // checked by the option
+  if (!opt.precision.empty()) {
+    const agent::Precision requested = agent::parse_precision(opt.precision);  // checked by the option
+    if (requested == agent::Precision::Auto) std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
+    config.precision = agent::resolve_precision(requested);
+  }
   learn::EvalReport report;
   try {
     report = learn::evaluate(config, [] { return interrupt_requested(); });
@@ -128,8 +134,10 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--seed", opt->seed,
                   "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
       ->check(seed_validator());
-  cmd->add_option("--precision", opt->precision, "Networks' arithmetic: bf16 | fp32 (default: the checkpoint's)")
-      ->check(CLI::IsMember({"bf16", "fp32"}));
+  cmd->add_option("--precision", opt->precision,
+                  "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 | fp32 "
+                  "(default: the checkpoint's)")
+      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
   cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");
