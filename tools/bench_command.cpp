@@ -240,6 +240,7 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
 
   const learn::TrainBenchReport report = learn::bench_training(config, [] { return interrupt_requested(); });
   throw_if_interrupted();
+  opt.net.announce_precision();
   const agent::NetworkConfig& n = c.network;
   fmt::print(
       "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {} LibTorch threads, "

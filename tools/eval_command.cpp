@@ -5,7 +5,6 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -83,11 +82,8 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
-  if (!opt.precision.empty()) {
-    const agent::Precision requested = agent::parse_precision(opt.precision);  // checked by the option
-    if (requested == agent::Precision::Auto) std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
-    config.precision = agent::resolve_precision(requested);
-  }
+  // Checked by the option; auto is resolved here and announced once the evaluation has run.
+  if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
   learn::EvalReport report;
   try {
     report = learn::evaluate(config, [] { return interrupt_requested(); });
@@ -96,6 +92,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   }
   // Nothing is written when a signal arrives before here; after it the files are complete.
   throw_if_interrupted();
+  if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
     nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));

@@ -37,9 +37,14 @@ agent::NetworkConfig NetworkOptions::network() const {
 }
 
 agent::Precision NetworkOptions::arithmetic() const {
-  const agent::Precision requested = agent::parse_precision(precision);  // checked by the option
-  if (requested == agent::Precision::Auto) std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
-  return agent::resolve_precision(requested);
+  return agent::resolve_precision(agent::parse_precision(precision));  // checked by the option
+}
+
+void NetworkOptions::announce_precision() const { announce_auto_precision(precision); }
+
+void announce_auto_precision(const std::string& requested) {
+  if (agent::parse_precision(requested) == agent::Precision::Auto)
+    std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
 }
 
 void add_network_options(CLI::App& cmd, NetworkOptions& o) {

@@ -25,15 +25,20 @@ struct NetworkOptions {
 
   /// The options' values as a config (classes and channels keep their defaults).
   agent::NetworkConfig network() const;
-  /// The requested arithmetic, `auto` resolved for this CPU; with `auto` the choice and why
-  /// are printed on stderr in one line.
+  /// The requested arithmetic, `auto` resolved for this CPU.
   agent::Precision arithmetic() const;
+  /// With `auto`: prints what it chose and why, in one line on stderr. Called once the command's
+  /// checks have passed, so that a refusal stays one line.
+  void announce_precision() const;
   /// learn::TrainConfig's default precision, as --precision spells it.
   static std::string default_precision();
 };
 
 /// Adds --planner-width/-depth, --classifier, --classifier-width/-depth and --precision.
 void add_network_options(CLI::App& cmd, NetworkOptions& o);
+
+/// Prints agent::auto_precision_note() on stderr when `requested` is "auto".
+void announce_auto_precision(const std::string& requested);
 
 /// --precision's choices and help ("auto (default: ...) | bf16 (...) | fp32"), shared with eval.
 std::string precision_choices();

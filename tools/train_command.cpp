@@ -303,6 +303,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
                trainer->history().size());
     return;
   }
+  if (!resuming) o.net.announce_precision();
   write_manifest(run, context, *trainer, resuming);
   const learn::TrainConfig& c = trainer->config();
   fmt::print("training {} -> {} ({} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",

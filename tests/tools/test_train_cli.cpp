@@ -279,8 +279,9 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   expect_one_line_error(run("train --resume " + copy + " --out " + path("elsewhere")), {"--out"});
   // The run was trained at the default, auto: what it resolved to on this CPU; the other is refused.
   const std::string trained = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
-  const std::string other = trained == "bf16" ? "fp32" : "bf16";
-  expect_one_line_error(run("train --resume " + copy + " --precision " + other), {"--precision", trained, other});
+  const std::string other_precision = trained == "bf16" ? "fp32" : "bf16";
+  expect_one_line_error(run("train --resume " + copy + " --precision " + other_precision),
+                        {"--precision", trained, other_precision});
   EXPECT_EQ(read_text(copy + "/checkpoint.pt"), checkpoint);
   EXPECT_FALSE(fs::exists(path("elsewhere")));
   // The same world and the same options are accepted (and there is nothing left to train).
