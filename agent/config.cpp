@@ -18,54 +18,92 @@ void check_range(const char* field, int value, int lo, int hi) {
 }  // namespace
 
 const char* to_string(Precision precision) {
-  return precision == Precision::BFloat16 ? "bf16" : "fp32";
-}
-
-Precision parse_precision(const std::string& text) {
-  if (text == "fp32") return Precision::Float32;
-  if (text == "bf16") return Precision::BFloat16;
-  throw std::invalid_argument("precision: expected one of fp32, bf16, got \"" + text + "\"");
-}
-
-const char* to_string(ClassifierKind kind) {
-  switch (kind) {
-    case ClassifierKind::Paper:
-      return "paper";
-    case ClassifierKind::Strided:
-      return "strided";
-    case ClassifierKind::ResNet18:
-      return "resnet18";
+  switch (precision) {
+    case Precision::Float32:
+      return "fp32";
+    case Precision::BFloat16:
+      return "bf16";
+    case Precision::Auto:
+      return "auto";
   }
   return "?";
 }
 
-ClassifierKind parse_classifier_kind(const std::string& text) {
-  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::Strided, ClassifierKind::ResNet18}) {
-    if (text == to_string(kind)) return kind;
+Precision parse_precision(const std::string& text) {
+  for (const Precision precision : {Precision::Float32, Precision::BFloat16, Precision::Auto}) {
+    if (text == to_string(precision)) return precision;
   }
-  throw std::invalid_argument("classifier: expected one of paper, strided, resnet18, got \"" + text + "\"");
+  throw std::invalid_argument("precision: expected one of fp32, bf16, auto, got \"" + text + "\"");
+}
+
+NativeBf16 native_bf16() {
+  NativeBf16 found;
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  found.amx_bf16 = __builtin_cpu_supports("amx-bf16") != 0;
+  found.avx512_bf16 = __builtin_cpu_supports("avx512bf16") != 0;
+#endif
+  return found;
+}
+
+Precision resolve_precision(Precision requested) {
+  if (requested != Precision::Auto) return requested;
+  return native_bf16().any() ? Precision::BFloat16 : Precision::Float32;
+}
+
+std::string auto_precision_note() {
+  const NativeBf16 cpu = native_bf16();
+  if (cpu.amx_bf16 && cpu.avx512_bf16) return "precision: bf16 (this CPU has AMX-BF16 and AVX-512 BF16)";
+  if (cpu.amx_bf16) return "precision: bf16 (this CPU has AMX-BF16)";
+  if (cpu.avx512_bf16) return "precision: bf16 (this CPU has AVX-512 BF16)";
+  return "precision: fp32 (no native bf16 on this CPU; bf16 would be emulated and slower)";
+}
+
+const ClassifierVariant* find_classifier_variant(ClassifierKind kind) {
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    if (variant.kind == kind) return &variant;
+  }
+  return nullptr;
+}
+
+const char* to_string(ClassifierKind kind) {
+  const ClassifierVariant* variant = find_classifier_variant(kind);
+  return variant != nullptr ? variant->name : "?";
+}
+
+std::string classifier_choices(const std::string& separator) {
+  std::string names;
+  for (const ClassifierVariant& variant : kClassifierVariants) names += (names.empty() ? "" : separator) + variant.name;
+  return names;
+}
+
+ClassifierKind parse_classifier_kind(const std::string& text) {
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    if (text == variant.name) return variant.kind;
+  }
+  throw std::invalid_argument("classifier: expected one of " + classifier_choices() + ", got \"" + text + "\"");
 }
 
 void NetworkConfig::validate() const {
-  check_range("image_channels", image_channels, 1, 4);
+  check_range("image_channels", image_channels, 1, kMaxImageChannels);
   check_range("classes", classes, 2, 1000);
   check_range("planner_width", planner_width, 1, kMaxWidth);
   check_range("planner_depth", planner_depth, 1, kMaxPlannerDepth);
   check_range("classifier_width", classifier_width, 1, kMaxWidth);
   check_range("classifier_depth", classifier_depth, 1, kMaxClassifierDepth);
+  // An enum cast from an out-of-range integer would otherwise reach make_classifier.
+  const ClassifierVariant* variant = find_classifier_variant(classifier);
+  if (variant == nullptr) {
+    throw std::invalid_argument("classifier: expected one of " + classifier_choices() + ", got " +
+                                std::to_string(static_cast<int>(classifier)));
+  }
   // The paper and strided classifiers double their width each block: bound the widest block,
   // so that a typo fails here and not as an out-of-memory an hour later.
-  if (classifier != ClassifierKind::ResNet18) {
+  if (variant->width_doubles) {
     const long widest = static_cast<long>(classifier_width) << (classifier_depth - 1);
     if (widest > kMaxClassifierBlockWidth)
       throw std::invalid_argument("classifier_width: expected classifier_width x 2^(classifier_depth - 1) <= " +
                                   std::to_string(kMaxClassifierBlockWidth) + ", got " + std::to_string(widest));
-  }
-  // An enum cast from an out-of-range integer would otherwise reach make_classifier.
-  if (classifier != ClassifierKind::Paper && classifier != ClassifierKind::Strided &&
-      classifier != ClassifierKind::ResNet18) {
-    throw std::invalid_argument("classifier: expected one of paper, strided, resnet18, got " +
-                                std::to_string(static_cast<int>(classifier)));
   }
 }
 

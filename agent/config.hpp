@@ -5,27 +5,75 @@
 
 namespace scout::agent {
 
-/// Which classifier network f3 is.
+/// Which classifier network f3 is. Each value has one row in kClassifierVariants (its name and
+/// help) and one factory in agent/networks.cpp (checked at compile time).
 enum class ClassifierKind {
   Paper,     ///< METHOD.md: dense blocks at full resolution, width doubling each block, 1x1 head, GAP
   Strided,   ///< beyond the paper: each block halves the resolution (stride 2), width doubling
   ResNet18,  ///< the paper's transfer variant: ResNet-18 (BasicBlocks 2-2-2-2), base width = classifier_width
 };
-const char* to_string(ClassifierKind kind);  ///< "paper", "strided", "resnet18"
-/// Parses "paper" | "strided" | "resnet18"; throws std::invalid_argument naming the choices.
+
+/// A classifier variant as the command line, the checkpoint's config and the documentation name it.
+struct ClassifierVariant {
+  ClassifierKind kind;
+  const char* name;    ///< what --classifier and the checkpoint's config say
+  const char* help;    ///< one line for --help
+  bool width_doubles;  ///< block k is classifier_width x 2^k wide (validate() bounds the widest block)
+};
+
+/// The classifier variants, in the order --help lists them; the first is the default. Parsing,
+/// printing, --help, the choices in error messages and the factory (agent/networks.cpp) all read
+/// this table. A new variant: its network class, a ClassifierKind value, a row here and its
+/// factory row in agent/networks.cpp.
+inline constexpr ClassifierVariant kClassifierVariants[] = {
+    {.kind = ClassifierKind::Paper,
+     .name = "paper",
+     .help = "METHOD.md's dense blocks at full resolution",
+     .width_doubles = true},
+    {.kind = ClassifierKind::Strided,
+     .name = "strided",
+     .help = "stride-2 blocks with GroupNorm (beyond the paper)",
+     .width_doubles = true},
+    {.kind = ClassifierKind::ResNet18,
+     .name = "resnet18",
+     .help = "ResNet-18, the paper's transfer variant",
+     .width_doubles = false},
+};
+
+/// The row of `kind`, or nullptr for a value outside the enum.
+const ClassifierVariant* find_classifier_variant(ClassifierKind kind);
+const char* to_string(ClassifierKind kind);  ///< the row's name ("paper", "strided", "resnet18")
+/// Parses a row's name; throws std::invalid_argument naming the choices.
 ClassifierKind parse_classifier_kind(const std::string& text);
+/// The names joined by `separator`: "paper, strided, resnet18".
+std::string classifier_choices(const std::string& separator = ", ");
 
 /// The arithmetic the networks run in. Weights, gradients and the optimizer always stay fp32;
-/// bf16 runs the convolutions and activations in bfloat16 (AMX / AVX-512 BF16 on this CPU, where
-/// a planner step is several times faster) with fp32 master weights, as mixed-precision training does.
-enum class Precision { Float32, BFloat16 };
-const char* to_string(Precision precision);  ///< "fp32", "bf16"
-/// Parses "fp32" | "bf16"; throws std::invalid_argument naming the choices.
+/// bf16 runs the convolutions and activations in bfloat16 (AMX / AVX-512 BF16, where a planner
+/// step is several times faster) with fp32 master weights, as mixed-precision training does. Auto
+/// is a request, never a stored value: resolve_precision() turns it into bf16 where the CPU has
+/// native bf16 and fp32 elsewhere.
+enum class Precision { Float32, BFloat16, Auto };
+const char* to_string(Precision precision);  ///< "fp32", "bf16", "auto"
+/// Parses "fp32" | "bf16" | "auto"; throws std::invalid_argument naming the choices.
 Precision parse_precision(const std::string& text);
+
+/// The CPU's native bfloat16 arithmetic (x86 CPUID as GCC reads it; none elsewhere).
+struct NativeBf16 {
+  bool amx_bf16 = false;     ///< AMX-BF16 (/proc/cpuinfo flag amx_bf16)
+  bool avx512_bf16 = false;  ///< AVX-512 BF16 (/proc/cpuinfo flag avx512_bf16)
+  bool any() const { return amx_bf16 || avx512_bf16; }
+};
+NativeBf16 native_bf16();
+/// Auto -> BFloat16 where native_bf16().any(), else Float32; Float32 and BFloat16 unchanged.
+Precision resolve_precision(Precision requested);
+/// What Auto resolves to on this CPU and why, in one line: "precision: bf16 (this CPU has
+/// AVX-512 BF16)" or "precision: fp32 (no native bf16 on this CPU; bf16 would be emulated and slower)".
+std::string auto_precision_note();
 
 /// Widths and depths of the three networks.
 struct NetworkConfig {
-  int image_channels = 1;  ///< c: channels of the floor image (y has c, planners read c + 3)
+  int image_channels = 1;  ///< c: the floor images' channels (y has c, planners read c + 3); a new run takes its data's
   int classes = 10;        ///< D
   int planner_width = 16;  ///< d: channels each planner block adds
   int planner_depth = 3;   ///< r: planner blocks
@@ -40,6 +88,7 @@ struct NetworkConfig {
 
 /// Limits checked by validate(): generous for research, small enough to fail before an
 /// out-of-memory.
+inline constexpr int kMaxImageChannels = 4;
 inline constexpr int kMaxWidth = 512;
 inline constexpr int kMaxPlannerDepth = 16;
 inline constexpr int kMaxClassifierDepth = 8;

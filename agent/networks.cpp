@@ -1,5 +1,6 @@
 #include "agent/networks.hpp"
 
+#include <iterator>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -236,15 +237,42 @@ ActionPlannerImpl::ActionPlannerImpl(const NetworkConfig& config) {
 
 torch::Tensor ActionPlannerImpl::forward(torch::Tensor u) { return global_average(head_->forward(body_->forward(u))); }
 
+namespace {
+
+// The factories of the classifier variants, one row per row of kClassifierVariants (agent/config.hpp).
+struct ClassifierFactory {
+  ClassifierKind kind;
+  std::shared_ptr<ClassifierImpl> (*make)(const NetworkConfig& config);
+};
+
+template <typename Network>
+std::shared_ptr<ClassifierImpl> make_shared_classifier(const NetworkConfig& config) {
+  return std::make_shared<Network>(config);
+}
+
+constexpr ClassifierFactory kClassifierFactories[] = {
+    {.kind = ClassifierKind::Paper, .make = &make_shared_classifier<PaperClassifierImpl>},
+    {.kind = ClassifierKind::Strided, .make = &make_shared_classifier<StridedClassifierImpl>},
+    {.kind = ClassifierKind::ResNet18, .make = &make_shared_classifier<ResNet18ClassifierImpl>},
+};
+
+constexpr bool every_variant_has_one_factory() {
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    int factories = 0;
+    for (const ClassifierFactory& factory : kClassifierFactories) factories += factory.kind == variant.kind ? 1 : 0;
+    if (factories != 1) return false;
+  }
+  return std::size(kClassifierFactories) == std::size(kClassifierVariants);
+}
+static_assert(every_variant_has_one_factory(),
+              "every row of agent::kClassifierVariants needs exactly one row in kClassifierFactories");
+
+}  // namespace
+
 std::shared_ptr<ClassifierImpl> make_classifier(const NetworkConfig& config) {
   config.validate();
-  switch (config.classifier) {
-    case ClassifierKind::Paper:
-      return std::make_shared<PaperClassifierImpl>(config);
-    case ClassifierKind::Strided:
-      return std::make_shared<StridedClassifierImpl>(config);
-    case ClassifierKind::ResNet18:
-      return std::make_shared<ResNet18ClassifierImpl>(config);
+  for (const ClassifierFactory& factory : kClassifierFactories) {
+    if (factory.kind == config.classifier) return factory.make(config);
   }
   throw std::invalid_argument("classifier: unknown kind " + std::to_string(static_cast<int>(config.classifier)));
 }

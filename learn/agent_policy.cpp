@@ -6,8 +6,9 @@
 #include <string>
 
 #include "agent/state.hpp"
-#include "learn/internal/precision.hpp"
 #include "core/timing.hpp"
+#include "learn/internal/precision.hpp"
+#include "worlds/idx.hpp"
 
 namespace scout::learn {
 
@@ -23,9 +24,9 @@ double unit_interval(core::Rng& rng) { return static_cast<double>(rng() >> 11) *
 
 AgentPolicy::AgentPolicy(agent::AgentImpl& agent, const grid::FloorFrame& frame, int patch_px, int max_robots)
     : agent_(agent), frame_(frame), patch_px_(patch_px), max_robots_(max_robots) {
-  if (agent.config().image_channels != 1)
-    throw std::invalid_argument("AgentPolicy: floors are single-channel, the agent expects " +
-                                std::to_string(agent.config().image_channels));
+  if (agent.config().image_channels != worlds::ImageSet::channels)
+    throw std::invalid_argument("AgentPolicy: floors have " + std::to_string(worlds::ImageSet::channels) +
+                                " channel(s), the agent expects " + std::to_string(agent.config().image_channels));
   rows_.reserve(max_robots);
 }
 
@@ -79,7 +80,7 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<g
   const ComputePrecision precision(sampling_.precision);
   auto t0 = Clock::now();
   // Fresh storage each call: autograd keeps the input of the first convolution for backward.
-  const int channels = 4;
+  const int channels = agent::planner_channels(agent_.config());
   torch::Tensor input = torch::empty({count, channels, frame_.height_px, width});
   float* data = input.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
@@ -128,7 +129,8 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
     timing_.state_s += seconds_since(t0);
     return;
   }
-  const int k = static_cast<int>(rows_.size()), area = frame_.area_px(), channels = 4;
+  const int k = static_cast<int>(rows_.size()), area = frame_.area_px();
+  const int channels = agent::planner_channels(agent_.config());
   torch::Tensor input = torch::empty({k, channels, frame_.height_px, frame_.width_px});
   float* data = input.data_ptr<float>();
   for (int r = 0; r < k; ++r) {
@@ -166,7 +168,7 @@ const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {
 
 torch::Tensor revealed_images(const BatchState& state, int count) {
   const grid::FloorFrame& frame = state.frame;
-  torch::Tensor y = torch::empty({count, 1, frame.height_px, frame.width_px});
+  torch::Tensor y = torch::empty({count, worlds::ImageSet::channels, frame.height_px, frame.width_px});
   float* data = y.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
     agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i], nullptr};
@@ -178,7 +180,7 @@ torch::Tensor revealed_images(const BatchState& state, int count) {
 torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const grid::FloorFrame& frame) {
   const auto area = static_cast<std::size_t>(frame.area_px());
   if (floors.size() < area * count) throw std::invalid_argument("full_images: too few floor bytes");
-  torch::Tensor x = torch::empty({count, 1, frame.height_px, frame.width_px});
+  torch::Tensor x = torch::empty({count, worlds::ImageSet::channels, frame.height_px, frame.width_px});
   float* data = x.data_ptr<float>();
   for (std::size_t k = 0; k < area * count; ++k) data[k] = agent::pixel_value(floors[k]);
   return x;

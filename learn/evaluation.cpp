@@ -231,9 +231,9 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   agent::Agent agent = load_agent(config.checkpoint, &state);
   const std::string checkpoint = config.checkpoint.string();
   const agent::NetworkConfig& network = state.config.network;
-  if (network.image_channels != 1)
-    throw InputError(fmt::format("{}: network.image_channels: expected 1 (floors are grayscale), got {}", checkpoint,
-                                 network.image_channels));
+  if (network.image_channels != worlds::ImageSet::channels)
+    throw InputError(fmt::format("{}: network.image_channels: expected {} (the floors' channels), got {}", checkpoint,
+                                 worlds::ImageSet::channels, network.image_channels));
   const worlds::World world = config.world_file ? worlds::load_world(*config.world_file) : state.config.world;
   const Data data = read_data(config, world, network.classes);
   set_torch_threads(0);
@@ -241,7 +241,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   agent->eval();
 
   const LearnedLayers learned = learned_layers(state.history);
-  const agent::Precision precision = config.precision.value_or(state.config.precision);
+  const agent::Precision precision = agent::resolve_precision(config.precision.value_or(state.config.precision));
   Sampling sampling;
   sampling.learned_goals = learned.goals;
   sampling.learned_actions = learned.actions;

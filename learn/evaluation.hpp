@@ -22,7 +22,7 @@ struct EvalConfig {
   int runs = 20;                                    ///< R
   std::uint64_t seed = 1;                           ///< run k uses derive_seed(seed, k)
   int batch_robots = 240;                           ///< robots per rollout batch
-  std::optional<agent::Precision> precision;        ///< default: the precision the checkpoint trained in
+  std::optional<agent::Precision> precision;        ///< default: the checkpoint's; Auto: this CPU's
 };
 
 /// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).

@@ -63,7 +63,7 @@ std::string TrainConfig::to_json() const {
   j["learning_rate"] = learning_rate;
   j["leave_one_out"] = leave_one_out;
   j["entropy_bonus"] = entropy_bonus;
-  j["precision"] = agent::to_string(precision);
+  j["precision"] = agent::to_string(agent::resolve_precision(precision));  // never "auto"
   j["frozen"] = {{"goal", frozen[0]}, {"action", frozen[1]}, {"classifier", frozen[2]}};
   j["seed"] = seed;
   j["train_limit"] = train_limit;
@@ -98,8 +98,13 @@ TrainConfig TrainConfig::from_json(const std::string& text, const std::string& o
     c.learning_rate = at(j, "learning_rate").get<double>();
     c.leave_one_out = at(j, "leave_one_out").get<bool>();
     c.entropy_bonus = at(j, "entropy_bonus").get<double>();
-    // Absent from checkpoints written before bf16 existed: those ran in fp32.
+    // Absent from checkpoints written before bf16 existed: those ran in fp32 (not today's default).
+    c.precision = agent::Precision::Float32;
     if (j.contains("precision")) c.precision = agent::parse_precision(at(j, "precision").get<std::string>());
+    if (c.precision == agent::Precision::Auto) {
+      field = "precision";
+      throw std::invalid_argument("expected the resolved fp32 or bf16, got auto");
+    }
     const json& f = at(j, "frozen");
     c.frozen = {at(f, "goal").get<bool>(), at(f, "action").get<bool>(), at(f, "classifier").get<bool>()};
     c.seed = at(j, "seed").get<std::uint64_t>();

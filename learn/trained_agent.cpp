@@ -9,6 +9,7 @@
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/precision.hpp"
+#include "worlds/idx.hpp"
 
 namespace scout::learn {
 
@@ -38,8 +39,9 @@ TrainedAgent::~TrainedAgent() = default;
 std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& checkpoint) {
   auto impl = std::make_unique<Impl>();
   impl->agent = load_agent(checkpoint, &impl->state);
-  if (impl->state.config.network.image_channels != 1)
-    throw InputError(checkpoint.string() + ": network.image_channels: expected 1 (floors are grayscale), got " +
+  if (impl->state.config.network.image_channels != worlds::ImageSet::channels)
+    throw InputError(checkpoint.string() + ": network.image_channels: expected " +
+                     std::to_string(worlds::ImageSet::channels) + " (the floors' channels), got " +
                      std::to_string(impl->state.config.network.image_channels));
   impl->learned = learned_layers(impl->state.history);
   return std::unique_ptr<TrainedAgent>(new TrainedAgent(std::move(impl)));

@@ -110,6 +110,10 @@ struct Trainer::Impl {
     train = worlds::load_split(config.data_folder, worlds::Split::Train);
     if (new_run && !train.labels.empty())
       config.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
+    if (new_run) {  // c from the floor images; an auto precision is resolved for this CPU and stored so
+      config.network.image_channels = train.images.channels;
+      config.precision = agent::resolve_precision(config.precision);
+    }
     validation = worlds::load_split(config.data_folder, worlds::Split::Validation);
     data_files = train.files;
     for (const fs::path& f : validation.files)

@@ -32,13 +32,15 @@ struct TrainConfig {
   std::filesystem::path data_folder;  ///< IDX folder with train-* (and t10k-*, validation-* if any)
   agent::NetworkConfig network;
   int pretrain_epochs = 0;                             ///< epochs of the classifier alone on full images, first
-  std::array<int, 3> epochs = {1, 1, 1};               ///< epochs of modes (i), (ii), (iii)
+  std::array<int, 3> epochs = {2, 2, 2};               ///< epochs of modes (i), (ii), (iii)
   int rollouts = 4;                                    ///< N: rollouts per image
   int batch_images = 60;                               ///< B: images per mini-batch (B x N robots)
   double learning_rate = 1e-3;                         ///< Adam's step size
   bool leave_one_out = false;                          ///< leave-one-out baseline (beyond the paper)
   double entropy_bonus = 0;                            ///< beta of the entropy bonus (beyond the paper)
-  agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic (weights stay fp32)
+  /// The networks' arithmetic (weights stay fp32). A new run resolves Auto for its CPU
+  /// (agent::resolve_precision); checkpoints and manifests hold the resolved fp32 or bf16.
+  agent::Precision precision = agent::Precision::Auto;
   std::array<bool, 3> frozen = {false, false, false};  ///< per Layer: not updated in modes (i)-(iii)
   std::uint64_t seed = 1;                              ///< initialisation, data order, starts and sampling
   int train_limit = 0;                                 ///< train on the first K training digits only (0: all)
@@ -110,12 +112,12 @@ inline constexpr const char* kMetricsFile = "metrics.csv";       ///< one row pe
 struct ResumeOptions {
   /// A longer schedule; a mode that precedes one already trained cannot grow (METHOD.md: a
   /// learned layer never returns to i.i.d.).
-  std::optional<std::array<int, 3>> epochs;
+  std::optional<std::array<int, 3>> epochs = std::nullopt;
   /// The same data, moved (every file is checked against the run's digests by the CLI).
-  std::optional<std::filesystem::path> data_folder;
+  std::optional<std::filesystem::path> data_folder = std::nullopt;
   /// Adam's step size from the next batch on (fine-tuning at a lower rate); metrics.csv records
   /// each epoch's rate, so nothing of the history is lost.
-  std::optional<double> learning_rate;
+  std::optional<double> learning_rate = std::nullopt;
 };
 
 /// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.

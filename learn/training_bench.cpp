@@ -44,6 +44,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   const grid::FloorFrame frame{train.images.cols, train.images.rows, c.world.floor.pixel_size_m};
   agent::NetworkConfig network = c.network;
   network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
+  network.image_channels = train.images.channels;
+  const agent::Precision precision = agent::resolve_precision(c.precision);
   const int robots = c.batch_images * c.rollouts;
   report.robots = robots;
   report.data_files = train.files;
@@ -57,7 +59,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
     agent->train();
     torch::optim::Adam optimizer(agent->parameters(), torch::optim::AdamOptions(c.learning_rate));
     AgentPolicy policy(*agent, frame, c.world.camera.patch_px, robots);
-    const Sampling sampling = sampling_for(mode, /*with_grad=*/true, c.precision);
+    const Sampling sampling = sampling_for(mode, /*with_grad=*/true, precision);
 
     ModeBench bench;
     bench.mode = mode;

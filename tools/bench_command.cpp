@@ -42,8 +42,9 @@ struct TrainBenchOptions {
   std::string json_out;
   NetworkOptions net;
   std::string modes = "i,ii,iii";
-  int batch = 60, rollouts = 4;
-  bool baseline = false;
+  int batch = learn::TrainConfig{}.batch_images;  // the library's defaults (the paper preset)
+  int rollouts = learn::TrainConfig{}.rollouts;
+  bool baseline = learn::TrainConfig{}.leave_one_out;
   int batches = 5, warmup = 1, threads = 0;
 };
 
@@ -72,7 +73,8 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   const worlds::World world = worlds::load_world(opt.world);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const grid::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  const grid::FloorFrame frame{
+      .width_px = floors.width_px(), .height_px = floors.height_px(), .pixel_size_m = world.floor.pixel_size_m};
   const int n = opt.robots;
   const int moves_per_rollout = world.task.episodes * world.task.steps;
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
@@ -124,7 +126,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
   for (int i = 0; i < n; ++i)
     for (int m = 0; m < moves_per_rollout; ++m) {
       commands[m][i] = recorded[i].steps[m].command;
-      poses[m][i] = {recorded[i].steps[m].grid_pose.x(), recorded[i].steps[m].grid_pose.y()};
+      poses[m][i] = {.x = recorded[i].steps[m].grid_pose.x(), .y = recorded[i].steps[m].grid_pose.y()};
     }
   std::vector<sim::MoveResult> results(n);
   const auto physics = time_repeats(opt.repeats, [&](int) {
@@ -237,6 +239,7 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   config.threads = opt.threads;
 
   const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token());
+  opt.net.announce_precision();
   const agent::NetworkConfig& n = c.network;
   fmt::print(
       "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {} LibTorch threads, "

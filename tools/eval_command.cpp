@@ -15,6 +15,7 @@
 #include "learn/evaluation.hpp"
 #include "learn/training.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "core/error.hpp"
@@ -81,11 +82,13 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
-  if (!opt.precision.empty()) config.precision = agent::parse_precision(opt.precision);  // checked by the option
+  // Checked by the option; auto is resolved here and announced once the evaluation has run.
+  if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
   learn::EvalReport report;
   report = learn::evaluate(config, interrupt_token());
   // Nothing is written when a signal arrives before here; after it the files are complete.
   interrupt_token().throw_if_requested();
+  if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
     nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));
@@ -124,8 +127,10 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--seed", opt->seed,
                   "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
       ->check(seed_validator());
-  cmd->add_option("--precision", opt->precision, "Networks' arithmetic: bf16 | fp32 (default: the checkpoint's)")
-      ->check(CLI::IsMember({"bf16", "fp32"}));
+  cmd->add_option("--precision", opt->precision,
+                  "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 | fp32 "
+                  "(default: the checkpoint's)")
+      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
   cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");

@@ -3,99 +3,17 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
-#include <charconv>
-#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <string>
 
+#include "core/error.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
-#include "core/error.hpp"
-
-namespace {
-
-volatile std::sig_atomic_t interrupted = 0;
-
-extern "C" void on_signal(int) { interrupted = 1; }
-
-}  // namespace
-
-std::uint64_t scout::tools::parse_seed(const std::string& text) {
-  std::uint64_t value = 0;
-  const char* end = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (text.empty() || ec != std::errc() || ptr != end)
-    throw scout::InputError("--seed: expected an integer in [0, 18446744073709551615], got '" + text + "'");
-  return value;
-}
-
-CLI::Validator scout::tools::seed_validator() {
-  return CLI::Validator(
-      [](std::string& text) -> std::string {
-        try {
-          parse_seed(text);
-          return {};
-        } catch (const scout::InputError&) {
-          return "expected an integer in [0, 18446744073709551615], got '" + text + "'";
-        }
-      },
-      "UINT64");
-}
-
-CLI::Validator scout::tools::decimal_in(long long lo, long long hi) {
-  const std::string expected = "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
-  return CLI::Validator(
-      [lo, hi, expected](std::string& text) -> std::string {
-        long long value = 0;
-        const char* end = text.data() + text.size();
-        const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-        const bool plain = !text.empty() && ptr == end && ec == std::errc() && (text.size() == 1 || text[0] != '0');
-        if (!plain || value < lo || value > hi) return expected + ", got '" + text + "'";
-        return {};
-      },
-      "INT in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-}
-
-void scout::tools::install_interrupt_handler() {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-}
-
-const scout::core::StopToken& scout::tools::interrupt_token() {
-  static const scout::core::StopToken token([] { return interrupted != 0; });
-  return token;
-}
-
-namespace {
-
-// CLI11 reports a mistyped command as "A subcommand is required"; name the word instead.
-// Returns the one-line message for a word that is not a command, or "" when all are.
-std::string check_command_words(const CLI::App& app, int argc, char** argv) {
-  const CLI::App* at = &app;
-  std::string path = app.get_name();
-  for (int i = 1; i < argc && argv[i][0] != '-'; ++i) {
-    const std::string word = argv[i];
-    auto named = const_cast<CLI::App*>(at)->get_subcommands([&](const CLI::App* sub) { return sub->check_name(word); });
-    if (!named.empty()) {
-      at = named.front();
-      path += " " + at->get_name();
-      continue;
-    }
-    auto all = const_cast<CLI::App*>(at)->get_subcommands([](const CLI::App*) { return true; });
-    if (all.empty()) return {};  // a positional argument, e.g. the world file
-    std::string names;
-    for (const CLI::App* sub : all) names += (names.empty() ? "" : ", ") + sub->get_name();
-    return "scout: usage error: unknown command '" + scout::one_line(word) + "' (commands: " + names + "; see " + path +
-           " --help)";
-  }
-  return {};
-}
-
-}  // namespace
+#include "tools/parsing.hpp"
 
 int main(int argc, char** argv) {
-  scout::tools::Context context{scout::tools::command_line(argc, argv)};
+  scout::tools::Context context{.argv = scout::tools::command_line(argc, argv)};
   CLI::App app{
       "Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.",
       "scout"};
@@ -120,7 +38,7 @@ int main(int argc, char** argv) {
   scout::tools::add_eval_command(app, context);
   scout::tools::add_export_command(app, context);
   scout::tools::install_interrupt_handler();
-  if (const std::string unknown = check_command_words(app, argc, argv); !unknown.empty()) {
+  if (const std::string unknown = scout::tools::unknown_command_message(app, argc, argv); !unknown.empty()) {
     std::fprintf(stderr, "%s\n", unknown.c_str());
     return 2;
   }

@@ -1,31 +1,30 @@
 #include "tools/network_options.hpp"
 
 #include <CLI/CLI.hpp>
-#include <stdexcept>
+#include <cstdio>
 
-#include "tools/commands.hpp"
-#include "core/error.hpp"
+#include "learn/training.hpp"
+#include "tools/parsing.hpp"
 
 namespace scout::tools {
 
 namespace {
 
-// A CLI11 check that `parse` accepts the text (a usage error, exit 2, otherwise).
-template <typename Parse>
-CLI::Validator accepted_by(Parse parse, const char* choices, const char* name) {
-  return CLI::Validator(
-      [parse, choices](std::string& text) -> std::string {
-        try {
-          parse(text);
-          return {};
-        } catch (const std::invalid_argument&) {
-          return std::string("expected one of ") + choices + ", got '" + one_line(text) + "'";
-        }
-      },
-      name);
+// "Classifier: paper: METHOD.md's dense blocks at full resolution | strided: ... | resnet18: ...".
+std::string classifier_help() {
+  std::string help = "Classifier: ";
+  for (const agent::ClassifierVariant& variant : agent::kClassifierVariants) {
+    if (&variant != &agent::kClassifierVariants[0]) help += " | ";
+    help += std::string(variant.name) + ": " + variant.help;
+  }
+  return help;
 }
 
 }  // namespace
+
+std::string NetworkOptions::default_precision() { return agent::to_string(learn::TrainConfig{}.precision); }
+
+std::string precision_choices() { return "auto, bf16, fp32"; }
 
 agent::NetworkConfig NetworkOptions::network() const {
   agent::NetworkConfig n;
@@ -37,7 +36,16 @@ agent::NetworkConfig NetworkOptions::network() const {
   return n;
 }
 
-agent::Precision NetworkOptions::arithmetic() const { return agent::parse_precision(precision); }
+agent::Precision NetworkOptions::arithmetic() const {
+  return agent::resolve_precision(agent::parse_precision(precision));  // checked by the option
+}
+
+void NetworkOptions::announce_precision() const { announce_auto_precision(precision); }
+
+void announce_auto_precision(const std::string& requested) {
+  if (agent::parse_precision(requested) == agent::Precision::Auto)
+    std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
+}
 
 void add_network_options(CLI::App& cmd, NetworkOptions& o) {
   cmd.add_option("--planner-width", o.planner_width, "Channels each planner block adds (d)")
@@ -46,9 +54,9 @@ void add_network_options(CLI::App& cmd, NetworkOptions& o) {
   cmd.add_option("--planner-depth", o.planner_depth, "Planner blocks (r)")
       ->capture_default_str()
       ->check(decimal_in(1, agent::kMaxPlannerDepth));
-  cmd.add_option("--classifier", o.classifier, "Classifier: paper | strided | resnet18")
+  cmd.add_option("--classifier", o.classifier, classifier_help())
       ->capture_default_str()
-      ->check(accepted_by(agent::parse_classifier_kind, "paper, strided, resnet18", "KIND"));
+      ->check(one_of(agent::parse_classifier_kind, agent::classifier_choices(), "KIND"));
   cmd.add_option("--classifier-width", o.classifier_width, "Classifier's first block width (doubles each block)")
       ->capture_default_str()
       ->check(decimal_in(1, agent::kMaxWidth));
@@ -56,9 +64,10 @@ void add_network_options(CLI::App& cmd, NetworkOptions& o) {
       ->capture_default_str()
       ->check(decimal_in(1, agent::kMaxClassifierDepth));
   cmd.add_option("--precision", o.precision,
-                 "Networks' arithmetic: bf16 (bfloat16 convolutions, fp32 weights and optimizer) | fp32")
+                 "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 (bfloat16 "
+                 "convolutions, fp32 weights and optimizer) | fp32")
       ->capture_default_str()
-      ->check(accepted_by(agent::parse_precision, "bf16, fp32", "PRECISION"));
+      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
 }
 
 }  // namespace scout::tools

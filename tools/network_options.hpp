@@ -1,6 +1,7 @@
 #pragma once
 // The networks' options that `scout train` and `scout bench train` share: widths, depths, the
-// classifier variant and the arithmetic, with one set of checks and defaults.
+// classifier variant and the arithmetic, with one set of checks. Their defaults are those of a
+// default-constructed agent::NetworkConfig and learn::TrainConfig.
 #include <string>
 
 #include "agent/config.hpp"
@@ -11,18 +12,35 @@ class App;
 
 namespace scout::tools {
 
+/// The library's defaults, read once (learn::TrainConfig holds a world, so it is not constexpr).
+inline constexpr agent::NetworkConfig kDefaultNetwork{};
+
 struct NetworkOptions {
-  int planner_width = 16, planner_depth = 3;
-  std::string classifier = "paper";
-  int classifier_width = 16, classifier_depth = 3;
-  std::string precision = "bf16";
+  int planner_width = kDefaultNetwork.planner_width;
+  int planner_depth = kDefaultNetwork.planner_depth;
+  std::string classifier = agent::to_string(kDefaultNetwork.classifier);
+  int classifier_width = kDefaultNetwork.classifier_width;
+  int classifier_depth = kDefaultNetwork.classifier_depth;
+  std::string precision = default_precision();
 
   /// The options' values as a config (classes and channels keep their defaults).
   agent::NetworkConfig network() const;
+  /// The requested arithmetic, `auto` resolved for this CPU.
   agent::Precision arithmetic() const;
+  /// With `auto`: prints what it chose and why, in one line on stderr. Called once the command's
+  /// checks have passed, so that a refusal stays one line.
+  void announce_precision() const;
+  /// learn::TrainConfig's default precision, as --precision spells it.
+  static std::string default_precision();
 };
 
 /// Adds --planner-width/-depth, --classifier, --classifier-width/-depth and --precision.
 void add_network_options(CLI::App& cmd, NetworkOptions& o);
+
+/// Prints agent::auto_precision_note() on stderr when `requested` is "auto".
+void announce_auto_precision(const std::string& requested);
+
+/// --precision's choices and help ("auto (default: ...) | bf16 (...) | fp32"), shared with eval.
+std::string precision_choices();
 
 }  // namespace scout::tools

@@ -133,9 +133,10 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     s.height_px = frame.height_px;
     s.revealed = snap.seen.data();
     s.patch_px = patch_px;
-    s.robot = {snap.robot.x(), snap.robot.y()};
-    if (snap.goal) s.goal = render::PixelPose{snap.goal->x(), snap.goal->y()};
-    for (std::size_t p = 0; p < snap.path_length; ++p) s.path.push_back({record.path[p].x(), record.path[p].y()});
+    s.robot = {.x = snap.robot.x(), .y = snap.robot.y()};
+    if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
+    for (std::size_t p = 0; p < snap.path_length; ++p)
+      s.path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
     s.scale = scale;
     const bool final_image = !snap.goal;
     // The bars show the final prediction on every picture of the run (the classifier is asked
@@ -163,7 +164,8 @@ void run_command(const RunOptions& opt, const Context& context) {
   if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const grid::FloorFrame frame{floors.width_px(), floors.height_px(), world.floor.pixel_size_m};
+  const grid::FloorFrame frame{
+      .width_px = floors.width_px(), .height_px = floors.height_px(), .pixel_size_m = world.floor.pixel_size_m};
   if (!opt.no_images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
     throw InputError(
         fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
@@ -223,7 +225,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
       if (!opt.no_images) {
         interrupt_token().throw_if_requested();
-        const AgentOverlay overlay{p, opt.heat_map ? agent.get() : nullptr, i};
+        const AgentOverlay overlay{.class_probabilities = p, .agent = opt.heat_map ? agent.get() : nullptr, .robot = i};
         write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
                      opt.scale, overlay, images);
       }

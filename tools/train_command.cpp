@@ -26,21 +26,33 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
+// The library's defaults are the command's: one definition, in learn::TrainConfig.
+const learn::TrainConfig& defaults() {
+  static const learn::TrainConfig config;
+  return config;
+}
+
+std::string epochs_text(const std::array<int, 3>& epochs) {
+  return fmt::format("{},{},{}", epochs[0], epochs[1], epochs[2]);
+}
+
 struct TrainOptions {
   std::string world;
   std::string out;
   std::string resume;
   std::string data_root;
   std::string seed;
-  std::string epochs = "2,2,2";
-  int pretrain_epochs = 0;
+  std::string epochs = epochs_text(defaults().epochs);
+  int pretrain_epochs = defaults().pretrain_epochs;
   NetworkOptions net;
-  double lr = 1e-3;
-  int batch = 60, rollouts = 4;
-  bool baseline = false;
-  double entropy_bonus = 0;
+  double lr = defaults().learning_rate;
+  int batch = defaults().batch_images;
+  int rollouts = defaults().rollouts;
+  bool baseline = defaults().leave_one_out;
+  double entropy_bonus = defaults().entropy_bonus;
   std::string freeze;
-  int train_limit = 0, validation_limit = 0;
+  int train_limit = defaults().train_limit;
+  int validation_limit = defaults().validation_limit;
   int threads = 0;
 };
 
@@ -127,27 +139,38 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
                     option, run, stored, asked));
   };
   auto given = [&](const char* name) { return cmd.get_option(name)->count() > 0; };
-  if (given("--planner-width"))
-    refuse("--planner-width", std::to_string(c.network.planner_width), std::to_string(o.net.planner_width));
-  if (given("--planner-depth"))
-    refuse("--planner-depth", std::to_string(c.network.planner_depth), std::to_string(o.net.planner_depth));
-  if (given("--classifier")) refuse("--classifier", agent::to_string(c.network.classifier), o.net.classifier);
-  if (given("--classifier-width"))
-    refuse("--classifier-width", std::to_string(c.network.classifier_width), std::to_string(o.net.classifier_width));
-  if (given("--classifier-depth"))
-    refuse("--classifier-depth", std::to_string(c.network.classifier_depth), std::to_string(o.net.classifier_depth));
-  if (given("--batch")) refuse("--batch", std::to_string(c.batch_images), std::to_string(o.batch));
-  if (given("--rollouts")) refuse("--rollouts", std::to_string(c.rollouts), std::to_string(o.rollouts));
-  if (given("--baseline")) refuse("--baseline", c.leave_one_out ? "on" : "off", o.baseline ? "on" : "off");
-  if (given("--entropy-bonus"))
-    refuse("--entropy-bonus", fmt::format("{}", c.entropy_bonus), fmt::format("{}", o.entropy_bonus));
-  if (given("--precision")) refuse("--precision", agent::to_string(c.precision), o.net.precision);
-  if (given("--pretrain-epochs"))
-    refuse("--pretrain-epochs", std::to_string(c.pretrain_epochs), std::to_string(o.pretrain_epochs));
-  if (given("--seed")) refuse("--seed", std::to_string(c.seed), o.seed);
-  if (given("--train-limit")) refuse("--train-limit", std::to_string(c.train_limit), std::to_string(o.train_limit));
-  if (given("--validation-limit"))
-    refuse("--validation-limit", std::to_string(c.validation_limit), std::to_string(o.validation_limit));
+  auto on_off = [](bool on) { return std::string(on ? "on" : "off"); };
+  auto number = [](auto value) { return fmt::format("{}", value); };
+  // An option given again must say what the run was trained with: {option, stored, asked}.
+  struct Kept {
+    const char* option;
+    std::string stored, asked;
+  };
+  const Kept kept[] = {
+      {.option = "--planner-width", .stored = number(c.network.planner_width), .asked = number(o.net.planner_width)},
+      {.option = "--planner-depth", .stored = number(c.network.planner_depth), .asked = number(o.net.planner_depth)},
+      {.option = "--classifier", .stored = agent::to_string(c.network.classifier), .asked = o.net.classifier},
+      {.option = "--classifier-width",
+       .stored = number(c.network.classifier_width),
+       .asked = number(o.net.classifier_width)},
+      {.option = "--classifier-depth",
+       .stored = number(c.network.classifier_depth),
+       .asked = number(o.net.classifier_depth)},
+      {.option = "--batch", .stored = number(c.batch_images), .asked = number(o.batch)},
+      {.option = "--rollouts", .stored = number(c.rollouts), .asked = number(o.rollouts)},
+      {.option = "--baseline", .stored = on_off(c.leave_one_out), .asked = on_off(o.baseline)},
+      {.option = "--entropy-bonus", .stored = number(c.entropy_bonus), .asked = number(o.entropy_bonus)},
+      // auto asks for what it resolves to on this CPU.
+      {.option = "--precision",
+       .stored = agent::to_string(c.precision),
+       .asked = agent::to_string(agent::resolve_precision(agent::parse_precision(o.net.precision)))},
+      {.option = "--pretrain-epochs", .stored = number(c.pretrain_epochs), .asked = number(o.pretrain_epochs)},
+      {.option = "--seed", .stored = number(c.seed), .asked = o.seed},
+      {.option = "--train-limit", .stored = number(c.train_limit), .asked = number(o.train_limit)},
+      {.option = "--validation-limit", .stored = number(c.validation_limit), .asked = number(o.validation_limit)},
+  };
+  for (const Kept& k : kept)
+    if (given(k.option)) refuse(k.option, k.stored, k.asked);
   if (given("--freeze")) {
     const auto f = parse_freeze(o.freeze);
     if (f != c.frozen)
@@ -283,6 +306,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
                trainer->history().size());
     return;
   }
+  if (!resuming) o.net.announce_precision();
   write_manifest(run, context, *trainer, resuming);
   const learn::TrainConfig& c = trainer->config();
   fmt::print("training {} -> {} ({} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",

@@ -10,10 +10,11 @@ namespace scout::worlds {
 
 /// A stack of 8-bit grayscale images, row-major, image after image.
 struct ImageSet {
-  int count = 0;                     ///< number of images
-  int rows = 0;                      ///< image height, pixels
-  int cols = 0;                      ///< image width, pixels
-  std::vector<std::uint8_t> pixels;  ///< count * rows * cols bytes
+  static constexpr int channels = 1;  ///< grayscale: one byte per pixel
+  int count = 0;                      ///< number of images
+  int rows = 0;                       ///< image height, pixels
+  int cols = 0;                       ///< image width, pixels
+  std::vector<std::uint8_t> pixels;   ///< count * rows * cols bytes
 
   const std::uint8_t* image(int i) const { return pixels.data() + static_cast<std::size_t>(i) * rows * cols; }
 };

@@ -73,10 +73,10 @@ class AgentPolicy final : public Policy {
   PolicyTiming timing_;
 };
 
-/// u_c = y for the first `count` robots of a batch: [count, 1, H, W] floats.
+/// u_c = y for the first `count` robots of a batch: [count, c, H, W] floats (c: the floors' channels).
 torch::Tensor revealed_images(const BatchState& state, int count);
 
-/// Full floors (u_c = x) as the classifier's input: [count, 1, H, W] from count * H * W bytes.
+/// Full floors (u_c = x) as the classifier's input: [count, c, H, W] from count * c * H * W bytes.
 torch::Tensor full_images(std::span<const std::uint8_t> floors, int count, const grid::FloorFrame& frame);
 
 }  // namespace scout::learn

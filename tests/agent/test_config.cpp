@@ -2,6 +2,9 @@
 // the field.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <set>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -109,5 +112,53 @@ TEST(NetworkConfig, TheWidestClassifierBlockIsBounded) {
   config.classifier = ClassifierKind::ResNet18;  // its stages are fixed: 8 x width at most
   EXPECT_EQ(validation_error(config), "");
 }
+
+namespace {
+
+TEST(ClassifierKind, ChoicesListEveryRegisteredNameOnce) {
+  std::set<std::string> names;
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    EXPECT_TRUE(names.insert(variant.name).second) << variant.name << " is registered twice";
+    EXPECT_NE(classifier_choices().find(variant.name), std::string::npos) << classifier_choices();
+  }
+  EXPECT_EQ(classifier_choices(), "paper, strided, resnet18");
+  EXPECT_EQ(kClassifierVariants[0].kind, NetworkConfig{}.classifier) << "the first row is the default";
+}
+
+TEST(Precision, NamesRoundTripAndAutoResolvesToAStoredPrecision) {
+  for (const Precision p : {Precision::Float32, Precision::BFloat16, Precision::Auto})
+    EXPECT_EQ(parse_precision(to_string(p)), p);
+  EXPECT_THROW(parse_precision("fp16"), std::invalid_argument);
+  EXPECT_EQ(resolve_precision(Precision::Float32), Precision::Float32);
+  EXPECT_EQ(resolve_precision(Precision::BFloat16), Precision::BFloat16);
+  const Precision resolved = resolve_precision(Precision::Auto);
+  EXPECT_EQ(resolved, native_bf16().any() ? Precision::BFloat16 : Precision::Float32);
+  const std::string note = auto_precision_note();
+  EXPECT_EQ(note.rfind(std::string("precision: ") + to_string(resolved) + " (", 0), 0u) << note;
+}
+
+// The /proc/cpuinfo flags of the first processor (none where there is no such file).
+std::set<std::string> cpuinfo_flags() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("flags", 0) != 0) continue;
+    std::istringstream words(line.substr(line.find(':') + 1));
+    std::set<std::string> flags;
+    for (std::string word; words >> word;) flags.insert(word);
+    return flags;
+  }
+  return {};
+}
+
+TEST(Precision, NativeBf16AgreesWithProcCpuinfo) {
+  const std::set<std::string> flags = cpuinfo_flags();
+  if (flags.empty()) GTEST_SKIP() << "no flags in /proc/cpuinfo (not an x86 Linux machine)";
+  const NativeBf16 cpu = native_bf16();
+  EXPECT_EQ(cpu.avx512_bf16, flags.count("avx512_bf16") == 1);
+  EXPECT_EQ(cpu.amx_bf16, flags.count("amx_bf16") == 1);
+}
+
+}  // namespace
 
 }  // namespace scout::agent

@@ -4,6 +4,8 @@
 #include <torch/torch.h>
 
 #include <cstdlib>
+#include <iterator>
+#include <memory>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -35,6 +37,31 @@ torch::Tensor parameter(const torch::nn::Module& module, const std::string& name
   const torch::Tensor* found = params.find(name);
   if (found == nullptr) throw std::runtime_error("no parameter " + name);
   return *found;
+}
+
+// The registry (agent/config.hpp): every row's name round-trips, and its factory builds a
+// classifier whose output is [B, D] for any channel count c.
+TEST(Networks, EveryRegisteredClassifierRoundTripsAndBuildsBxDOutputs) {
+  torch::manual_seed(1);
+  ASSERT_GT(std::size(kClassifierVariants), 0u);
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    SCOPED_TRACE(variant.name);
+    EXPECT_EQ(parse_classifier_kind(variant.name), variant.kind);
+    EXPECT_STREQ(to_string(variant.kind), variant.name);
+    EXPECT_NE(std::string(variant.help), "");
+    for (const int channels : {1, 3}) {
+      NetworkConfig config = config_for(variant.kind);
+      config.image_channels = channels;
+      config.classes = 7;
+      const std::shared_ptr<ClassifierImpl> classifier = make_classifier(config);
+      ASSERT_NE(classifier, nullptr);
+      classifier->eval();
+      torch::NoGradGuard no_grad;
+      const torch::Tensor logits = classifier->forward(torch::rand({3, channels, 28, 28}) - 0.5);
+      EXPECT_EQ(logits.sizes(), (std::vector<std::int64_t>{3, 7}));
+      EXPECT_TRUE(torch::isfinite(logits).all().item<bool>());
+    }
+  }
 }
 
 TEST(Networks, OutputShapesAndSoftmaxesOnAnyFloorSize) {

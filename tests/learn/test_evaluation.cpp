@@ -96,6 +96,7 @@ class Evaluation : public ::testing::Test {
     config.network.classifier_width = 4;
     config.network.classifier_depth = 1;
     config.epochs = {1, 1, 1};
+    config.precision = agent::Precision::Float32;
     config.rollouts = 2;
     config.batch_images = 12;
     config.seed = 9;

@@ -293,5 +293,30 @@ TEST_F(Precision, IsStoredInTheConfigAndOlderConfigsReadAsFp32) {
   }
 }
 
+// The library's defaults are the CLI's: epochs 2,2,2 and auto precision. Auto is never stored:
+// the JSON holds what it resolves to, and a config that says "auto" is refused. A config without
+// the key (written before precision existed) still reads as fp32, not as today's default.
+TEST_F(Precision, TheDefaultIsAutoAndOnlyResolvedPrecisionsAreStored) {
+  TrainConfig c;
+  EXPECT_EQ(c.epochs, (std::array<int, 3>{2, 2, 2}));
+  EXPECT_EQ(c.precision, agent::Precision::Auto);
+  c.world = preset_world();
+  c.data_folder = "/data/mnist";
+  const std::string text = c.to_json();
+  const agent::Precision resolved = agent::resolve_precision(agent::Precision::Auto);
+  const std::string key = std::string("\"precision\": \"") + agent::to_string(resolved) + "\",";
+  const std::size_t at = text.find(key);
+  ASSERT_NE(at, std::string::npos) << text;
+  EXPECT_EQ(TrainConfig::from_json(text, "run").precision, resolved);
+
+  std::string older = text;
+  older.erase(at, key.size());
+  EXPECT_EQ(TrainConfig::from_json(older, "run").precision, agent::Precision::Float32);
+
+  std::string stored_auto = text;
+  stored_auto.replace(at, key.size(), "\"precision\": \"auto\",");
+  EXPECT_THROW(TrainConfig::from_json(stored_auto, "run"), InputError);
+}
+
 }  // namespace
 }  // namespace scout::learn

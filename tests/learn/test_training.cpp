@@ -102,6 +102,7 @@ TrainConfig tiny_config(const worlds::World& world, const fs::path& data) {
   c.batch_images = 8;
   c.learning_rate = 3e-3;
   c.leave_one_out = true;
+  c.precision = agent::Precision::Float32;  // not the default auto: the same figures on every CPU
   c.seed = 3;
   return c;
 }
@@ -240,6 +241,7 @@ TEST_F(Training, AShortRunOnRealDigitsBeatsChance) {
   config.network.classifier_depth = 3;
   config.pretrain_epochs = 3;
   config.epochs = {3, 0, 0};
+  config.precision = agent::Precision::Float32;
   config.rollouts = 2;
   config.batch_images = 20;
   config.learning_rate = 5e-3;
@@ -656,6 +658,21 @@ TEST_F(Training, ValidationUsesTheValidationSplitAndTheTestDigitsAreNeverRead) {
   write_set(lying_test, "t10k", corner_set(60, 9, /*flip=*/true));
   const auto [m2, files2] = pretrain(lying_test, "lying_test_run");
   EXPECT_GE(m2.validation_accuracy, 0.9);
+}
+
+// A new run settles what the library leaves open: c from the floor images (not settable) and an
+// auto precision resolved for this CPU, so that the checkpoint never says "auto".
+TEST_F(Training, ANewRunTakesItsChannelsFromTheFloorsAndResolvesAutoPrecision) {
+  const fs::path data = temp_.path() / "data";
+  write_set(data, "train", corner_set(36, 1));
+  TrainConfig config = tiny_config(corner_world(temp_, data, 2, 3), data);
+  config.network.image_channels = 3;
+  config.precision = agent::Precision::Auto;
+  config.epochs = {1, 0, 0};
+  const Trainer trainer(config, run_dir("run"), kThreads);
+  EXPECT_EQ(trainer.config().network.image_channels, worlds::ImageSet::channels);
+  EXPECT_EQ(trainer.config().precision, agent::resolve_precision(agent::Precision::Auto));
+  EXPECT_NE(trainer.config().precision, agent::Precision::Auto);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "agent/config.hpp"
 #include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -162,16 +163,22 @@ TEST_F(EvalRun, EvalPrintsATableAndWritesTheReportAndPredictions) {
   EXPECT_EQ(again["baselines"], j["baselines"]);
 }
 
-// eval runs in the precision the checkpoint was trained in (bf16, the CLI's default) unless
-// --precision says otherwise; the report names it.
+// eval runs in the precision the checkpoint was trained in (the CLI's default, auto, resolved
+// for this CPU) unless --precision says otherwise; the report names it, never "auto".
 TEST_F(EvalRun, EvalUsesTheCheckpointsPrecisionUnlessTold) {
   ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --json " + path("bf16.json")).status, 0);
   ASSERT_EQ(
       scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --precision fp32 --json " + path("fp32.json"))
           .status,
       0);
-  EXPECT_EQ(read_json(path("bf16.json"))["precision"], "bf16");
+  const std::string resolved = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
+  EXPECT_EQ(read_json(path("bf16.json"))["precision"], resolved);
   EXPECT_EQ(read_json(path("fp32.json"))["precision"], "fp32");
+  const Result automatic = scout("eval --checkpoint " + checkpoint() + test_data() +
+                                 " --runs 2 --precision auto --json " + path("auto.json"));
+  ASSERT_EQ(automatic.status, 0) << automatic.output;
+  EXPECT_NE(automatic.output.find("precision: " + resolved + " ("), std::string::npos) << automatic.output;
+  EXPECT_EQ(read_json(path("auto.json"))["precision"], resolved);
   const Result bad = scout("eval --checkpoint " + checkpoint() + test_data() + " --precision fp16");
   EXPECT_EQ(bad.status, 2) << bad.output;
   EXPECT_NE(bad.output.find("--precision"), std::string::npos) << bad.output;

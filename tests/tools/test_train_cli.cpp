@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "agent/config.hpp"
 #include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -276,7 +277,11 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   const std::string other = (temp_->path() / "other.yaml").string();
   expect_one_line_error(run("train " + other + " --resume " + copy), {other});
   expect_one_line_error(run("train --resume " + copy + " --out " + path("elsewhere")), {"--out"});
-  expect_one_line_error(run("train --resume " + copy + " --precision fp32"), {"--precision", "bf16", "fp32"});
+  // The run was trained at the default, auto: what it resolved to on this CPU; the other is refused.
+  const std::string trained = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
+  const std::string other_precision = trained == "bf16" ? "fp32" : "bf16";
+  expect_one_line_error(run("train --resume " + copy + " --precision " + other_precision),
+                        {"--precision", trained, other_precision});
   EXPECT_EQ(read_text(copy + "/checkpoint.pt"), checkpoint);
   EXPECT_FALSE(fs::exists(path("elsewhere")));
   // The same world and the same options are accepted (and there is nothing left to train).
@@ -367,7 +372,7 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
   json a = json::parse(read_text(path("a.json"))), b = json::parse(read_text(path("b.json")));
   for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "precision"})
     EXPECT_EQ(a[key], b[key]) << key;
-  EXPECT_EQ(a["precision"], "bf16");
+  EXPECT_EQ(a["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
 
   // Refusals: an existing file (unless --overwrite), a missing folder, something not a checkpoint.
   const std::string before = read_text(model);
@@ -391,7 +396,7 @@ TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
   EXPECT_NE(r.out.find("planners 4 x 1"), std::string::npos) << r.out;
   const json j = json::parse(read_text(report));
   EXPECT_EQ(j["robots"], 8);
-  EXPECT_EQ(j["precision"], "bf16");
+  EXPECT_EQ(j["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
   EXPECT_EQ(j["network"]["classifier"], "strided");
   EXPECT_EQ(j["network"]["classifier_width"], 8);
   ASSERT_EQ(j["modes"].size(), 2u);
