@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -84,7 +85,16 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.precision.empty()) config.precision = agent::parse_precision(opt.precision);  // checked by the option
   learn::EvalReport report;
   try {
-    report = learn::evaluate(config, [] { return interrupt_requested(); });
+    // One line on stderr once the inputs are read and the first batch is about to run (what a
+    // caller can wait for before signalling).
+    bool started = false;
+    report = learn::evaluate(config, [&started, runs = opt.runs] {
+      if (!started) {
+        started = true;
+        std::fprintf(stderr, "scout eval: evaluating, %d run%s\n", runs, runs == 1 ? "" : "s");
+      }
+      return interrupt_requested();
+    });
   } catch (const learn::EvalInterrupted&) {
     throw Interrupted{};
   }
