@@ -200,9 +200,10 @@ TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
           static_cast<char*>(nullptr));
     _exit(127);
   }
-  // Wait until the staging folder has images in it, then interrupt.
+  // Wait until the staging folder has images in it (polling, with a generous bound that is never
+  // a pass condition by itself), then interrupt.
   bool writing = false;
-  for (int k = 0; k < 200 && !writing; ++k) {
+  for (int k = 0; k < 12000 && !writing; ++k) {  // up to 10 minutes
     usleep(50 * 1000);
     for (const auto& entry : fs::directory_iterator(dir_))
       if (entry.path().filename().string().find(".out.partial") == 0 && fs::exists(entry.path() / "images"))
