@@ -1,6 +1,7 @@
 #pragma once
 /// Seeds and random draws that are the same on every platform and standard library:
 /// std::uniform_int_distribution and std::shuffle are implementation-defined, these are not.
+#include <array>
 #include <cstdint>
 #include <random>
 #include <utility>
@@ -23,6 +24,10 @@ constexpr std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
 
 /// A small, fast generator (xoshiro256**, 32 bytes of state) for the many per-robot streams:
 /// constructing one is four SplitMix64 steps, where an mt19937_64 fills 2.5 KB.
+///
+/// Seeding: word i of the state is mix_seed(seed + (i + 1) * 0x9E3779B97F4A7C15), and mix_seed
+/// adds that constant once more, so Rng(s) holds the state that the reference SplitMix64 seeding
+/// gives for s + 0x9E3779B97F4A7C15 (not for s). It stays so: every pinned result depends on it.
 class Rng {
  public:
   using result_type = std::uint64_t;
@@ -31,6 +36,12 @@ class Rng {
       seed += 0x9E3779B97F4A7C15ull;
       word = mix_seed(seed);
     }
+  }
+  /// A generator in exactly this state (not all zero), e.g. to compare with reference outputs.
+  static Rng from_state(const std::array<std::uint64_t, 4>& state) {
+    Rng rng(0);
+    for (int i = 0; i < 4; ++i) rng.state_[i] = state[i];
+    return rng;
   }
   static constexpr result_type min() { return 0; }
   static constexpr result_type max() { return ~result_type{0}; }

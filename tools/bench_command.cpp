@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -112,7 +113,9 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
       peak_speed = std::max(peak_speed, s.result.peak_speed_mps);
     }
 
-  // Physics and camera together: whole rollouts of mode (i), nothing recorded.
+  // Physics and camera together: whole rollouts of mode (i), nothing recorded. One line on
+  // stderr says the timing has begun (what a caller can wait for before signalling).
+  std::fprintf(stderr, "scout bench sim: timing %d repeats\n", opt.repeats);
   engine.reset_timing();
   const auto together = time_repeats(opt.repeats, [&](int r) {
     learn::RandomPolicy policy(seeds_for(r));

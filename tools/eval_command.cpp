@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -85,7 +86,17 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   // Checked by the option; auto is resolved here and announced once the evaluation has run.
   if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
   learn::EvalReport report;
-  report = learn::evaluate(config, interrupt_token());
+  // One line on stderr once the inputs are read and the first batch is about to run (what a
+  // caller can wait for before signalling).
+  bool started = false;
+  const core::StopToken stop([&started, runs = opt.runs] {
+    if (!started) {
+      started = true;
+      std::fprintf(stderr, "scout eval: evaluating, %d run%s\n", runs, runs == 1 ? "" : "s");
+    }
+    return interrupt_token().requested();
+  });
+  report = learn::evaluate(config, stop);
   // Nothing is written when a signal arrives before here; after it the files are complete.
   interrupt_token().throw_if_requested();
   if (!opt.precision.empty()) announce_auto_precision(opt.precision);

@@ -10,17 +10,21 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "agent/state.hpp"
+#include "core/error.hpp"
+#include "core/random.hpp"
 #include "learn/evaluation.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
 #include "learn/training.hpp"
 #include "tests/support/temp_dir.hpp"
-#include "core/error.hpp"
 #include "worlds/idx.hpp"
-#include "core/random.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -397,6 +401,125 @@ TEST_F(Evaluation, TheTrainedAgentDrivesAndClassifiesABatch) {
       EXPECT_EQ(goal.y() * kSide + goal.x(), best) << "robot " << i << " episode " << e;
     }
   EXPECT_EQ(sampled.size(), greedy.size());
+}
+
+// --- Every figure is recounted independently ---------------------------------------------------------------------
+//
+// The report's figures against a replay written here from the same public pieces (make_batch,
+// RolloutEngine, AgentPolicy, run_batch, count_correct) but with its own loop: one robot per
+// batch (evaluate batches 4 here), each image's start and choices from derive_seed(stream, image),
+// where run k's stream is derive_seed(seed, k) and the baselines' streams are derived from it as
+// METHOD.md § Evaluation says. The stream numbers are evaluation.cpp's (kIidStream = 2^40, then
+// +1 for goals-only, +2 for greedy): this test pins them too.
+constexpr std::uint64_t kIidStream = std::uint64_t{1} << 40;
+constexpr std::uint64_t kGoalsOnlyStream = kIidStream + 1;
+constexpr std::uint64_t kGreedyStream = kIidStream + 2;
+
+struct Replay {
+  agent::Agent agent{nullptr};
+  worlds::World world;
+  worlds::LabeledImages data;
+  grid::FloorFrame frame{kSide, kSide, 0.1};
+
+  // Images whose argmax after driving with `sampling` is right (top = 1) or in the top `top`.
+  std::pair<int, int> correct(const Sampling& sampling, std::uint64_t stream) {
+    RolloutEngine engine(world, frame, 1);
+    AgentPolicy policy(*agent, frame, world.camera.patch_px, 1);
+    int right = 0, top2 = 0;
+    for (int i = 0; i < data.images.count; ++i) {
+      const int index[] = {i};
+      const RolloutBatch batch =
+          make_batch(data, index, 1, world, frame, core::derive_seed(stream, static_cast<std::uint64_t>(i)));
+      const BatchOutcome out = run_batch(*agent, engine, policy, batch, sampling, {1, false, 0});
+      right += count_correct(out.log_probs, batch.labels);
+      top2 += count_correct(out.log_probs, batch.labels, 2);
+    }
+    return {right, top2};
+  }
+  // Images the classifier gets right from the whole floor: u_c = pixel_value(x), fp32, by hand.
+  int full_image_correct() {
+    torch::NoGradGuard no_grad;
+    const int n = data.images.count;
+    torch::Tensor x = torch::empty({n, 1, kSide, kSide});
+    float* dst = x.data_ptr<float>();
+    for (std::size_t k = 0; k < data.images.pixels.size(); ++k) dst[k] = agent::pixel_value(data.images.pixels[k]);
+    const torch::Tensor predicted = agent->classifier->forward(x).argmax(1);
+    int right = 0;
+    for (int i = 0; i < n; ++i) right += predicted[i].item<std::int64_t>() == data.labels[i];
+    return right;
+  }
+};
+
+TEST_F(Evaluation, EveryFigureIsTheCountOfAnIndependentReplay) {
+  constexpr int kRuns = 2;
+  constexpr std::uint64_t kSeed = 21;
+  EvalConfig c = config(kRuns, kSeed);
+  c.precision = agent::Precision::Float32;
+  const EvalReport r = evaluate(c);
+
+  Replay replay;
+  CheckpointState state;
+  replay.agent = load_agent(*checkpoint_, &state);
+  replay.agent->eval();
+  torch::NoGradGuard no_grad;
+  replay.world = state.config.world;
+  replay.data.images = worlds::read_idx_images(c.images);
+  replay.data.labels = worlds::read_idx_labels(c.labels);
+  replay.frame = {kSide, kSide, replay.world.floor.pixel_size_m};
+  const double n = replay.data.images.count;
+  ASSERT_EQ(r.images, 10);
+
+  Sampling learned, iid, goals_only;
+  learned.learned_goals = learned.learned_actions = true;
+  goals_only.learned_goals = true;
+  std::vector<double> accuracy, top2;
+  double iid_sum = 0, goals_only_sum = 0;
+  for (int k = 0; k < kRuns; ++k) {
+    const std::uint64_t seed_k = core::derive_seed(kSeed, static_cast<std::uint64_t>(k));
+    const auto [right, in_top2] = replay.correct(learned, seed_k);
+    accuracy.push_back(right / n);
+    top2.push_back(in_top2 / n);
+    iid_sum += replay.correct(iid, core::derive_seed(seed_k, kIidStream)).first / n;
+    goals_only_sum += replay.correct(goals_only, core::derive_seed(seed_k, kGoalsOnlyStream)).first / n;
+  }
+  EXPECT_DOUBLE_EQ(r.accuracy.mean, (accuracy[0] + accuracy[1]) / 2);
+  EXPECT_DOUBLE_EQ(r.top2.mean, (top2[0] + top2[1]) / 2);
+  EXPECT_DOUBLE_EQ(r.iid_accuracy, iid_sum / kRuns);
+  EXPECT_DOUBLE_EQ(r.goals_only_accuracy, goals_only_sum / kRuns);
+  Sampling greedy = learned;
+  greedy.greedy = true;
+  EXPECT_DOUBLE_EQ(r.greedy_accuracy, replay.correct(greedy, core::derive_seed(kSeed, kGreedyStream)).first / n);
+  EXPECT_DOUBLE_EQ(r.full_image_accuracy, replay.full_image_correct() / n);
+  // Two runs: the interval's half-width is t(0.975, 1) * |a0 - a1| / 2 (sd = |a0 - a1| / sqrt 2).
+  EXPECT_NEAR(r.accuracy.ci95, 12.706204736174707 * std::abs(accuracy[0] - accuracy[1]) / 2, 1e-9);
+}
+
+// A camera that sees the whole floor at the start (a 12 x 12 patch on 12 x 12 floors, the robot
+// starting at (6, 6): its window is columns and rows 0 .. 11): whatever the goals and actions,
+// y is the whole floor before the first move, so the stochastic, i.i.d., goals-only and greedy
+// accuracies all equal the classifier's accuracy on full images, which is counted here by hand.
+TEST_F(Evaluation, WithTheWholeFloorInViewEveryFigureIsTheFullImageAccuracy) {
+  const fs::path world_file = temp_->write("whole.yaml", "floor: {dataset: " + (temp_->path() / "data").string() +
+                                                             ", split: test, index: random}\n"
+                                                             "robot: {start: [6, 6]}\n"
+                                                             "camera: {patch_px: 12}\n"
+                                                             "task: {episodes: 2, steps: 2, step_px: 2}\n");
+  EvalConfig c = config(2, 4);
+  c.world_file = world_file;
+  c.precision = agent::Precision::Float32;
+  const EvalReport r = evaluate(c);
+  Replay replay;
+  replay.agent = load_agent(*checkpoint_);
+  replay.agent->eval();
+  replay.data.images = worlds::read_idx_images(c.images);
+  replay.data.labels = worlds::read_idx_labels(c.labels);
+  const double full = replay.full_image_correct() / 10.0;
+  EXPECT_DOUBLE_EQ(r.full_image_accuracy, full);
+  EXPECT_DOUBLE_EQ(r.accuracy.mean, full);
+  EXPECT_EQ(r.accuracy.ci95, 0.0);
+  EXPECT_DOUBLE_EQ(r.iid_accuracy, full);
+  EXPECT_DOUBLE_EQ(r.goals_only_accuracy, full);
+  EXPECT_DOUBLE_EQ(r.greedy_accuracy, full);
 }
 
 }  // namespace

@@ -1,11 +1,17 @@
 #pragma once
 // Helpers for end-to-end tests of the `scout` program and for writing raw IDX files.
+#include <fcntl.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
+#include <vector>
 
 namespace scout::testing {
 
@@ -26,6 +32,48 @@ inline CliResult run_cli(const std::string& program, const std::string& args) {
   const int raw = pclose(pipe);
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
   return r;
+}
+
+/// The whole of a file ("" if there is none).
+inline std::string read_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Starts `argv` (argv[0] the program) in a child process with stdout and stderr written to the
+/// two files; returns its pid (or -1).
+inline pid_t spawn(const std::vector<std::string>& argv, const std::filesystem::path& out,
+                   const std::filesystem::path& err) {
+  const pid_t child = fork();
+  if (child != 0) return child;
+  const int out_fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  const int err_fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  dup2(out_fd, 1);
+  dup2(err_fd, 2);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  execv(args[0], args.data());
+  _exit(127);
+}
+
+/// Whether `text` appeared in `file` while the child `child` ran: polls until it does, or the
+/// child has exited (then false; the child is reaped into `*status` when given), or `limit_s`
+/// seconds have passed (a generous bound against hanging forever, never a pass condition).
+inline bool wait_for_text(pid_t child, const std::filesystem::path& file, const std::string& text, int limit_s = 600,
+                          int* status = nullptr) {
+  for (int k = 0; k < limit_s * 50; ++k) {
+    std::ifstream in(file, std::ios::binary);
+    const std::string now{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    if (now.find(text) != std::string::npos) return true;
+    int raw = 0;
+    if (waitpid(child, &raw, WNOHANG) == child) {
+      if (status) *status = raw;
+      return false;
+    }
+    usleep(20 * 1000);
+  }
+  return false;
 }
 
 /// Appends a 32-bit big-endian integer (IDX headers).

@@ -4,15 +4,31 @@
 // must be exactly those this file pins (tests/tools/golden/, written by the build before the
 // "house" refactor). A change that is meant to change them updates the golden files in the same
 // commit and says why.
+//
+// Then `scout eval` end to end on tiny checkpoints made here by `scout train` (EvalRun).
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 #include <string>
+#include <vector>
 
+#include "agent/config.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/eval_run_fixture.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace scout::testing {
@@ -48,3 +64,196 @@ TEST(EvalCommand, ThePinnedReportIsReproducedExactly) {
 
 }  // namespace
 }  // namespace scout::testing
+
+namespace scout::testing::eval_command_eval_run_tests {
+
+using namespace scout::testing::eval_run_support;
+
+TEST_F(EvalRun, EvalPrintsATableAndWritesTheReportAndPredictions) {
+  const Result r = scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 3 --seed 2 --json " +
+                         path("report.json") + " --predictions " + path("p.csv"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* row : {"accuracy", "top-2 accuracy", "i.i.d. baseline", "goals-only baseline", "full images",
+                          "greedy", "runs", "images", "seconds"})
+    EXPECT_NE(r.output.find(row), std::string::npos) << row << "\n" << r.output;
+
+  const json j = read_json(path("report.json"));
+  for (const char* key : {"checkpoint", "world", "seed", "accuracy", "top2", "confusion", "baselines",
+                          "full_image_accuracy", "greedy_accuracy", "runs", "images", "seconds"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["runs"], 3);
+  EXPECT_EQ(j["images"], kTestImages);
+  EXPECT_EQ(j["seed"], 2);
+  EXPECT_EQ(j["checkpoint"], checkpoint());
+  EXPECT_EQ(j["world"], world());
+  for (const char* interval : {"accuracy", "top2"}) {
+    EXPECT_GE(j[interval]["mean"].get<double>(), 0.0) << interval;
+    EXPECT_LE(j[interval]["mean"].get<double>(), 1.0) << interval;
+    EXPECT_GE(j[interval]["ci95"].get<double>(), 0.0) << interval;
+  }
+  for (const char* baseline : {"iid", "goals_only"}) {
+    EXPECT_GE(j["baselines"][baseline].get<double>(), 0.0) << baseline;
+    EXPECT_LE(j["baselines"][baseline].get<double>(), 1.0) << baseline;
+  }
+  ASSERT_EQ(j["confusion"].size(), 3u);  // scout train takes D from the training labels: 0, 1, 2
+  for (int row = 0; row < 3; ++row) {
+    ASSERT_EQ(j["confusion"][row].size(), 3u);
+    double sum = 0;
+    for (const json& v : j["confusion"][row]) sum += v.get<double>();
+    EXPECT_NEAR(sum, 1.0, 1e-9) << row;  // every label 0..2 is present
+  }
+  EXPECT_EQ(j["manifest"]["checkpoint_sha256"].get<std::string>().size(), 64u);
+
+  std::ifstream csv(path("p.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line, "index,label,p0,p1,p2");
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    std::stringstream fields(line);
+    std::string field;
+    std::vector<double> values;
+    while (std::getline(fields, field, ',')) values.push_back(std::stod(field));
+    ASSERT_EQ(values.size(), 5u) << line;
+    EXPECT_EQ(values[0], rows);
+    EXPECT_EQ(values[1], rows % 3);
+    double sum = 0;
+    for (std::size_t k = 2; k < values.size(); ++k) sum += values[k];
+    EXPECT_NEAR(sum, 1.0, 1e-4) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, kTestImages);
+
+  // The same seed gives the same figures.
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 3 --seed 2 --json " + path("again.json"))
+                .status,
+            0);
+  const json again = read_json(path("again.json"));
+  EXPECT_EQ(again["accuracy"], j["accuracy"]);
+  EXPECT_EQ(again["confusion"], j["confusion"]);
+  EXPECT_EQ(again["baselines"], j["baselines"]);
+}
+
+// eval runs in the precision the checkpoint was trained in (the CLI's default, auto, resolved
+// for this CPU) unless --precision says otherwise; the report names it, never "auto".
+TEST_F(EvalRun, EvalUsesTheCheckpointsPrecisionUnlessTold) {
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --json " + path("bf16.json")).status,
+            0);
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --precision fp32 --json " +
+                  path("fp32.json"))
+                .status,
+            0);
+  const std::string resolved = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
+  EXPECT_EQ(read_json(path("bf16.json"))["precision"], resolved);
+  EXPECT_EQ(read_json(path("fp32.json"))["precision"], "fp32");
+  const Result automatic = scout("eval --checkpoint " + checkpoint() + test_data() +
+                                 " --runs 2 --precision auto --json " + path("auto.json"));
+  ASSERT_EQ(automatic.status, 0) << automatic.output;
+  EXPECT_NE(automatic.output.find("precision: " + resolved + " ("), std::string::npos) << automatic.output;
+  EXPECT_EQ(read_json(path("auto.json"))["precision"], resolved);
+  const Result bad = scout("eval --checkpoint " + checkpoint() + test_data() + " --precision fp16");
+  EXPECT_EQ(bad.status, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--precision"), std::string::npos) << bad.output;
+  EXPECT_EQ(bad.output.find('\n'), bad.output.size() - 1) << bad.output;
+}
+
+TEST_F(EvalRun, EvalRefusesBadInputWithOneLine) {
+  const std::string text = temp_->write("notes.txt", "not a checkpoint\n").string();
+  Result r = scout("eval --checkpoint " + text + test_data() + " --json " + path("r.json"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.output.rfind("scout: error: " + text + ": not a Scout checkpoint", 0), 0u) << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  EXPECT_FALSE(fs::exists(path("r.json")));
+
+  r = scout("eval --checkpoint " + checkpoint() + " --images " + path("data/t10k-labels-idx1-ubyte") + " --labels " +
+            path("data/t10k-labels-idx1-ubyte"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.output.rfind("scout: error: " + path("data/t10k-labels-idx1-ubyte"), 0), 0u) << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+
+  r = scout("eval --checkpoint " + checkpoint() + " --images " + path("data/t10k-images-idx3-ubyte") + " --labels " +
+            path("data/train-labels-idx1-ubyte"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("expected 9 labels"), std::string::npos) << r.output;
+
+  r = scout("eval --checkpoint " + path("missing.pt") + test_data());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.output.rfind("scout: error: " + path("missing.pt"), 0), 0u) << r.output;
+
+  // A bad command line is a usage error.
+  r = scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.output.rfind("scout: usage error: --runs", 0), 0u) << r.output;
+}
+
+// SIGINT once the evaluation has started (eval says so on stderr once its inputs are read):
+// exit 130, and neither the report nor the predictions are written.
+TEST_F(EvalRun, AnInterruptedEvalWritesNothing) {
+  const std::string out = path("i_stdout.txt"), err = path("i_stderr.txt");
+  const pid_t child =
+      scout::testing::spawn({SCOUT_BINARY, "eval", "--checkpoint", checkpoint(), "--images",
+                             path("data/t10k-images-idx3-ubyte"), "--labels", path("data/t10k-labels-idx1-ubyte"),
+                             "--runs", "10000", "--json", path("i.json"), "--predictions", path("i.csv")},
+                            out, err);
+  ASSERT_GT(child, 0);
+  int early = 0;
+  const bool started = scout::testing::wait_for_text(child, err, "scout eval: evaluating, 10000 runs", 600, &early);
+  if (!started) kill(child, SIGKILL);
+  ASSERT_TRUE(started) << "eval never started (status " << early << "): " << scout::testing::read_file(err);
+  kill(child, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << scout::testing::read_file(err);
+  EXPECT_FALSE(fs::exists(path("i.json")));
+  EXPECT_FALSE(fs::exists(path("i.csv")));
+  EXPECT_EQ(scout::testing::read_file(out), "") << "a table was printed";
+}
+
+// A checkpoint without a learned goal layer (mode (i) only) has no goals-only baseline: `null` in
+// the report, "n/a" in the table; the one through mode (iii) has a number there.
+TEST_F(EvalRun, TheGoalsOnlyBaselineIsNullForAModeICheckpoint) {
+  const Result r =
+      scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --runs 2 --json " + path("i.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("n/a (no learned goal layer)"), std::string::npos) << r.output;
+  const json j = read_json(path("i.json"));
+  ASSERT_TRUE(j["baselines"].contains("goals_only")) << j.dump(1);
+  EXPECT_TRUE(j["baselines"]["goals_only"].is_null()) << j.dump(1);
+  EXPECT_EQ(j["learned"]["goals"], false);
+  EXPECT_TRUE(j["baselines"]["iid"].is_number()) << j.dump(1);
+
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 2 --json " + path("iii.json")).status,
+            0);
+  const json iii = read_json(path("iii.json"));
+  EXPECT_TRUE(iii["baselines"]["goals_only"].is_number()) << iii.dump(1);
+  EXPECT_EQ(iii["learned"]["goals"], true);
+}
+
+// --world with another task (a 5 x 5 patch, one episode of three moves): the report names that
+// world, and the same seed gives other figures than the checkpoint's own world.
+TEST_F(EvalRun, AnotherWorldChangesTheTaskAndTheReportNamesIt) {
+  const std::string other = temp_
+                                ->write("other_task.yaml", "floor: {dataset: " + path("data") +
+                                                               ", split: test, index: random}\n"
+                                                               "camera: {patch_px: 5}\n"
+                                                               "task: {episodes: 1, steps: 3}\n")
+                                .string();
+  const std::string common = test_data() + " --runs 3 --seed 4 --precision fp32";
+  ASSERT_EQ(scout("eval --checkpoint " + checkpoint() + common + " --json " + path("own.json") + " --predictions " +
+                  path("own.csv"))
+                .status,
+            0);
+  const Result r = scout("eval --checkpoint " + checkpoint() + common + " --world " + other + " --json " +
+                         path("other.json") + " --predictions " + path("other.csv"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json own = read_json(path("own.json")), moved = read_json(path("other.json"));
+  EXPECT_EQ(own["world"], world());
+  EXPECT_EQ(moved["world"], other);
+  EXPECT_EQ(moved["images"], kTestImages);
+  // The classifier on full images does not depend on the task; what the robots see does.
+  EXPECT_EQ(moved["full_image_accuracy"], own["full_image_accuracy"]);
+  EXPECT_NE(scout::testing::read_file(path("other.csv")), scout::testing::read_file(path("own.csv")));
+}
+
+}  // namespace scout::testing::eval_command_eval_run_tests

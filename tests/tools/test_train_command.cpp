@@ -1,6 +1,7 @@
-// `scout train` end to end: a tiny run on synthetic 12 x 12 IDX floors writes its checkpoint,
+// `scout train` (tools/train_command.cpp) end to end: a tiny run on synthetic 12 x 12 IDX floors writes its checkpoint,
 // metrics and manifest; Ctrl-C saves a checkpoint that --resume finishes; bad checkpoints and
 // conflicting options are refused with one line (real Box2D, real OSMesa, real LibTorch).
+
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -8,136 +9,25 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "agent/config.hpp"
-#include "tests/support/cli.hpp"
-#include "tests/support/temp_dir.hpp"
+#include "tests/support/train_cli_fixture.hpp"
 
-namespace {
+namespace scout::testing::train_command_train_cli_tests {
 
-namespace fs = std::filesystem;
-using nlohmann::json;
-
-constexpr int kSide = 12;
-
-std::string read_text(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
-// Raw IDX train-* files of `count` 12 x 12 floors of two classes, told apart only by the
-// top-left 3 x 3 block (black or white) over noise in [64, 192).
-void write_train_idx(const fs::path& folder, int count) {
-  fs::create_directories(folder);
-  std::string images, labels;
-  scout::testing::put_idx_headers(images, labels, count, kSide, kSide);
-  std::uint32_t state = 12345;
-  auto next = [&] { return state = state * 1664525u + 1013904223u; };
-  for (int i = 0; i < count; ++i) {
-    const int label = i % 2;
-    labels.push_back(static_cast<char>(label));
-    for (int y = 0; y < kSide; ++y)
-      for (int x = 0; x < kSide; ++x) {
-        const bool block = x < 3 && y < 3;
-        images.push_back(static_cast<char>(block ? (label ? 255 : 0) : 64 + (next() >> 16) % 128));
-      }
-  }
-  std::ofstream(folder / "train-images-idx3-ubyte", std::ios::binary) << images;
-  std::ofstream(folder / "train-labels-idx1-ubyte", std::ios::binary) << labels;
-}
-
-struct Result {
-  int status = -1;
-  std::string out, err;
-};
-
-// Runs `scout ARGS` with stdout and stderr captured apart.
-Result scout(const std::string& args, const fs::path& scratch) {
-  const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-  const std::string command =
-      std::string(SCOUT_BINARY) + " " + args + " > '" + out.string() + "' 2> '" + err.string() + "'";
-  Result r;
-  const int raw = std::system(command.c_str());
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  r.out = read_text(out);
-  r.err = read_text(err);
-  return r;
-}
-
-// Options of every run here: tiny networks, one LibTorch thread (with more, OpenMP's busy-waiting
-// makes runs side by side, as under `ctest -j`, many times slower).
-const char* const kTiny =
-    " --threads 1 --planner-width 4 --planner-depth 1 --classifier-width 8 --classifier-depth 2 --batch 10 "
-    "--rollouts 2 --lr 0.003";
-
-class TrainCli : public ::testing::Test {
- protected:
-  // One data folder, world file and finished one-epoch run for the whole suite.
-  static void SetUpTestSuite() {
-    temp_ = new scout::testing::TempDir("scout_train_cli");
-    const fs::path dir = temp_->path();
-    write_train_idx(dir / "data", 48);  // 44 train + 4 validation, carved
-    std::ofstream(dir / "world.yaml") << world_text(dir / "data", 3);
-    std::ofstream(dir / "other.yaml") << world_text(dir / "data", 4);
-    const Result r = scout(
-        "train " + (dir / "world.yaml").string() + " --out " + (dir / "base").string() + " --epochs 1,0,0" + kTiny,
-        dir);
-    ASSERT_EQ(r.status, 0) << r.out << r.err;
-  }
-  static void TearDownTestSuite() {
-    delete temp_;
-    temp_ = nullptr;
-  }
-  static std::string world_text(const fs::path& data, int steps) {
-    return "floor: {dataset: " + data.string() + ", split: train, index: random}\ncamera: {patch_px: 3}\n" +
-           "task: {episodes: 1, steps: " + std::to_string(steps) + ", step_px: 2}\nseed: 5\n";
-  }
-
-  // A folder of this test, removed afterwards.
-  scout::testing::TempDir local_{"scout_train_cli_test"};
-  std::string path(const std::string& name) const { return (local_.path() / name).string(); }
-  static std::string world() { return (temp_->path() / "world.yaml").string(); }
-  static std::string base() { return (temp_->path() / "base").string(); }
-  Result run(const std::string& args) const { return scout(args, local_.path()); }
-
-  // A copy of the finished base run.
-  std::string copy_of_base(const std::string& name) const {
-    fs::copy(base(), path(name), fs::copy_options::recursive);
-    return path(name);
-  }
-
-  static scout::testing::TempDir* temp_;
-};
-scout::testing::TempDir* TrainCli::temp_ = nullptr;
-
-// Exit status 1, nothing on stdout, and exactly one line on stderr: "scout: error: ..." holding
-// every one of `names`.
-// status 1: "scout: error: ..." (bad input or files); status 2: "scout: usage error: ..." (a
-// malformed command line).
-void expect_one_line_error(const Result& r, const std::vector<std::string>& names, int status = 1) {
-  EXPECT_EQ(r.status, status) << r.out << r.err;
-  EXPECT_EQ(r.out, "");
-  EXPECT_EQ(r.err.rfind(status == 1 ? "scout: error: " : "scout: usage error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_EQ(r.err.back(), '\n') << r.err;
-  for (const std::string& name : names) EXPECT_NE(r.err.find(name), std::string::npos) << name << " in " << r.err;
-}
+using namespace scout::testing::train_cli_support;
 
 TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   const Result r = run("train " + world() + " --out " + path("run") + " --epochs 1,1,1 --seed 7" + kTiny);
@@ -165,8 +55,8 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
       EXPECT_GE(fields[a], 0.0);
       EXPECT_LE(fields[a], 1.0);
     }
-    EXPECT_GT(fields[4], 0.0);      // images per second
-    EXPECT_EQ(fields[6], 0.003);    // the epoch's learning rate (--lr)
+    EXPECT_GT(fields[4], 0.0);    // images per second
+    EXPECT_EQ(fields[6], 0.003);  // the epoch's learning rate (--lr)
   }
 
   std::ifstream in(path("run") + "/manifest.json");
@@ -334,8 +224,8 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --classifier foo"), {"--classifier", "foo"},
                         2);
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --freeze foo"), {"--freeze", "foo"}, 2);
-  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --precision fp16"),
-                        {"--precision", "fp16"}, 2);
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --precision fp16"), {"--precision", "fp16"},
+                        2);
   EXPECT_FALSE(fs::exists(path("o")));
 }
 
@@ -355,78 +245,80 @@ TEST_F(TrainCli, ResumeRefusesDataThatChanged) {
   EXPECT_EQ(read_text(path("run") + "/checkpoint.pt"), before);
 }
 
-// scout export: a model file (no optimizer state) that eval reads exactly as it reads the run.
-TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
-  const std::string model = path("model.pt");
-  const Result r = run("export " + base() + " --out " + model);
-  ASSERT_EQ(r.status, 0) << r.out << r.err;
-  EXPECT_NE(r.out.find(model), std::string::npos) << r.out;
-  const auto run_size = fs::file_size(base() + "/checkpoint.pt"), model_size = fs::file_size(model);
-  EXPECT_LT(model_size, run_size);  // Adam's two moments per weight are gone
-  // The same figures from the model as from the run (same weights, history and config).
-  const std::string data = (temp_->path() / "data").string();
-  const std::string inputs =
-      " --images " + data + "/train-images-idx3-ubyte --labels " + data + "/train-labels-idx1-ubyte --runs 2";
-  ASSERT_EQ(run("eval --checkpoint " + base() + inputs + " --json " + path("a.json")).status, 0);
-  ASSERT_EQ(run("eval --checkpoint " + model + inputs + " --json " + path("b.json")).status, 0);
-  json a = json::parse(read_text(path("a.json"))), b = json::parse(read_text(path("b.json")));
-  for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "precision"})
-    EXPECT_EQ(a[key], b[key]) << key;
-  EXPECT_EQ(a["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
-
-  // Refusals: an existing file (unless --overwrite), a missing folder, something not a checkpoint.
-  const std::string before = read_text(model);
-  expect_one_line_error(run("export " + base() + " --out " + model), {"--out", model, "--overwrite"});
-  EXPECT_EQ(read_text(model), before);
-  EXPECT_EQ(run("export " + base() + " --out " + model + " --overwrite").status, 0);
-  expect_one_line_error(run("export " + base() + " --out " + path("no/such/m.pt")), {"--out", "no/such"});
-  std::ofstream(path("junk.pt")) << "not a checkpoint";
-  expect_one_line_error(run("export " + path("junk.pt") + " --out " + path("m2.pt")), {path("junk.pt")});
-  EXPECT_FALSE(fs::exists(path("m2.pt")));
+// --entropy-bonus end to end: the same tiny run through mode (ii) with and without it trains
+// other weights (the mode (ii) epoch's loss differs; mode (i) has no learned layer to reward, so
+// its row is the same), and the run's config records it.
+TEST_F(TrainCli, TheEntropyBonusChangesTrainingAndIsRecorded) {
+  const std::string args = "train " + world() + " --epochs 1,1,0" + kTiny + " --precision fp32 --out ";
+  const Result plain = run(args + path("plain"));
+  ASSERT_EQ(plain.status, 0) << plain.out << plain.err;
+  const Result bonus = run(args + path("bonus") + " --entropy-bonus 2");
+  ASSERT_EQ(bonus.status, 0) << bonus.out << bonus.err;
+  const std::vector<std::string> a = lines_of(read_text(path("plain") + "/metrics.csv")),
+                                 b = lines_of(read_text(path("bonus") + "/metrics.csv"));
+  ASSERT_EQ(a.size(), 3u);
+  ASSERT_EQ(b.size(), 3u);
+  auto fields = [](const std::string& row, int first, int last) {  // columns [first, last)
+    std::vector<std::string> out;
+    std::stringstream in(row);
+    std::string f;
+    for (int k = 0; std::getline(in, f, ','); ++k)
+      if (k >= first && k < last) out.push_back(f);
+    return out;
+  };
+  // mode,epoch,reward,loss,train_accuracy,validation_accuracy: the same in mode (i), not in (ii).
+  EXPECT_EQ(fields(a[1], 0, 6), fields(b[1], 0, 6)) << a[1] << "\n" << b[1];
+  EXPECT_NE(fields(a[2], 3, 4), fields(b[2], 3, 4)) << a[2] << "\n" << b[2];
+  std::ifstream pm(path("plain") + "/manifest.json"), bm(path("bonus") + "/manifest.json");
+  EXPECT_EQ(json::parse(pm)["config"]["entropy_bonus"], 0.0);
+  EXPECT_EQ(json::parse(bm)["config"]["entropy_bonus"], 2.0);
+  // A resumed run keeps it and refuses another.
+  const std::string copy = path("bonus");
+  expect_one_line_error(run("train --resume " + copy + " --entropy-bonus 1"), {"--entropy-bonus", "2", "1"});
 }
 
-// scout bench train: every mode asked for, with its images/s and the shares of a step.
-TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
-  const std::string report = path("bench.json");
-  const Result r = run("bench train --world " + world() +
-                       " --modes i,iii --batch 4 --rollouts 2 --batches 2 --warmup 0 --threads 1 --planner-width 4 "
-                       "--planner-depth 1 --classifier strided --classifier-width 8 --classifier-depth 2 --json " +
-                       report);
-  ASSERT_EQ(r.status, 0) << r.out << r.err;
-  EXPECT_NE(r.out.find("planners 4 x 1"), std::string::npos) << r.out;
-  const json j = json::parse(read_text(report));
-  EXPECT_EQ(j["robots"], 8);
-  EXPECT_EQ(j["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
-  EXPECT_EQ(j["network"]["classifier"], "strided");
-  EXPECT_EQ(j["network"]["classifier_width"], 8);
-  ASSERT_EQ(j["modes"].size(), 2u);
-  EXPECT_EQ(j["modes"][0]["mode"], "i");
-  EXPECT_EQ(j["modes"][1]["mode"], "iii");
-  for (const json& m : j["modes"]) {
-    EXPECT_GT(m["images_per_s"].get<double>(), 0) << m;
-    double parts = 0;
-    for (const char* part : {"physics", "render", "state", "forward", "backward", "optimizer"}) {
-      const double share = m["share"][part].get<double>();
-      EXPECT_GE(share, 0) << part;
-      parts += share;
-    }
-    // The parts are disjoint pieces of the step and cover nearly all of it.
-    EXPECT_LE(parts, 1.0 + 1e-9) << m;
-    EXPECT_GT(parts, 0.8) << m;
-    EXPECT_GT(m["share"]["physics"].get<double>(), 0) << m;
-    EXPECT_GT(m["share"]["backward"].get<double>(), 0) << m;
-  }
-  // Mode (i) never consults the action planner; mode (iii) does, where the protocol chooses.
-  EXPECT_EQ(j["modes"][0]["action_decisions_per_batch"].get<double>(), 0);
-  EXPECT_GT(j["modes"][1]["action_decisions_per_batch"].get<double>(), 0);
-
-  expect_one_line_error(run("bench train --world " + world() + " --modes i,iv"), {"--modes", "iv"}, 2);
-  expect_one_line_error(run("bench train --world " + world() + " --modes ii,ii"), {"--modes"}, 2);
-  expect_one_line_error(run("bench train --world " + world() + " --modes i,"), {"--modes"}, 2);
-  // A report that cannot be written is refused before any timing.
-  expect_one_line_error(run("bench train --world " + world() + " --json " + path("no/such/b.json")), {"--json"});
-  fs::create_directories(path("folder"));
-  expect_one_line_error(run("bench train --world " + world() + " --json " + path("folder")), {"--json", "folder"});
+// The same data moved to another folder: --resume with --data takes it (the files' SHA-256 match
+// what the run recorded); without --data the run's old folder is gone and the resume is refused.
+// The world names its data set (`dataset: mnist`), so the data folder comes from --data.
+TEST_F(TrainCli, ResumeReadsTheSameDataMovedWithData) {
+  write_train_idx(path("data") + "/mnist", 48);
+  std::ofstream(path("world.yaml")) << "floor: {dataset: mnist, split: train, index: random}\ncamera: {patch_px: 3}\n"
+                                       "task: {episodes: 1, steps: 3, step_px: 2}\nseed: 5\n";
+  const Result first = run("train " + path("world.yaml") + " --data " + path("data") + " --out " + path("run") +
+                           " --epochs 1,0,0" + kTiny);
+  ASSERT_EQ(first.status, 0) << first.out << first.err;
+  fs::rename(path("data"), path("moved"));
+  const Result lost = run("train --resume " + path("run") + " --epochs 2,0,0");
+  EXPECT_EQ(lost.status, 1) << lost.out << lost.err;
+  EXPECT_NE(lost.err.find(path("data")), std::string::npos) << lost.err;
+  const Result moved = run("train --resume " + path("run") + " --epochs 2,0,0 --data " + path("moved"));
+  ASSERT_EQ(moved.status, 0) << moved.out << moved.err;
+  const std::vector<std::string> rows = lines_of(read_text(path("run") + "/metrics.csv"));
+  ASSERT_EQ(rows.size(), 3u) << read_text(path("run") + "/metrics.csv");
+  EXPECT_EQ(rows[2].rfind("i,2,", 0), 0u) << rows[2];
 }
 
-}  // namespace
+// A NaN or infinite loss at the command line: exit status 1 with one line naming the loss, the
+// last good checkpoint and metrics.csv kept as they were. The NaN comes from a classifier weight
+// set to NaN in a finished run's checkpoint (by a helper program; LibTorch stays out of this test).
+TEST_F(TrainCli, ANonFiniteLossExitsWithStatusOneAndKeepsTheCheckpoint) {
+  const std::string copy = copy_of_base("nan");
+  const std::string checkpoint = copy + "/checkpoint.pt";
+  const CliResult poisoned = run_cli(POISON_CHECKPOINT, checkpoint);
+  ASSERT_EQ(poisoned.status, 0) << poisoned.output;
+  const std::string before = read_text(checkpoint), metrics = read_text(copy + "/metrics.csv");
+  const Result r = run("train --resume " + copy + " --epochs 2,0,0");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  // The error is stderr's last line (progress lines may come before it).
+  const std::size_t at = r.err.find("scout: error: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string line = r.err.substr(at);
+  EXPECT_EQ(std::count(line.begin(), line.end(), '\n'), 1) << r.err;
+  EXPECT_NE(line.find("loss"), std::string::npos) << line;
+  EXPECT_NE(line.find("nan"), std::string::npos) << line;
+  EXPECT_NE(line.find(checkpoint), std::string::npos) << line;
+  EXPECT_TRUE(read_text(checkpoint) == before) << "the last good checkpoint was overwritten";
+  EXPECT_EQ(read_text(copy + "/metrics.csv"), metrics);
+}
+
+}  // namespace scout::testing::train_command_train_cli_tests

@@ -1,60 +1,34 @@
-// The `scout` program end to end: real world files, real data, real Box2D and OSMesa.
+// `scout run` (tools/run_command.cpp) end to end: real world files, real data, real Box2D and
+// OSMesa; with a trained checkpoint (predictions, pictures, greedy) on tiny models made here.
+
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <random>
 #include <set>
+#include <sstream>
 #include <string>
+#include <vector>
 
-#include "tests/support/cli.hpp"
-#include "tests/support/temp_dir.hpp"
+#include "tests/support/cli_fixture.hpp"
+#include "tests/support/eval_run_fixture.hpp"
 
-namespace {
+namespace scout::testing::run_command_cli_tests {
 
-namespace fs = std::filesystem;
-using nlohmann::json;
-
-using Result = scout::testing::CliResult;
-
-Result scout(const std::string& args) { return scout::testing::run_cli(SCOUT_BINARY, args); }
-
-class Cli : public ::testing::Test {
- protected:
-  scout::testing::TempDir temp_{"scout_cli"};
-  const fs::path dir_ = temp_.path();
-
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string world(const std::string& name) const { return std::string(SCOUT_SOURCE_DIR) + "/worlds/" + name; }
-
-  // A copy of the Fashion-MNIST preset with some lines replaced (the data needs no download).
-  std::string write_world(const std::string& name, const std::string& from, const std::string& to) {
-    std::ifstream in(world("fashion.yaml"));
-    std::string text((std::istreambuf_iterator<char>(in)), {});
-    if (!from.empty()) {
-      const auto at = text.find(from);
-      EXPECT_NE(at, std::string::npos) << from;
-      if (at != std::string::npos) text.replace(at, from.size(), to);
-    }
-    std::ofstream(path(name)) << text;
-    return path(name);
-  }
-
-  static json read_json(const fs::path& file) {
-    std::ifstream in(file);
-    return json::parse(in);
-  }
-};
+using namespace scout::testing::cli_support;
 
 TEST_F(Cli, RunWritesTrajectoryImagesAndManifest) {
   const Result r = scout("run " + world("fashion.yaml") + " --out " + path("out") + " --count 3");
@@ -123,55 +97,6 @@ TEST_F(Cli, RunWritesTrajectoryImagesAndManifest) {
   // Nothing half-written is left beside the output.
   for (const auto& entry : fs::directory_iterator(dir_))
     EXPECT_EQ(entry.path().filename().string().find(".out.partial"), std::string::npos) << entry.path();
-}
-
-TEST_F(Cli, AnExistingOutputFolderIsRefusedUnlessOverwriting) {
-  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --no-images --out " + path("out")).status, 0);
-  std::ofstream(path("out") + "/keep.txt") << "mine";
-  const Result refused = scout("run " + world("fashion.yaml") + " --out " + path("out"));
-  EXPECT_EQ(refused.status, 1);
-  EXPECT_NE(refused.output.find("already exists"), std::string::npos) << refused.output;
-  EXPECT_TRUE(fs::exists(path("out") + "/keep.txt"));
-  const Result replaced = scout("run " + world("fashion.yaml") + " --out " + path("out") + " --overwrite");
-  ASSERT_EQ(replaced.status, 0) << replaced.output;
-  EXPECT_FALSE(fs::exists(path("out") + "/keep.txt"));
-  EXPECT_TRUE(fs::exists(path("out") + "/trajectory.json"));
-}
-
-TEST_F(Cli, OverwriteNeverDestroysWhatIsNotScoutOutput) {
-  // The current folder, its parents, the root and a folder of someone else's files are refused,
-  // even with --overwrite, and keep their contents.
-  fs::create_directories(path("work/sub"));
-  std::ofstream(path("work/sub/keep.txt")) << "mine";
-  const std::string in_sub = "cd " + path("work/sub") + " && " + SCOUT_BINARY + " run " + world("fashion.yaml");
-  for (const std::string out : {".", "..", "./", "/"}) {
-    Result r;
-    FILE* pipe = popen((in_sub + " --overwrite --out " + out + " 2>&1").c_str(), "r");
-    ASSERT_NE(pipe, nullptr);
-    std::array<char, 4096> buffer{};
-    while (std::fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
-    r.status = WEXITSTATUS(pclose(pipe));
-    EXPECT_EQ(r.status, 1) << out;
-    EXPECT_NE(r.output.find("refusing to write the output over"), std::string::npos) << r.output;
-    EXPECT_TRUE(fs::exists(path("work/sub/keep.txt"))) << out;
-  }
-  const Result foreign = scout("run " + world("fashion.yaml") + " --overwrite --out " + path("work"));
-  EXPECT_EQ(foreign.status, 1);
-  EXPECT_NE(foreign.output.find("not a Scout output folder"), std::string::npos) << foreign.output;
-  EXPECT_TRUE(fs::exists(path("work/sub/keep.txt")));
-}
-
-TEST_F(Cli, ATrailingSlashNamesTheSameFolder) {
-  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --no-images --out " + path("out") + "/").status, 0);
-  ASSERT_TRUE(fs::exists(path("out") + "/trajectory.json"));
-  const Result again =
-      scout("run " + world("fashion.yaml") + " --no-images --seed 3 --overwrite --out " + path("out") + "/");
-  ASSERT_EQ(again.status, 0) << again.output;
-  EXPECT_EQ(read_json(path("out") + "/trajectory.json")["seed"], 3);
-  // Only the output folder is left: no staging or old copies beside it.
-  int entries = 0;
-  for (const auto& entry : fs::directory_iterator(dir_)) entries += entry.path().filename() != "out";
-  EXPECT_EQ(entries, 0);
 }
 
 TEST_F(Cli, ARunIsTheSameAloneAndInsideABatchOf240) {
@@ -262,50 +187,6 @@ TEST_F(Cli, APngFloorWorks) {
   EXPECT_FALSE(fs::exists(path("big")));
 }
 
-TEST_F(Cli, DataInstallsMnistWithAManifestThenDoesNothing) {
-  // Needs the npm registry (as `scout data` does); an offline machine can opt out explicitly.
-  if (std::getenv("SCOUT_SKIP_NETWORK_TESTS") != nullptr) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
-  const Result first = scout("data --data " + path("data"));
-  ASSERT_EQ(first.status, 0) << first.output;
-  EXPECT_NE(first.output.find("8000 train, 1000 validation, 1000 test"), std::string::npos) << first.output;
-  const json m = read_json(path("data") + "/mnist/manifest.json");
-  EXPECT_EQ(m["data_sha256"].size(), 6u);
-  const auto stamp = fs::last_write_time(path("data") + "/mnist/train-images-idx3-ubyte");
-  const Result again = scout("data --data " + path("data"));
-  ASSERT_EQ(again.status, 0) << again.output;
-  EXPECT_NE(again.output.find("nothing to do"), std::string::npos) << again.output;
-  EXPECT_EQ(fs::last_write_time(path("data") + "/mnist/train-images-idx3-ubyte"), stamp);
-  // The installed data drives a run: the mnist world with this data folder.
-  const Result run = scout("run " + world("mnist.yaml") + " --data " + path("data") + " --out " + path("out"));
-  ASSERT_EQ(run.status, 0) << run.output;
-  EXPECT_EQ(read_json(path("out") + "/trajectory.json")["runs"][0]["dataset"], "mnist");
-  // So does a folder that holds the IDX files itself (as a user's MNIST download would).
-  const Result direct =
-      scout("run " + world("mnist.yaml") + " --data " + path("data") + "/mnist --out " + path("out2"));
-  ASSERT_EQ(direct.status, 0) << direct.output;
-  EXPECT_EQ(read_json(path("out2") + "/trajectory.json")["runs"], read_json(path("out") + "/trajectory.json")["runs"]);
-}
-
-TEST_F(Cli, AnInterruptedBenchWritesNoReport) {
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    const std::string world_file = world("fashion.yaml"), report = path("b.json");
-    std::freopen("/dev/null", "w", stderr);
-    std::freopen("/dev/null", "w", stdout);
-    execl(SCOUT_BINARY, SCOUT_BINARY, "bench", "sim", "--world", world_file.c_str(), "--repeats", "10000", "--json",
-          report.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  usleep(1500 * 1000);  // well into the timing loops (10,000 repeats take minutes)
-  kill(child, SIGTERM);
-  int status = 0;
-  ASSERT_EQ(waitpid(child, &status, 0), child);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 130);
-  EXPECT_FALSE(fs::exists(path("b.json")));
-}
-
 TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   // A run far too long to finish, interrupted once it is writing: exit 130, no --out folder, no
   // staging folder.
@@ -319,9 +200,10 @@ TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
           static_cast<char*>(nullptr));
     _exit(127);
   }
-  // Wait until the staging folder has images in it, then interrupt.
+  // Wait until the staging folder has images in it (polling, with a generous bound that is never
+  // a pass condition by itself), then interrupt.
   bool writing = false;
-  for (int k = 0; k < 200 && !writing; ++k) {
+  for (int k = 0; k < 12000 && !writing; ++k) {  // up to 10 minutes
     usleep(50 * 1000);
     for (const auto& entry : fs::directory_iterator(dir_))
       if (entry.path().filename().string().find(".out.partial") == 0 && fs::exists(entry.path() / "images"))
@@ -337,48 +219,105 @@ TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_empty(dir_)) << "a staging folder was left behind";
 }
 
-TEST_F(Cli, BenchReportsItsFiguresAsJson) {
+// Run k's seed and digit depend on k and the command's seed only: run 3 of --count 5 is run 3 of
+// --count 8 (every field of trajectory.json), and so is run 4.
+TEST_F(Cli, RunKIsTheSameWhateverTheCount) {
+  ASSERT_EQ(scout("run " + world("fashion.yaml") + " --out " + path("five") + " --count 5 --seed 9 --no-images").status,
+            0);
+  ASSERT_EQ(
+      scout("run " + world("fashion.yaml") + " --out " + path("eight") + " --count 8 --seed 9 --no-images").status, 0);
+  const json five = read_json(path("five") + "/trajectory.json"), eight = read_json(path("eight") + "/trajectory.json");
+  ASSERT_EQ(five["runs"].size(), 5u);
+  ASSERT_EQ(eight["runs"].size(), 8u);
+  EXPECT_EQ(five["runs"][3], eight["runs"][3]);
+  EXPECT_EQ(five["runs"][4], eight["runs"][4]);
+  EXPECT_NE(five["runs"][3]["steps"], five["runs"][2]["steps"]);  // the runs differ from each other
+}
+
+}  // namespace scout::testing::run_command_cli_tests
+
+namespace scout::testing::run_command_eval_run_tests {
+
+using namespace scout::testing::eval_run_support;
+
+TEST_F(EvalRun, RunWithACheckpointPredictsAndDrawsIt) {
   const Result r =
-      scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 3 --json " + path("b.json"));
+      scout("run " + world() + " --out " + path("out") + " --count 2 --checkpoint " + checkpoint() + " --heat-map");
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_NE(r.output.find("physics + camera"), std::string::npos) << r.output;
-  const json b = read_json(path("b.json"));
-  EXPECT_EQ(b["robots"], 8);
-  EXPECT_EQ(b["moves_per_rollout"], 20);
-  for (const char* part : {"physics_and_camera", "physics", "camera", "cpu_crop"}) {
-    EXPECT_GT(b["median_ms"][part].get<double>(), 0.0) << part;
+  const json t = read_json(path("out") + "/trajectory.json");
+  ASSERT_EQ(t["runs"].size(), 2u);
+  for (const json& run : t["runs"]) {
+    ASSERT_TRUE(run.contains("prediction")) << run.dump();
+    const std::vector<double> p = run["probabilities"].get<std::vector<double>>();
+    ASSERT_EQ(p.size(), 3u);
+    double sum = 0;
+    int best = 0;
+    for (int c = 0; c < 3; ++c) {
+      sum += p[c];
+      if (p[c] > p[best]) best = c;
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-5);
+    EXPECT_EQ(run["prediction"].get<int>(), best);
+    EXPECT_EQ(run["steps"].size(), 4u);
   }
-  // Driven, not teleported: a 1- or 2-px move at 1/3 px per tick takes 3 to 6 ticks.
-  EXPECT_GE(b["ticks_per_driving_move"].get<double>(), 3.0);
-  EXPECT_LE(b["ticks_per_driving_move"].get<double>(), 6.5);
-  EXPECT_GT(b["peak_speed_mps"].get<double>(), 1.9);
-  EXPECT_LE(b["peak_speed_mps"].get<double>(), 2.0 + 1e-4);
-  EXPECT_FALSE(b["manifest"]["git_commit"].get<std::string>().empty());
+  // E + 1 pictures a run; all carry the class bars (wider than the 120-px floor), the episode
+  // pictures also the heat map's colour scale (wider than the final one).
+  for (int k = 0; k < 2; ++k) {
+    const std::string prefix = path("out") + "/images/run00" + std::to_string(k);
+    const cv::Mat final_png = cv::imread(prefix + "_final.png");
+    ASSERT_FALSE(final_png.empty());
+    EXPECT_EQ(final_png.rows, 120);
+    EXPECT_GT(final_png.cols, 120);
+    for (int e = 0; e < 2; ++e) {
+      const cv::Mat episode = cv::imread(prefix + "_episode" + std::to_string(e) + ".png");
+      ASSERT_FALSE(episode.empty());
+      EXPECT_GT(episode.cols, final_png.cols);
+    }
+  }
+  const json m = read_json(path("out") + "/manifest.json");
+  EXPECT_EQ(m["checkpoint"]["path"], checkpoint());
+  EXPECT_EQ(m["checkpoint"]["sha256"].get<std::string>().size(), 64u);
+
+  // Greedy: every choice is an argmax (both layers are learned), so from a fixed start on a fixed
+  // digit the seed changes nothing.
+  temp_->write("fixed.yaml", "floor: {dataset: " + path("data") +
+                                 ", split: test, index: 4}\n"
+                                 "robot: {start: [5, 6]}\n"
+                                 "camera: {patch_px: 3}\n"
+                                 "task: {episodes: 2, steps: 2}\n");
+  for (const char* seed : {"4", "5"}) {
+    const Result g = scout("run " + path("fixed.yaml") + " --out " + path(std::string("g") + seed) +
+                           " --no-images --checkpoint " + checkpoint() + " --greedy --seed " + seed);
+    ASSERT_EQ(g.status, 0) << g.output;
+  }
+  const json g4 = read_json(path("g4") + "/trajectory.json"), g5 = read_json(path("g5") + "/trajectory.json");
+  EXPECT_EQ(g4["runs"][0]["steps"], g5["runs"][0]["steps"]);
+  EXPECT_EQ(g4["runs"][0]["probabilities"], g5["runs"][0]["probabilities"]);
+
+  // Without --checkpoint nothing of this appears.
+  ASSERT_EQ(scout("run " + world() + " --out " + path("plain") + " --no-images").status, 0);
+  const json plain = read_json(path("plain") + "/trajectory.json");
+  EXPECT_FALSE(plain["runs"][0].contains("prediction"));
+  EXPECT_FALSE(plain["runs"][0].contains("probabilities"));
+  EXPECT_FALSE(read_json(path("plain") + "/manifest.json").contains("checkpoint"));
 }
 
-TEST_F(Cli, HelpVersionAndUsageErrors) {
-  const Result version = scout("--version");
-  EXPECT_EQ(version.status, 0);
-  EXPECT_EQ(version.output.rfind("scout ", 0), 0u) << version.output;
-  for (const char* cmd : {"--help", "run --help", "data --help", "bench --help", "bench sim --help", "bench train --help",
-                          "train --help", "eval --help", "export --help"}) {
-    const Result help = scout(cmd);
-    EXPECT_EQ(help.status, 0) << cmd;
-    EXPECT_NE(help.output.find("Usage"), std::string::npos) << cmd;
-  }
-  // A bad command line is one line too, pointing at the right help.
-  const Result missing = scout("run");
-  EXPECT_EQ(missing.status, 2);
-  EXPECT_EQ(missing.output, "scout: usage error: world is required (see scout run --help)\n");
-  const Result unknown = scout("bench frobnicate");
-  EXPECT_EQ(unknown.status, 2);
-  EXPECT_EQ(unknown.output,
-            "scout: usage error: unknown command 'frobnicate' (commands: sim, train; see scout bench --help)\n");
-  const Result zero = scout("run " + world("fashion.yaml") + " --out " + path("x") + " --count 0");
-  EXPECT_EQ(zero.status, 2);
-  EXPECT_EQ(zero.output.rfind("scout: usage error: --count", 0), 0u) << zero.output;
-  EXPECT_EQ(zero.output.find('\n'), zero.output.size() - 1) << zero.output;
-  EXPECT_FALSE(fs::exists(path("x")));
+TEST_F(EvalRun, RunRefusesCheckpointOptionsThatCannotApply) {
+  Result r = scout("run " + world() + " --out " + path("o1") + " --greedy");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.output.rfind("scout: usage error: --greedy requires --checkpoint", 0), 0u) << r.output;
+  r = scout("run " + world() + " --out " + path("o2") + " --heat-map");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.output.rfind("scout: usage error: --heat-map requires --checkpoint", 0), 0u) << r.output;
+  // Mode (i) only: no goal planner to draw.
+  r = scout("run " + world() + " --out " + path("o3") + " --checkpoint " + checkpoint("run_i") + " --heat-map");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.output.rfind("scout: error: " + checkpoint("run_i") + ": --heat-map: expected", 0), 0u) << r.output;
+  const std::string text = temp_->write("notes.pt", "x").string();
+  r = scout("run " + world() + " --out " + path("o4") + " --checkpoint " + text);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.output.rfind("scout: error: " + text + ": not a Scout checkpoint", 0), 0u) << r.output;
+  for (const char* o : {"o1", "o2", "o3", "o4"}) EXPECT_FALSE(fs::exists(path(o))) << o;
 }
 
-}  // namespace
+}  // namespace scout::testing::run_command_eval_run_tests

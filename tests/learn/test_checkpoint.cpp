@@ -1,0 +1,112 @@
+// Checkpoint files (learn/checkpoint.cpp) as a resumed run and load_agent read them: a future
+// format version, garbage, a truncated or empty file, no file, and weights that do not fit their
+// own config are each refused with one line naming the file.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "core/error.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/training.hpp"
+#include "tests/support/training_fixture.hpp"
+
+namespace scout::learn {
+namespace {
+
+using namespace scout::learn::test_support;
+
+// --- 5. Bad checkpoints are refused with one line naming the file ---------------------------------------------------
+
+// The one-line InputError that resuming `run` throws (empty if none).
+std::string resume_refusal(const fs::path& run) {
+  try {
+    Trainer::resume(run, kThreads);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return {};
+}
+
+TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
+  const fs::path good = run_dir("good");
+  {
+    Trainer trainer(config({1, 0, 0}), good, kThreads);
+    ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
+  }
+  const std::string bytes = read_bytes(good / kCheckpointFile);
+
+  // A future format version, otherwise well-formed.
+  const fs::path future = run_dir("future");
+  {
+    const CheckpointState state = read_checkpoint_state(good / kCheckpointFile);
+    torch::serialize::OutputArchive archive;
+    archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat + 1)));
+    archive.write("config", c10::IValue(state.config.to_json()));
+    archive.write("progress", c10::IValue(std::string("{}")));
+    archive.save_to((future / kCheckpointFile).string());
+  }
+  const std::string line = resume_refusal(future);
+  EXPECT_NE(line.find((future / kCheckpointFile).string()), std::string::npos) << line;
+  EXPECT_NE(line.find("format"), std::string::npos) << line;
+  EXPECT_NE(line.find(std::to_string(kCheckpointFormat + 1)), std::string::npos) << line;
+  try {
+    read_checkpoint_info(future / kCheckpointFile);
+    ADD_FAILURE() << "a future format was read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), line);
+  }
+
+  // Garbage, a truncated checkpoint, an empty file, no file.
+  const fs::path garbage = run_dir("garbage"), truncated = run_dir("truncated"), empty = run_dir("empty");
+  std::ofstream(garbage / kCheckpointFile, std::ios::binary) << "this is not a checkpoint\n";
+  std::ofstream(truncated / kCheckpointFile, std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
+  std::ofstream(empty / kCheckpointFile, std::ios::binary);
+  for (const fs::path& run : {garbage, truncated, empty, run_dir("none")}) {
+    const std::string message = resume_refusal(run);
+    EXPECT_NE(message.find((run / kCheckpointFile).string()), std::string::npos) << run << ": " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+  // The good one still resumes (and has nothing left to do).
+  std::unique_ptr<Trainer> trainer = Trainer::resume(good, kThreads);
+  EXPECT_EQ(trainer->run({}).outcome, TrainOutcome::Finished);
+}
+
+// A checkpoint whose weights do not fit its own network config (here: planners 4 wide, config
+// 8) is refused, for training and for loading alike, rather than run with the file's shapes.
+TEST_F(Resume, WeightsThatDoNotFitTheConfigAreRefused) {
+  const fs::path good = run_dir("good");
+  {
+    Trainer trainer(config({1, 0, 0}), good, kThreads);
+    ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
+  }
+  const fs::path mismatched = run_dir("mismatched");
+  {
+    CheckpointState state;
+    agent::Agent agent = load_agent(good / kCheckpointFile, &state);
+    torch::optim::Adam adam(agent->parameters(), torch::optim::AdamOptions(state.config.learning_rate));
+    load_checkpoint_weights(good / kCheckpointFile, *agent, &adam);
+    state.config.network.planner_width *= 2;
+    state.config.epochs = {1, 1, 0};
+    save_checkpoint(mismatched / kCheckpointFile, *agent, &adam, state);
+  }
+  const std::string file = (mismatched / kCheckpointFile).string();
+  const std::string line = resume_refusal(mismatched);
+  EXPECT_NE(line.find(file), std::string::npos) << line;
+  EXPECT_NE(line.find("agent"), std::string::npos) << line;
+  EXPECT_EQ(line.find('\n'), std::string::npos) << line;
+  try {
+    load_agent(mismatched / kCheckpointFile);
+    ADD_FAILURE() << "weights 4 wide were loaded into planners 8 wide";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace scout::learn
