@@ -11,8 +11,8 @@ namespace scout::agent {
 struct RobotView {
   const std::uint8_t* observed = nullptr;  ///< the floor's bytes where seen (anything elsewhere)
   const std::uint8_t* seen = nullptr;      ///< 1 where seen so far, 0 elsewhere
-  grid::Cell pose;                          ///< current grid pose
-  const grid::Cell* goal = nullptr;         ///< goal for g_l; null: no goal yet (g_l all ones)
+  grid::Cell pose;                         ///< current grid pose
+  const grid::Cell* goal = nullptr;        ///< goal for g_l; null: no goal yet (g_l all ones)
 };
 
 /// A floor byte as the networks see it: p / 255 - 0.5 (METHOD.md § Symbols).

@@ -1,8 +1,8 @@
+#include "grid/grid.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-
-#include "grid/grid.hpp"
 
 namespace scout::grid {
 

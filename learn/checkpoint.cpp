@@ -211,4 +211,14 @@ CheckpointInfo export_model(const fs::path& checkpoint, const fs::path& model_fi
   return {kCheckpointFormat, std::move(state.config), state.cursor, std::move(state.history)};
 }
 
+CheckpointInfo read_checkpoint_info(const fs::path& file) {
+  CheckpointState state = read_checkpoint_state(file);
+  CheckpointInfo info;
+  info.format_version = kCheckpointFormat;
+  info.config = std::move(state.config);
+  info.cursor = state.cursor;
+  info.history = std::move(state.history);
+  return info;
+}
+
 }  // namespace scout::learn

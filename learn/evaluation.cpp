@@ -13,17 +13,17 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "core/error.hpp"
+#include "core/random.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
+#include "learn/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "worlds/dataset.hpp"
-#include "core/error.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
-#include "core/random.hpp"
-#include "learn/seed_streams.hpp"
 
 namespace scout::learn {
 
@@ -31,7 +31,6 @@ namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
 namespace {
-
 
 // The continued fraction of the regularized incomplete beta I_x(a, b), evaluated by the modified
 // Lentz method (as Numerical Recipes' betacf).
@@ -289,9 +288,10 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
     iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid)).correct) / n;
     // Without a learned goal layer the baseline would only measure an untrained planner.
     goals_only_accuracy[k] =
-        learned.goals
-            ? static_cast<double>(evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly)).correct) / n
-            : std::numeric_limits<double>::quiet_NaN();
+        learned.goals ? static_cast<double>(
+                            evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly)).correct) /
+                            n
+                      : std::numeric_limits<double>::quiet_NaN();
   }
   report.accuracy = mean_ci95(accuracy);
   report.top2 = mean_ci95(top2);

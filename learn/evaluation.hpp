@@ -41,13 +41,13 @@ struct EvalReport {
   double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
   int runs = 0, images = 0;
   double seconds = 0;
-  std::vector<int> labels;                         ///< per image
-  std::vector<std::vector<double>> probabilities;  ///< per image: mean pi_c over the runs (D values)
-  std::string checkpoint;                          ///< the checkpoint file, as given
-  std::string world;                               ///< the world file used (--world or the checkpoint's)
-  std::uint64_t seed = 0;                          ///< the evaluation's seed
-  bool learned_goals = false;                      ///< the checkpoint's history has a mode (ii) or (iii) epoch
-  bool learned_actions = false;                    ///< ... a mode (iii) epoch
+  std::vector<int> labels;                                 ///< per image
+  std::vector<std::vector<double>> probabilities;          ///< per image: mean pi_c over the runs (D values)
+  std::string checkpoint;                                  ///< the checkpoint file, as given
+  std::string world;                                       ///< the world file used (--world or the checkpoint's)
+  std::uint64_t seed = 0;                                  ///< the evaluation's seed
+  bool learned_goals = false;                              ///< the checkpoint's history has a mode (ii) or (iii) epoch
+  bool learned_actions = false;                            ///< ... a mode (iii) epoch
   agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic in this evaluation
 };
 

@@ -10,7 +10,6 @@
 
 namespace scout::learn {
 
-
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
                         const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
                         std::uint64_t first_robot) {
@@ -46,7 +45,8 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   engine.run(batch.floors, batch.starts, policy, /*record=*/false);
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling.with_grad) no_grad.emplace();
-  torch::Tensor log_probs = classifier_log_probs(agent, revealed_images(engine.state(), batch.count), sampling.precision);
+  torch::Tensor log_probs =
+      classifier_log_probs(agent, revealed_images(engine.state(), batch.count), sampling.precision);
   // A copy: autograd keeps the index for backward, which may run after `batch` is gone.
   torch::Tensor labels =
       torch::from_blob(const_cast<std::int64_t*>(batch.labels.data()), {batch.count, 1}, torch::kLong).clone();

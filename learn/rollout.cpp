@@ -4,9 +4,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "render/camera.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "render/camera.hpp"
 
 namespace scout::learn {
 
@@ -14,7 +14,6 @@ namespace {
 
 using core::Clock;
 using core::seconds_since;
-
 
 }  // namespace
 
@@ -157,7 +156,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
         need_[i] = d == grid::Decision::Choose;
         axes_[i] = d == grid::Decision::Vertical     ? grid::Axis::Vertical
                    : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
-                                                    : grid::Axis::None;
+                                                     : grid::Axis::None;
       }
       policy.choose_axes(state_, need_, std::span(axes_.data(), count));
       for (int i = 0; i < count; ++i)

@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "render/camera.hpp"
-#include "grid/grid.hpp"
-#include "sim/robots.hpp"
 #include "core/random.hpp"
+#include "grid/grid.hpp"
+#include "render/camera.hpp"
+#include "sim/robots.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -22,9 +22,9 @@ struct BatchState {
   grid::FloorFrame frame;
   int patch_px = 0;
   int count = 0;                       ///< robots in this rollout batch
-  std::vector<grid::Cell> pose;         ///< grid pose of the actual position, per robot
-  std::vector<grid::Cell> goal;         ///< current goal per robot
-  std::vector<grid::RevealMask> seen;   ///< pixels seen so far, per robot (h = 1 - seen)
+  std::vector<grid::Cell> pose;        ///< grid pose of the actual position, per robot
+  std::vector<grid::Cell> goal;        ///< current goal per robot
+  std::vector<grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
   std::vector<std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
 
   const std::uint8_t* observed_image(int robot) const {
@@ -61,12 +61,12 @@ struct StepRecord {
   int step = 0;
   grid::Cell goal;
   grid::Axis axis = grid::Axis::None;  ///< the axis moved along (None: at the goal, no move)
-  bool sampled = false;              ///< the axis was chosen by the policy (chi = 1)
-  grid::Cell command;                 ///< commanded move, pixels
-  sim::MoveResult result;            ///< ticks, settled, wall contact, peak speed
-  Eigen::Vector2d pose_m;            ///< actual centre after the move, metres (floor frame)
-  grid::Cell grid_pose;               ///< grid pose after the move
-  int revealed_px = 0;               ///< pixels seen so far, cumulative
+  bool sampled = false;                ///< the axis was chosen by the policy (chi = 1)
+  grid::Cell command;                  ///< commanded move, pixels
+  sim::MoveResult result;              ///< ticks, settled, wall contact, peak speed
+  Eigen::Vector2d pose_m;              ///< actual centre after the move, metres (floor frame)
+  grid::Cell grid_pose;                ///< grid pose after the move
+  int revealed_px = 0;                 ///< pixels seen so far, cumulative
 };
 
 /// The state shown by one trajectory image.
@@ -82,7 +82,7 @@ struct SnapshotRecord {
 struct RolloutRecord {
   grid::Cell start;
   std::vector<StepRecord> steps;          ///< E * T of them, no-op moves included
-  std::vector<grid::Cell> path;            ///< start, then the grid pose after each move
+  std::vector<grid::Cell> path;           ///< start, then the grid pose after each move
   std::vector<SnapshotRecord> snapshots;  ///< at the start of each episode (goal drawn) and at the end
 };
 
@@ -127,7 +127,7 @@ class RolloutEngine {
   std::unique_ptr<sim::RobotBatch> robots_;
   std::unique_ptr<render::PatchCamera> camera_;
   std::vector<std::uint8_t> patches_;  // camera read-back
-  std::vector<grid::Cell> commands_;    // per-move scratch, sized once per batch
+  std::vector<grid::Cell> commands_;   // per-move scratch, sized once per batch
   std::vector<sim::MoveResult> results_;
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;

@@ -28,8 +28,8 @@ inline constexpr std::uint64_t kTrainValidation = 13;  ///< validation passes (t
 // drives with derive_seed(pass seed, i). The baselines' passes take these streams below run k's
 // seed (the greedy pass below the eval seed); they lie beyond any image index, so no baseline
 // ever repeats the stochastic run's starts and choices.
-inline constexpr std::uint64_t kEvalIid = std::uint64_t{1} << 40;      ///< i.i.d. goals and actions
-inline constexpr std::uint64_t kEvalGoalsOnly = kEvalIid + 1;         ///< learned goals, i.i.d. actions
-inline constexpr std::uint64_t kEvalGreedy = kEvalIid + 2;            ///< the greedy run (below the eval seed)
+inline constexpr std::uint64_t kEvalIid = std::uint64_t{1} << 40;  ///< i.i.d. goals and actions
+inline constexpr std::uint64_t kEvalGoalsOnly = kEvalIid + 1;      ///< learned goals, i.i.d. actions
+inline constexpr std::uint64_t kEvalGreedy = kEvalIid + 2;         ///< the greedy run (below the eval seed)
 
 }  // namespace scout::learn::streams

@@ -1,9 +1,10 @@
 // TrainConfig: validation and its JSON form (stored in checkpoints and manifests).
+#include "learn/train_config.hpp"
+
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
 
-#include "learn/training.hpp"
 #include "core/error.hpp"
 
 namespace scout::learn {
@@ -121,6 +122,20 @@ TrainConfig TrainConfig::from_json(const std::string& text, const std::string& o
     throw InputError(origin + ": config: " + one_line(e.what()));
   }
   return c;
+}
+
+const char* to_string(Stage stage) {
+  switch (stage) {
+    case Stage::Pretrain:
+      return "full";
+    case Stage::ModeI:
+      return "i";
+    case Stage::ModeII:
+      return "ii";
+    case Stage::ModeIII:
+      return "iii";
+  }
+  return "?";
 }
 
 }  // namespace scout::learn

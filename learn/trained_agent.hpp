@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "learn/rollout.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 
 namespace scout::learn {
 

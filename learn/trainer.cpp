@@ -1,3 +1,5 @@
+#include "learn/trainer.hpp"
+
 #include <fmt/format.h>
 #include <torch/torch.h>
 
@@ -10,17 +12,17 @@
 #include <sstream>
 #include <thread>
 
-#include "learn/internal/agent_policy.hpp"
-#include "learn/internal/checkpoint.hpp"
-#include "learn/internal/objective.hpp"
-#include "learn/internal/precision.hpp"
-#include "learn/training.hpp"
-#include "worlds/dataset.hpp"
 #include "core/error.hpp"
 #include "core/files.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/checkpoint.hpp"
+#include "learn/internal/objective.hpp"
+#include "learn/internal/precision.hpp"
 #include "learn/seed_streams.hpp"
+#include "worlds/dataset.hpp"
 
 namespace scout::learn {
 
@@ -33,11 +35,9 @@ namespace {
 
 constexpr std::array<Stage, 4> kStages = {Stage::Pretrain, Stage::ModeI, Stage::ModeII, Stage::ModeIII};
 
-
 std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, int stage, int epoch) {
   return core::derive_seed(core::derive_seed(core::derive_seed(seed, stream), stage), epoch);
 }
-
 
 std::array<int, 4> stage_epochs(const TrainConfig& c) {
   return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
@@ -56,20 +56,6 @@ torch::nn::Module& layer(agent::AgentImpl& a, Layer l) {
 }
 
 }  // namespace
-
-const char* to_string(Stage stage) {
-  switch (stage) {
-    case Stage::Pretrain:
-      return "full";
-    case Stage::ModeI:
-      return "i";
-    case Stage::ModeII:
-      return "ii";
-    case Stage::ModeIII:
-      return "iii";
-  }
-  return "?";
-}
 
 int set_torch_threads(int threads) {
   const int n = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -219,8 +205,8 @@ struct Trainer::Impl {
       sums.correct += count_correct(log_probs.detach(), labels);
       sums.robots += static_cast<long>(labels.size());
     } else {
-      const std::uint64_t stream =
-          core::derive_seed(stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
+      const std::uint64_t stream = core::derive_seed(
+          stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
       const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
       EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
@@ -259,7 +245,8 @@ struct Trainer::Impl {
         const RolloutBatch batch =
             make_batch(validation, indices, 1, config.world, frame,
                        core::derive_seed(core::derive_seed(config.seed, streams::kTrainValidation), first));
-        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
+        const BatchOutcome out =
+            run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
     }
@@ -425,15 +412,5 @@ const std::vector<EpochMetrics>& Trainer::history() const { return impl_->histor
 int Trainer::threads() const { return impl_->threads; }
 fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointFile; }
 const std::vector<fs::path>& Trainer::data_files() const { return impl_->data_files; }
-
-CheckpointInfo read_checkpoint_info(const fs::path& file) {
-  CheckpointState state = read_checkpoint_state(file);
-  CheckpointInfo info;
-  info.format_version = kCheckpointFormat;
-  info.config = std::move(state.config);
-  info.cursor = state.cursor;
-  info.history = std::move(state.history);
-  return info;
-}
 
 }  // namespace scout::learn

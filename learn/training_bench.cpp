@@ -3,15 +3,15 @@
 #include <torch/torch.h>
 
 #include <algorithm>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
-#include "learn/internal/agent_policy.hpp"
-#include "learn/internal/objective.hpp"
 #include "core/error.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "learn/internal/agent_policy.hpp"
+#include "learn/internal/objective.hpp"
 
 namespace scout::learn {
 
@@ -34,7 +34,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   if (config.batches < 1) throw InputError("--batches: expected a positive integer");
   if (config.warmup < 0) throw InputError("--warmup: expected a non-negative integer");
   for (Stage s : config.modes)
-    if (s == Stage::Pretrain) throw InputError("--modes: expected i, ii or iii (full-image pretraining has no rollouts)");
+    if (s == Stage::Pretrain)
+      throw InputError("--modes: expected i, ii or iii (full-image pretraining has no rollouts)");
 
   TrainBenchReport report;
   report.threads = set_torch_threads(config.threads);

@@ -6,7 +6,7 @@
 #include <functional>
 #include <vector>
 
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 
 namespace scout::learn {
 
@@ -46,7 +46,7 @@ struct ModeBench {
 struct TrainBenchReport {
   std::vector<ModeBench> modes;
   int threads = 0;
-  int robots = 0;  ///< B x N per batch
+  int robots = 0;                                 ///< B x N per batch
   std::vector<std::filesystem::path> data_files;  ///< the IDX files read (for manifests)
 };
 

@@ -72,7 +72,8 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  const bool continuous = params.body.max_speed_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
+  const bool continuous =
+      params.body.max_speed_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
   for (int i = 0; i < count; ++i) {
     Robot& r = robots_[i];
     r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));

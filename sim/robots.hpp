@@ -15,9 +15,9 @@ namespace scout::sim {
 /// Physical and controller parameters of every robot in a batch: the world file's own sections,
 /// so their defaults and ranges are written once (worlds/world.hpp).
 struct RobotParams {
-  worlds::RobotSpec body;              ///< disc radius, mass, speed limit (the start is the caller's)
-  worlds::ControllerSpec controller;   ///< gain and settling tolerance
-  worlds::PhysicsSpec physics;         ///< tick, solver iterations, tick bound per move
+  worlds::RobotSpec body;             ///< disc radius, mass, speed limit (the start is the caller's)
+  worlds::ControllerSpec controller;  ///< gain and settling tolerance
+  worlds::PhysicsSpec physics;        ///< tick, solver iterations, tick bound per move
 
   static RobotParams from_world(const worlds::World& world);
 };

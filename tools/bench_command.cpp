@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 
+#include "core/random.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"
 #include "render/camera.hpp"
@@ -20,7 +21,6 @@
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
-#include "core/random.hpp"
 
 namespace scout::tools {
 
@@ -256,19 +256,21 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   for (const learn::ModeBench& m : report.modes) {
     const double total = m.sum.total_s;
     auto share = [total](double part) { return fmt::format("{:.1f}%", total > 0 ? 100 * part / total : 0.0); };
-    fmt::print("  {:<5} {:>9.1f} {:>9.3f}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12.0f}\n", learn::to_string(m.mode),
-               m.images_per_s, m.median_step_s, share(m.sum.physics_s), share(m.sum.render_s), share(m.sum.state_s),
-               share(m.sum.forward_s), share(m.sum.backward_s), share(m.sum.optimizer_s), m.action_decisions);
+    fmt::print("  {:<5} {:>9.1f} {:>9.3f}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12.0f}\n",
+               learn::to_string(m.mode), m.images_per_s, m.median_step_s, share(m.sum.physics_s), share(m.sum.render_s),
+               share(m.sum.state_s), share(m.sum.forward_s), share(m.sum.backward_s), share(m.sum.optimizer_s),
+               m.action_decisions);
   }
   // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
   constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
   const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3;
   for (const learn::ModeBench& m : report.modes) {
     if (!preset || m.mode != learn::Stage::ModeIII) continue;
-    fmt::print("  targets: mode iii >= {:.0f} images/s: {}; simulation (physics + render) < {:.0f}% of a step: {} "
-               "({:.2f}%)\n",
-               kTargetModeIII, m.images_per_s >= kTargetModeIII ? "met" : "NOT met", 100 * kMaxSimulationShare,
-               m.simulation_share() < kMaxSimulationShare ? "met" : "NOT met", 100 * m.simulation_share());
+    fmt::print(
+        "  targets: mode iii >= {:.0f} images/s: {}; simulation (physics + render) < {:.0f}% of a step: {} "
+        "({:.2f}%)\n",
+        kTargetModeIII, m.images_per_s >= kTargetModeIII ? "met" : "NOT met", 100 * kMaxSimulationShare,
+        m.simulation_share() < kMaxSimulationShare ? "met" : "NOT met", 100 * m.simulation_share());
   }
 
   if (!opt.json_out.empty()) {
@@ -292,12 +294,13 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
       modes.push_back({{"mode", learn::to_string(m.mode)},
                        {"images_per_s", m.images_per_s},
                        {"median_step_s", m.median_step_s},
-                       {"share", {{"physics", share(m.sum.physics_s)},
-                                  {"render", share(m.sum.render_s)},
-                                  {"state", share(m.sum.state_s)},
-                                  {"forward", share(m.sum.forward_s)},
-                                  {"backward", share(m.sum.backward_s)},
-                                  {"optimizer", share(m.sum.optimizer_s)}}},
+                       {"share",
+                        {{"physics", share(m.sum.physics_s)},
+                         {"render", share(m.sum.render_s)},
+                         {"state", share(m.sum.state_s)},
+                         {"forward", share(m.sum.forward_s)},
+                         {"backward", share(m.sum.backward_s)},
+                         {"optimizer", share(m.sum.optimizer_s)}}},
                        {"simulation_share", m.simulation_share()},
                        {"action_decisions_per_batch", m.action_decisions}});
     }

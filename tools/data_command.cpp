@@ -6,6 +6,7 @@
 
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
+#include "worlds/data_install.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::tools {

@@ -13,13 +13,14 @@
 #include <string>
 #include <vector>
 
+#include "core/error.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/evaluation.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tools/commands.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
-#include "core/error.hpp"
 
 namespace scout::tools {
 

@@ -7,9 +7,10 @@
 #include <memory>
 #include <string>
 
-#include "learn/training.hpp"
-#include "tools/commands.hpp"
 #include "core/error.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/trainer.hpp"
+#include "tools/commands.hpp"
 
 namespace scout::tools {
 

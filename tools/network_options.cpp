@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tools/parsing.hpp"
 
 namespace scout::tools {

@@ -10,9 +10,9 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "core/error.hpp"
 #include "tools/commands.hpp"
 #include "worlds/dataset.hpp"
-#include "core/error.hpp"
 
 namespace scout {
 const char* git_commit();  // generated at build time (cmake/GitVersion.cmake)
@@ -150,7 +150,8 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
 void check_output_file(const char* option, const std::string& file, const std::vector<std::string>& inputs) {
   if (file.empty()) return;
   std::error_code ec;
-  if (fs::is_directory(file, ec)) throw InputError(fmt::format("{}: {} is a folder, expected a file name", option, file));
+  if (fs::is_directory(file, ec))
+    throw InputError(fmt::format("{}: {} is a folder, expected a file name", option, file));
   for (const std::string& input : inputs)
     if (!input.empty() && fs::equivalent(file, input, ec))
       throw InputError(fmt::format("{}: {}: expected a file other than the inputs", option, file));

@@ -11,15 +11,16 @@
 #include <random>
 #include <span>
 
+#include "core/random.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
+#include "learn/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "render/snapshot.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
-#include "core/random.hpp"
-#include "learn/seed_streams.hpp"
 
 namespace scout::tools {
 
@@ -51,7 +52,6 @@ struct PlannedRun {
   int index;
   grid::Cell start;
 };
-
 
 std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
                                   const grid::FloorFrame& frame, std::uint64_t seed, int count) {

@@ -1,5 +1,5 @@
 // scout train: the hierarchical training schedule with the physics and the camera in the loop,
-// checkpointed every epoch into a run folder (learn/training.hpp).
+// checkpointed every epoch into a run folder (learn/trainer.hpp).
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -12,12 +12,13 @@
 #include <set>
 #include <sstream>
 
-#include "learn/training.hpp"
+#include "core/error.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/trainer.hpp"
 #include "tools/commands.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
-#include "core/error.hpp"
 
 namespace scout::tools {
 

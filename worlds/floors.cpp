@@ -187,10 +187,10 @@ FloorSet load_dataset(const World& world, const fs::path& data_root) {
     // The project's MNIST is the data set most often missing: say how to install it.
     std::error_code ec;
     const bool mnist_missing = world.floor.dataset == "mnist" && !fs::is_directory(folder, ec);
-    const std::string hint = !mnist_missing                        ? ""
-                             : data_root == default_data_root() ? " (run `scout data` to install MNIST)"
-                                                                : " (run `scout data --data " + data_root.string() +
-                                                                      "` to install MNIST there)";
+    const std::string hint = !mnist_missing ? ""
+                             : data_root == default_data_root()
+                                 ? " (run `scout data` to install MNIST)"
+                                 : " (run `scout data --data " + data_root.string() + "` to install MNIST there)";
     fail(world, "floor.dataset", e.what() + hint);
   }
   FloorSet set;

@@ -1,6 +1,7 @@
 #pragma once
 #ifndef SCOUT_LEARN_INTERNAL
-#error "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
+#error \
+    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
 #endif
 /// The learned policy: the agent's goal and action planners choosing for a rollout batch, and
 /// the log-probabilities the estimator needs. Torch header: include from learn/ sources only.
@@ -11,8 +12,8 @@
 #include <vector>
 
 #include "agent/networks.hpp"
-#include "learn/rollout.hpp"
 #include "core/random.hpp"
+#include "learn/rollout.hpp"
 
 namespace scout::learn {
 

@@ -1,6 +1,7 @@
 #pragma once
 #ifndef SCOUT_LEARN_INTERNAL
-#error "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
+#error \
+    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
 #endif
 /// Checkpoint files (RUN/checkpoint.pt): weights, optimizer state, the resolved config, where
 /// the schedule stands and the metrics so far, written atomically. Torch header: learn/ only.
@@ -11,7 +12,8 @@
 #include <vector>
 
 #include "agent/networks.hpp"
-#include "learn/training.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/trainer.hpp"
 
 namespace scout::learn {
 

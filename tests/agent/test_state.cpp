@@ -89,7 +89,7 @@ TEST(AgentState, RevealedImageIsThePixelWhereSeenAndZeroElsewhere) {
 
 TEST(AgentState, OddPatchWindowsAreClippedAtTheLeftAndBottom) {
   // m = 3: the window at (x, y) is columns x-1 .. x+1, rows y-1 .. y+1.
-  const grid::Cell goal{5, 4};                                    // columns 4..6 -> 4..5, rows 3..5 -> 3..4
+  const grid::Cell goal{5, 4};                                   // columns 4..6 -> 4..5, rows 3..5 -> 3..4
   const std::vector<float> u = planner_input(3, {0, 2}, &goal);  // columns -1..1 -> 0..1, rows 1..3
   for (int i = 0; i < kN; ++i) EXPECT_NEAR(u[i], kY[i], 1e-6);
   expect_channel(u, 1,
@@ -111,7 +111,7 @@ TEST(AgentState, OddPatchWindowsAreClippedAtTheLeftAndBottom) {
 
 TEST(AgentState, EvenPatchWindowsStartHalfAPatchLeftAndUp) {
   // m = 2: the window at (x, y) is columns x-1 .. x, rows y-1 .. y.
-  const grid::Cell goal{0, 0};                                    // clipped to the single pixel (0, 0)
+  const grid::Cell goal{0, 0};                                   // clipped to the single pixel (0, 0)
   const std::vector<float> u = planner_input(2, {3, 1}, &goal);  // columns 2..3, rows 0..1
   expect_channel(u, 1,
                  plane("110011"

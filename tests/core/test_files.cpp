@@ -3,9 +3,9 @@
 #include <fstream>
 #include <iterator>
 
-#include "tests/support/temp_dir.hpp"
 #include "core/error.hpp"
 #include "core/files.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace scout::core {
 namespace {

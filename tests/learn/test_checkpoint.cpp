@@ -12,8 +12,9 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/internal/checkpoint.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tests/support/training_fixture.hpp"
 
 namespace scout::learn {

@@ -20,11 +20,11 @@
 
 #include "agent/networks.hpp"
 #include "agent/state.hpp"
+#include "grid/grid.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/estimator.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
-#include "grid/grid.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/world.hpp"
 
@@ -299,7 +299,7 @@ torch::Tensor exact_objective(Problem& p, Mode mode) {
         } else {
           child(d == grid::Decision::Vertical     ? grid::Axis::Vertical
                 : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
-                                                 : grid::Axis::None,
+                                                  : grid::Axis::None,
                 2 * c);
         }
       }

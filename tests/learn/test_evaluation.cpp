@@ -22,7 +22,7 @@
 #include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "worlds/idx.hpp"
 #include "worlds/world.hpp"

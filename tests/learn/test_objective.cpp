@@ -122,7 +122,7 @@ TEST(BackwardIfFinite, ANonFiniteLossLeavesNoGradientAndAFiniteOneHasItsGradient
 TEST(ApplyGradientHook, TheHookSeesEveryTrainableGradientInOrderAndWritesBack) {
   torch::manual_seed(2);
   torch::nn::Sequential net(torch::nn::Linear(3, 2), torch::nn::Linear(2, 1));
-  auto params = net->parameters();  // w1 [2,3], b1 [2], w2 [1,2], b2 [1]
+  auto params = net->parameters();     // w1 [2,3], b1 [2], w2 [1,2], b2 [1]
   params[3].set_requires_grad(false);  // frozen: not in the buffer
   net->forward(torch::ones({1, 3})).sum().backward();
   params[1].mutable_grad() = torch::Tensor();  // a parameter without a gradient contributes zeros
@@ -134,8 +134,7 @@ TEST(ApplyGradientHook, TheHookSeesEveryTrainableGradientInOrderAndWritesBack) {
   ASSERT_EQ(seen.size(), 6u + 2u + 2u);
   for (int k = 6; k < 8; ++k) EXPECT_EQ(seen[k], 0.0f) << k;
   // Written back: w1 and w2 doubled plus one; b1 had no gradient, got one (its slice is 1, not 0).
-  EXPECT_TRUE(torch::allclose(params[0].grad().reshape({-1}),
-                              2 * torch::from_blob(seen.data(), {6}).clone() + 1));
+  EXPECT_TRUE(torch::allclose(params[0].grad().reshape({-1}), 2 * torch::from_blob(seen.data(), {6}).clone() + 1));
   ASSERT_TRUE(params[1].grad().defined());
   EXPECT_TRUE(torch::allclose(params[1].grad(), torch::ones({2})));
   EXPECT_FALSE(params[3].grad().defined());

@@ -13,13 +13,13 @@
 
 #include "agent/networks.hpp"
 #include "agent/state.hpp"
+#include "core/error.hpp"
+#include "core/random.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
 #include "learn/rollout.hpp"
-#include "learn/training.hpp"
-#include "core/error.hpp"
-#include "core/random.hpp"
+#include "learn/trainer.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -116,9 +116,9 @@ TEST_F(Precision, Bf16GivesTheFp32DistributionsToWithinRounding) {
     const Outputs fp32 = outputs_after_a_rollout(*agent, agent::Precision::Float32);
     const Outputs bf16 = outputs_after_a_rollout(*agent, agent::Precision::BFloat16);
     const char* name = agent::to_string(kind);
-    for (const auto& [what, a, b] : {std::tuple{"goal", fp32.goal, bf16.goal},
-                                     std::tuple{"action", fp32.action, bf16.action},
-                                     std::tuple{"classifier", fp32.classifier, bf16.classifier}}) {
+    for (const auto& [what, a, b] :
+         {std::tuple{"goal", fp32.goal, bf16.goal}, std::tuple{"action", fp32.action, bf16.action},
+          std::tuple{"classifier", fp32.classifier, bf16.classifier}}) {
       ASSERT_EQ(a.sizes(), b.sizes()) << what;
       EXPECT_EQ(b.scalar_type(), torch::kFloat) << what;
       const Divergence d = divergence(a, b);

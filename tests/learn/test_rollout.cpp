@@ -5,8 +5,8 @@
 #include <cstring>
 #include <random>
 
-#include "learn/rollout.hpp"
 #include "core/random.hpp"
+#include "learn/rollout.hpp"
 
 namespace scout::learn {
 namespace {
@@ -59,8 +59,8 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
         const grid::Decision d = grid::decide(model.pose(), s.goal);
         ASSERT_EQ(s.sampled, d == grid::Decision::Choose);
         grid::Axis axis = d == grid::Decision::Vertical     ? grid::Axis::Vertical
-                         : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
-                                                          : grid::Axis::None;
+                          : d == grid::Decision::Horizontal ? grid::Axis::Horizontal
+                                                            : grid::Axis::None;
         if (d == grid::Decision::Choose) {
           ASSERT_NE(s.axis, grid::Axis::None);
           axis = s.axis;

@@ -15,24 +15,24 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <span>
-#include <vector>
 #include <cstring>
 #include <filesystem>
 #include <limits>
 #include <memory>
 #include <set>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "core/error.hpp"
 #include "core/random.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/rollout.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tests/support/data.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "tests/support/training_fixture.hpp"
@@ -297,8 +297,9 @@ TEST_F(Resume, ALearningRateGivenOnResumeTakesEffectFromThereOn) {
   const std::array<int, 3> more = {2, 0, 0};
   const double stored = config(more).learning_rate, lower = stored / 10;
   auto resume = [&](const char* name, const double* lr) {
-    std::unique_ptr<Trainer> t = Trainer::resume(temp_.path() / name, kThreads,
-                                                 {.epochs = more, .learning_rate = lr ? std::optional<double>(*lr) : std::nullopt});
+    std::unique_ptr<Trainer> t =
+        Trainer::resume(temp_.path() / name, kThreads,
+                        {.epochs = more, .learning_rate = lr ? std::optional<double>(*lr) : std::nullopt});
     EXPECT_EQ(t->run({}).outcome, TrainOutcome::Finished);
     return t->history();
   };

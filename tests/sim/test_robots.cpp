@@ -140,7 +140,8 @@ TEST(RobotBatch, AMovePastTheEdgeIsStoppedByTheWall) {
     EXPECT_LE(at.x(), 27.5 + margin);
     EXPECT_GE(at.y(), 0.5 - margin);
     EXPECT_LE(at.y(), 27.5 + margin);
-    const grid::Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27), std::clamp(c.start.y() + c.command.y(), 0, 27)};
+    const grid::Cell expected{std::clamp(c.start.x() + c.command.x(), 0, 27),
+                              std::clamp(c.start.y() + c.command.y(), 0, 27)};
     EXPECT_EQ(batch.grid_pose(0), expected);
   }
 }

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "learn/internal/checkpoint.hpp"
-#include "learn/training.hpp"
+#include "learn/trainer.hpp"
 #include "tests/support/corner_data.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "worlds/world.hpp"

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "agent/config.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace scout::testing::export_command_train_cli_tests {

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "agent/config.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace scout::testing::train_command_train_cli_tests {
@@ -187,7 +188,7 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   EXPECT_EQ(rows[2].substr(rows[2].rfind(',')), ",0.001");
 }
 
-// --epochs on --resume may extend a finished run's schedule (learn/training.hpp): the run
+// --epochs on --resume may extend a finished run's schedule (learn/trainer.hpp): the run
 // continues right after its last epoch, first in the stage it was in.
 TEST_F(TrainCli, ResumeExtendsAFinishedSchedule) {
   const std::string copy = copy_of_base("extend");

@@ -27,6 +27,7 @@
 #include "tests/support/corner_data.hpp"
 #include "tests/support/data.hpp"
 #include "tests/support/temp_dir.hpp"
+#include "worlds/data_install.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::worlds {

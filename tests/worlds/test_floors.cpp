@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "tests/support/temp_dir.hpp"
 #include "core/error.hpp"
+#include "tests/support/temp_dir.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
 #include "worlds/world.hpp"
@@ -265,8 +265,9 @@ TEST(DatasetFloor, MissingFolderIsNamedByTheWorldFileLine) {
   const Refusal mnist = refusal_of(dir, world_in(dir, "camera:\n  patch_px: 4\n"), dir.path() / "no-data");
   expect_one_line_with_prefix(mnist, (dir.path() / "w.yaml").string() + ": floor.dataset: ");
   // ... and it says how to install MNIST into that data folder.
-  EXPECT_NE(mnist.message.find("(run `scout data --data " + (dir.path() / "no-data").string() + "` to install MNIST there)"),
-            std::string::npos)
+  EXPECT_NE(
+      mnist.message.find("(run `scout data --data " + (dir.path() / "no-data").string() + "` to install MNIST there)"),
+      std::string::npos)
       << mnist.message;
   // A folder of the user's own gets no such advice, even one named mnist.
   const Refusal own = refusal_of(dir, world_in(dir, "floor:\n  dataset: own/mnist\n"));

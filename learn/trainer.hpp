@@ -3,7 +3,6 @@
 /// (full images) -> (i) -> (ii) -> (iii) over rollouts with the physics and the camera in the
 /// loop, checkpointed every epoch. Torch-free: the CLI includes this header.
 #include <array>
-#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -12,46 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "agent/config.hpp"
 #include "core/stop.hpp"
-#include "worlds/world.hpp"
+#include "learn/train_config.hpp"
 
 namespace scout::learn {
-
-/// A stage of the schedule. Pretrain trains the classifier on full images (u_c = x), the
-/// transfer variant's first step; modes (i) - (iii) are METHOD.md's.
-enum class Stage { Pretrain = 0, ModeI = 1, ModeII = 2, ModeIII = 3 };
-const char* to_string(Stage stage);  ///< "full", "i", "ii", "iii"
-
-/// The layers, in the order of TrainConfig::frozen.
-enum class Layer { Goal = 0, Action = 1, Classifier = 2 };
-
-/// Everything that determines a training run (stored in every checkpoint).
-struct TrainConfig {
-  worlds::World world;                ///< task, camera, robot and physics (floor.dataset names the data)
-  std::filesystem::path data_folder;  ///< IDX folder with train-* (and t10k-*, validation-* if any)
-  agent::NetworkConfig network;
-  int pretrain_epochs = 0;                             ///< epochs of the classifier alone on full images, first
-  std::array<int, 3> epochs = {2, 2, 2};               ///< epochs of modes (i), (ii), (iii)
-  int rollouts = 4;                                    ///< N: rollouts per image
-  int batch_images = 60;                               ///< B: images per mini-batch (B x N robots)
-  double learning_rate = 1e-3;                         ///< Adam's step size
-  bool leave_one_out = false;                          ///< leave-one-out baseline (beyond the paper)
-  double entropy_bonus = 0;                            ///< beta of the entropy bonus (beyond the paper)
-  /// The networks' arithmetic (weights stay fp32). A new run resolves Auto for its CPU
-  /// (agent::resolve_precision); checkpoints and manifests hold the resolved fp32 or bf16.
-  agent::Precision precision = agent::Precision::Auto;
-  std::array<bool, 3> frozen = {false, false, false};  ///< per Layer: not updated in modes (i)-(iii)
-  std::uint64_t seed = 1;                              ///< initialisation, data order, starts and sampling
-  int train_limit = 0;                                 ///< train on the first K training digits only (0: all)
-  int validation_limit = 0;                            ///< validate on the first K validation digits only (0: all)
-
-  /// Throws InputError naming the option when a value is out of range.
-  void validate() const;
-  /// The config as JSON text (the world as YAML inside) and back; `origin` names the source in errors.
-  std::string to_json() const;
-  static TrainConfig from_json(const std::string& text, const std::string& origin);
-};
 
 /// One row of metrics.csv.
 struct EpochMetrics {
@@ -153,28 +116,6 @@ class Trainer {
   explicit Trainer(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
-
-/// What a checkpoint file says about itself, without loading weights.
-struct CheckpointInfo {
-  int format_version = 0;
-  TrainConfig config;
-  ScheduleCursor cursor;
-  std::vector<EpochMetrics> history;
-};
-/// Reads a checkpoint's header; throws InputError with one line naming the file for anything
-/// that is not a Scout checkpoint of this format version.
-CheckpointInfo read_checkpoint_info(const std::filesystem::path& file);
-
-/// The checkpoint file a path names: RUN/checkpoint.pt for a run folder, else the path itself.
-std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
-
-/// Writes a model file (what `scout run --checkpoint` and `scout eval` read): the checkpoint's
-/// weights, config and metrics history, without the optimizer's state. Atomic; throws InputError
-/// naming the checkpoint for anything that is not a Scout checkpoint. Returns what the model holds.
-CheckpointInfo export_model(const std::filesystem::path& checkpoint, const std::filesystem::path& model_file);
-
-/// The checkpoint format this build writes and reads.
-inline constexpr int kCheckpointFormat = 1;
 
 /// Sets LibTorch's intra-op threads (0: one per core) and returns the number in use.
 int set_torch_threads(int threads);
