@@ -24,13 +24,13 @@ struct TrainConfig {
   worlds::World world;                ///< task, camera, robot and physics (floor.dataset names the data)
   std::filesystem::path data_folder;  ///< IDX folder with train-* (and t10k-*, validation-* if any)
   agent::NetworkConfig network;
-  int pretrain_epochs = 0;                             ///< epochs of the classifier alone on full images, first
-  std::array<int, 3> epochs = {2, 2, 2};               ///< epochs of modes (i), (ii), (iii)
-  int rollouts = 4;                                    ///< N: rollouts per image
-  int batch_images = 60;                               ///< B: images per mini-batch (B x N robots)
-  double learning_rate = 1e-3;                         ///< Adam's step size
-  bool leave_one_out = false;                          ///< leave-one-out baseline (beyond the paper)
-  double entropy_bonus = 0;                            ///< beta of the entropy bonus (beyond the paper)
+  int pretrain_epochs = 0;                ///< epochs of the classifier alone on full images, first
+  std::array<int, 3> epochs = {2, 2, 2};  ///< epochs of modes (i), (ii), (iii)
+  int rollouts = 4;                       ///< N: rollouts per image
+  int batch_images = 60;                  ///< B: images per mini-batch (B x N robots)
+  double learning_rate = 1e-3;            ///< Adam's step size
+  bool leave_one_out = false;             ///< leave-one-out baseline (beyond the paper)
+  double entropy_bonus = 0;               ///< beta of the entropy bonus (beyond the paper)
   /// The networks' arithmetic (weights stay fp32). A new run resolves Auto for its CPU
   /// (agent::resolve_precision); checkpoints and manifests hold the resolved fp32 or bf16.
   agent::Precision precision = agent::Precision::Auto;
