@@ -1,5 +1,5 @@
 #pragma once
-// Message digests of files (module-internal): SHA-256 for data checksums and manifests, SHA-512
+// Message digests of files : SHA-256 for data checksums and manifests, SHA-512
 // for npm's integrity strings.
 #include <cstdint>
 #include <filesystem>

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "core/random.hpp"
+#include "core/timing.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
@@ -101,7 +102,7 @@ Data read_data(const EvalConfig& config, const worlds::World& world, int classes
     throw InputError(fmt::format("{}: expected images of at most {} x {} pixels, got {} x {}", images,
                                  worlds::kMaxFloorPx, worlds::kMaxFloorPx, d.set.images.cols, d.set.images.rows));
   worlds::check_against_floor(world, d.set.images.cols, d.set.images.rows);
-  d.frame = {d.set.images.cols, d.set.images.rows, world.floor.pixel_size_m};
+  d.frame = {.width_px = d.set.images.cols, .height_px = d.set.images.rows, .pixel_size_m = world.floor.pixel_size_m};
   return d;
 }
 
@@ -145,7 +146,8 @@ class Evaluator {
         batch.seeds.push_back(one.seeds[0]);
       }
       batch.count = k;
-      const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling, {1, false, 0});
+      const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling,
+                                         {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);
@@ -222,7 +224,7 @@ Interval mean_ci95(std::span<const double> values) {
 }
 
 EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = core::Clock::now();
   if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
   if (config.batch_robots < 1)
     throw std::invalid_argument("evaluate: batch_robots must be positive, got " + std::to_string(config.batch_robots));
@@ -307,7 +309,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   for (int i = 0; i < n; ++i)
     report.probabilities[i].assign(m + static_cast<std::size_t>(i) * classes,
                                    m + static_cast<std::size_t>(i + 1) * classes);
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.seconds = core::seconds_since(t0);
   return report;
 }
 

@@ -3,7 +3,7 @@
 /// core::derive_seed(parent, s) below a parent seed; each constant names one use. The values are
 /// part of every pinned result (trajectory hashes, the pinned weights, eval reports): never
 /// change one, and give a new use a new name and a new number. (The data split's seed is the
-/// data set's, worlds/dataset.cpp's kSplitSeed.)
+/// data set's, worlds/dataset.hpp's kSplitSeed.)
 #include <cstdint>
 
 namespace scout::learn::streams {

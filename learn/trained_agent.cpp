@@ -28,7 +28,7 @@ struct TrainedAgent::Impl {
   LearnedLayers learned;
   std::unique_ptr<AgentPolicy> policy;
   // What the policy was built for: a new frame, patch or a larger batch builds it again.
-  grid::FloorFrame frame{0, 0, 0};
+  grid::FloorFrame frame{.width_px = 0, .height_px = 0, .pixel_size_m = 0};
   int patch_px = 0;
   int max_robots = 0;
 };

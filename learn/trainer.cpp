@@ -124,7 +124,8 @@ struct Trainer::Impl {
             fmt::format("{}: a validation label is {}, the network has {} classes (from the training labels)", origin,
                         label, config.network.classes));
     worlds::check_against_floor(config.world, train.images.cols, train.images.rows);
-    frame = {train.images.cols, train.images.rows, config.world.floor.pixel_size_m};
+    frame = {
+        .width_px = train.images.cols, .height_px = train.images.rows, .pixel_size_m = config.world.floor.pixel_size_m};
     torch::manual_seed(config.seed);
     agent = agent::Agent(config.network);
     optimizer =
@@ -208,7 +209,9 @@ struct Trainer::Impl {
       const std::uint64_t stream = core::derive_seed(
           stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
       const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
-      EstimatorOptions est{config.rollouts, config.leave_one_out, config.entropy_bonus};
+      const EstimatorOptions est{.rollouts_per_image = config.rollouts,
+                                 .leave_one_out = config.leave_one_out,
+                                 .entropy_bonus = config.entropy_bonus};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
       sums.reward += out.reward.sum().item<double>();
@@ -245,8 +248,8 @@ struct Trainer::Impl {
         const RolloutBatch batch =
             make_batch(validation, indices, 1, config.world, frame,
                        core::derive_seed(core::derive_seed(config.seed, streams::kTrainValidation), first));
-        const BatchOutcome out =
-            run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision), {1, false, 0});
+        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision),
+                                           {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
         correct += count_correct(out.log_probs, batch.labels);
       }
     }

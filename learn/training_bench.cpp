@@ -42,7 +42,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   const worlds::LabeledImages train = worlds::load_split(c.data_folder, worlds::Split::Train);
   if (train.images.count == 0) throw InputError(c.data_folder.string() + ": no training images");
   worlds::check_against_floor(c.world, train.images.cols, train.images.rows);
-  const grid::FloorFrame frame{train.images.cols, train.images.rows, c.world.floor.pixel_size_m};
+  const grid::FloorFrame frame{
+      .width_px = train.images.cols, .height_px = train.images.rows, .pixel_size_m = c.world.floor.pixel_size_m};
   agent::NetworkConfig network = c.network;
   network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
   network.image_channels = train.images.channels;
@@ -51,7 +52,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   report.robots = robots;
   report.data_files = train.files;
   RolloutEngine engine(c.world, frame, robots);
-  const EstimatorOptions estimator{c.rollouts, c.leave_one_out, c.entropy_bonus};
+  const EstimatorOptions estimator{
+      .rollouts_per_image = c.rollouts, .leave_one_out = c.leave_one_out, .entropy_bonus = c.entropy_bonus};
 
   for (Stage mode : config.modes) {
     // Fresh weights per mode, so that the figures do not depend on which modes ran before.

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/random.hpp"
+#include "core/timing.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"
 #include "render/camera.hpp"
@@ -27,7 +28,8 @@ namespace scout::tools {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
+using core::Clock;
+using core::seconds_since;
 
 struct BenchOptions {
   std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
@@ -62,7 +64,7 @@ std::vector<double> time_repeats(int repeats, F&& body) {
     interrupt_token().throw_if_requested();
     const auto t0 = Clock::now();
     body(r);
-    seconds.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+    seconds.push_back(seconds_since(t0));
   }
   return seconds;
 }

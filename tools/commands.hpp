@@ -21,8 +21,8 @@ struct Context {
   std::vector<std::string> argv;  ///< the command line, for manifests
 };
 
-/// Installs the SIGINT / SIGTERM handler, for commands that poll interrupt_token() between units
-/// of work; other commands keep the default (the process ends at once).
+/// Installs the SIGINT / SIGTERM handler (main does, before any command runs): commands poll
+/// interrupt_token() between units of work; a command that never polls runs to its end.
 void install_interrupt_handler();
 /// The stop token of the process: requested once SIGINT or SIGTERM has arrived. Work that sees it
 /// throws core::Stopped (output folders are cleaned up by unwinding); main() exits with 130.

@@ -30,7 +30,7 @@ void add_data_command(CLI::App& app, const Context& context) {
       for (const char* prefix : {"train", "validation", "t10k"})
         for (const char* kind : {"images-idx3-ubyte", "labels-idx1-ubyte"})
           files.push_back(report.folder / (std::string(prefix) + "-" + kind));
-      write_file_atomic(report.folder / "manifest.json", make_manifest(context.argv, "", files, "").dump(2) + "\n");
+      write_file_atomic(report.folder / kManifestFile, make_manifest(context.argv, "", files, "").dump(2) + "\n");
       fmt::print("MNIST installed in {}: {} train, {} validation, {} test\n", report.folder.string(), report.train,
                  report.validation, report.test);
     }

@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
-#include "learn/trainer.hpp"
+#include "learn/train_config.hpp"
 #include "tools/parsing.hpp"
 
 namespace scout::tools {

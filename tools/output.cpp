@@ -60,7 +60,7 @@ OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path
     if (!fs::is_directory(target_, ec)) throw InputError("--out: " + display_ + " exists and is not a folder");
     if (!overwrite_) throw InputError("--out: " + display_ + " already exists (give --overwrite to replace it)");
     // --overwrite replaces earlier output, never an arbitrary folder.
-    if (!fs::is_empty(target_, ec) && !fs::exists(target_ / "manifest.json", ec))
+    if (!fs::is_empty(target_, ec) && !fs::exists(target_ / kManifestFile, ec))
       throw InputError("--out: " + display_ +
                        " is not empty and holds no manifest.json, so it is not a Scout output folder; not replaced");
   }
@@ -89,7 +89,7 @@ void OutputDir::commit() {
     return;
   }
   if (!overwrite_) throw InputError("--out: " + display_ + " appeared while running; not replaced");
-  if (!fs::is_empty(target_, ec) && !fs::exists(target_ / "manifest.json", ec))
+  if (!fs::is_empty(target_, ec) && !fs::exists(target_ / kManifestFile, ec))
     throw InputError("--out: " + display_ + " changed while running and holds no manifest.json; not replaced");
   // Old output aside, new output in, old output gone: at every moment one complete folder exists.
   const fs::path old = target_.parent_path() / fmt::format(".{}.old-{}", target_.filename().string(), unique_suffix());

@@ -10,6 +10,9 @@
 
 namespace scout::tools {
 
+/// The manifest every output folder of Scout holds (and what marks a folder as Scout's).
+inline constexpr const char* kManifestFile = "manifest.json";
+
 /// An output folder being written. `path()` is where to write; commit() moves it to its final
 /// place (replacing an old one only when overwriting was allowed).
 class OutputDir {

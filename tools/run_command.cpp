@@ -12,6 +12,7 @@
 #include <span>
 
 #include "core/random.hpp"
+#include "core/timing.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
 #include "learn/seed_streams.hpp"
@@ -176,7 +177,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   if (agent) inputs.push_back(learn::resolve_checkpoint(opt.checkpoint));
   OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
 
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = core::Clock::now();
   const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
   const int batch_robots = std::min(opt.count, kBatchRobots);
   const auto engine_owner = make_engine(world, frame, batch_robots);
@@ -231,7 +232,7 @@ void run_command(const RunOptions& opt, const Context& context) {
       }
     }
   }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double seconds = core::seconds_since(t0);
 
   trajectory << "\n ]\n}\n";
   trajectory.close();
@@ -245,7 +246,7 @@ void run_command(const RunOptions& opt, const Context& context) {
                               {"learned_actions", agent->learned().actions}};
   }
   manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
-  write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
   out.commit();
 
   fmt::print("{} run{} of {} ({} moves, {:.1f} ticks per move, {:.1f} px revealed per run) in {:.2f} s\n", opt.count,

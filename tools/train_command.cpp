@@ -195,11 +195,11 @@ fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, 
   const std::string what = o.data_root.empty() ? c.data_folder.string() : "--data: " + folder.string();
   std::set<std::string> recorded;
   try {
-    std::ifstream in(run / "manifest.json");
+    std::ifstream in(run / kManifestFile);
     const json manifest = json::parse(in);
     for (const auto& [file, hash] : manifest.at("data_sha256").items()) recorded.insert(hash.get<std::string>());
   } catch (const std::exception&) {
-    throw InputError(what + ": " + (run / "manifest.json").string() +
+    throw InputError(what + ": " + (run / kManifestFile).string() +
                      " has no readable data_sha256 to check the run's data against");
   }
   std::vector<fs::path> files = worlds::load_split(folder, worlds::Split::Train).files;
@@ -213,7 +213,7 @@ fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, 
 
 void write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed) {
   json manifest = make_manifest(context.argv, worlds::to_yaml(trainer.config().world), trainer.data_files(), "");
-  const fs::path file = run / "manifest.json";
+  const fs::path file = run / kManifestFile;
   // A resumed run keeps the first manifest and records each resumption under "resumed".
   if (resumed && fs::exists(file)) {
     try {
@@ -233,7 +233,7 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
   }
   manifest["torch_threads"] = trainer.threads();
   manifest["config"] = json::parse(trainer.config().to_json());
-  manifest["outputs"] = {{"checkpoint", "checkpoint.pt"}, {"metrics", "metrics.csv"}};
+  manifest["outputs"] = {{"checkpoint", learn::kCheckpointFile}, {"metrics", learn::kMetricsFile}};
   write_file_atomic(file, manifest.dump(2) + "\n");
 }
 
@@ -248,12 +248,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
 
   std::unique_ptr<learn::Trainer> trainer;
   fs::path run;
-  bool created = false;
   if (resuming) {
     run = o.resume;
-    if (!fs::is_regular_file(run / "checkpoint.pt"))
+    if (!fs::is_regular_file(run / learn::kCheckpointFile))
       throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
-    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / "checkpoint.pt");
+    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / learn::kCheckpointFile);
     check_resume_options(cmd, o, info.config, o.resume);
     const fs::path data_folder = resume_data_folder(o, info.config, run);
     // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
@@ -294,7 +293,6 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     if (fs::exists(run, ec))
       throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
     fs::create_directories(run);
-    created = true;
     try {
       trainer = std::make_unique<learn::Trainer>(config, run, o.threads);
     } catch (...) {
@@ -320,7 +318,6 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
                k.epoch, k.batch);
   }
   std::fflush(stdout);
-  (void)created;
 
   ProgressPrinter progress;
   learn::TrainHooks hooks;
@@ -339,7 +336,8 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   progress.end_line();
   switch (result.outcome) {
     case learn::TrainOutcome::Finished:
-      fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / "checkpoint.pt").string(), (run / "metrics.csv").string());
+      fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / learn::kCheckpointFile).string(),
+                 (run / learn::kMetricsFile).string());
       return;
     case learn::TrainOutcome::NonFinite:
       throw InputError(result.message);
