@@ -1,8 +1,4 @@
 #pragma once
-#ifndef SCOUT_LEARN_INTERNAL
-#error \
-    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
-#endif
 /// The learned policy: the agent's goal and action planners choosing for a rollout batch, and
 /// the log-probabilities the estimator needs. Torch header: include from learn/ sources only.
 #include <torch/torch.h>
@@ -13,6 +9,7 @@
 
 #include "agent/networks.hpp"
 #include "core/random.hpp"
+#include "learn/internal/private.hpp"
 #include "learn/rollout.hpp"
 
 namespace scout::learn {

@@ -1,8 +1,4 @@
 #pragma once
-#ifndef SCOUT_LEARN_INTERNAL
-#error \
-    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
-#endif
 /// Checkpoint files (RUN/checkpoint.pt): weights, optimizer state, the resolved config, where
 /// the schedule stands and the metrics so far, written atomically. Torch header: learn/ only.
 #include <torch/torch.h>
@@ -13,6 +9,7 @@
 
 #include "agent/networks.hpp"
 #include "learn/checkpoint.hpp"
+#include "learn/internal/private.hpp"
 #include "learn/trainer.hpp"
 
 namespace scout::learn {

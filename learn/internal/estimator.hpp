@@ -1,11 +1,9 @@
 #pragma once
-#ifndef SCOUT_LEARN_INTERNAL
-#error \
-    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
-#endif
 /// The generalized policy gradient's estimator with the unified reward (METHOD.md § The
 /// estimator). Torch header: include from learn/ sources and tests only.
 #include <torch/torch.h>
+
+#include "learn/internal/private.hpp"
 
 namespace scout::learn {
 

@@ -1,8 +1,4 @@
 #pragma once
-#ifndef SCOUT_LEARN_INTERNAL
-#error \
-    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
-#endif
 /// One batch of rollouts through the agent, ending in the classifier's verdict and J-hat: the
 /// step that training, evaluation and the estimator test share. Torch header: learn/ and tests.
 #include <torch/torch.h>
@@ -14,6 +10,7 @@
 
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/estimator.hpp"
+#include "learn/internal/private.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trainer.hpp"
 #include "worlds/dataset.hpp"

@@ -1,13 +1,10 @@
 #pragma once
-#ifndef SCOUT_LEARN_INTERNAL
-#error \
-    "learn/internal/ is private to scout_learn and its tests (CMake target scout_learn_internal); include learn/*.hpp"
-#endif
 /// The networks' arithmetic for one batch (agent::Precision). Torch header: learn/ sources only.
 #include <torch/torch.h>
 
 #include "agent/config.hpp"
 #include "agent/networks.hpp"
+#include "learn/internal/private.hpp"
 
 namespace scout::learn {
 
