@@ -17,7 +17,9 @@ std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestK
   if (!std::filesystem::is_regular_file(file, ec)) throw InputError(fmt::format("{}: no such file", file.string()));
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open: {}", file.string(), std::strerror(errno)));
-  const EVP_MD* algorithm = kind == DigestKind::Sha256 ? EVP_sha256() : EVP_sha512();
+  const EVP_MD* algorithm = kind == DigestKind::Sha256   ? EVP_sha256()
+                            : kind == DigestKind::Sha512 ? EVP_sha512()
+                                                         : EVP_md5();
   std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
   if (!ctx || EVP_DigestInit_ex(ctx.get(), algorithm, nullptr) != 1)
     throw InputError(fmt::format("{}: cannot initialise {}", file.string(), EVP_MD_get0_name(algorithm)));

@@ -23,6 +23,13 @@ std::string first_line(const char* what) {
   return one_line(text.substr(0, std::min(text.find('\n'), std::size_t{200})));
 }
 
+json optional_json(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
+
+std::optional<double> optional_from(const json& row, const char* key) {
+  if (!row.contains(key) || row.at(key).is_null()) return std::nullopt;
+  return row.at(key).get<double>();
+}
+
 json history_json(const std::vector<EpochMetrics>& history) {
   json rows = json::array();
   for (const EpochMetrics& m : history)
@@ -35,7 +42,10 @@ json history_json(const std::vector<EpochMetrics>& history) {
                     {"validation_accuracy", m.validation_accuracy},
                     {"images_per_s", m.images_per_s},
                     {"seconds", m.seconds},
-                    {"learning_rate", m.learning_rate}});
+                    {"learning_rate", m.learning_rate},
+                    {"validation_iid", optional_json(m.validation_iid)},
+                    {"validation_goals_only", optional_json(m.validation_goals_only)},
+                    {"validation_full_image", optional_json(m.validation_full_image)}});
   return rows;
 }
 
@@ -55,6 +65,9 @@ std::vector<EpochMetrics> history_from(const json& rows, double learning_rate) {
     m.images_per_s = r.at("images_per_s").get<double>();
     m.seconds = r.at("seconds").get<double>();
     m.learning_rate = r.contains("learning_rate") ? r.at("learning_rate").get<double>() : learning_rate;
+    m.validation_iid = optional_from(r, "validation_iid");
+    m.validation_goals_only = optional_from(r, "validation_goals_only");
+    m.validation_full_image = optional_from(r, "validation_full_image");
     history.push_back(m);
   }
   return history;

@@ -23,6 +23,9 @@ inline constexpr std::uint64_t kRobotPolicy = 2;  ///< the robot's goal and axis
 inline constexpr std::uint64_t kTrainOrder = 11;       ///< data order of (stage, epoch)
 inline constexpr std::uint64_t kTrainBatch = 12;       ///< batch streams of (stage, epoch), then the batch index
 inline constexpr std::uint64_t kTrainValidation = 13;  ///< validation passes (the same every epoch)
+/// The per-epoch baselines' validation passes (the same every epoch).
+inline constexpr std::uint64_t kTrainValidationIid = 14;        ///< i.i.d. goals and actions
+inline constexpr std::uint64_t kTrainValidationGoalsOnly = 15;  ///< learned goals, i.i.d. actions
 
 // An evaluation: stochastic run k's seed is derive_seed(eval seed, k), and image i of a pass
 // drives with derive_seed(pass seed, i). The baselines' passes take these streams below run k's

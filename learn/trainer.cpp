@@ -64,12 +64,20 @@ int set_torch_threads(int threads) {
 }
 
 std::string metrics_csv_header() {
-  return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate\n";
+  return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate,"
+         "validation_iid,validation_goals_only,validation_full_image\n";
 }
 
+namespace {
+// An empty field for a figure a row does not have (rows written before it was measured).
+std::string csv_optional(const std::optional<double>& v) { return v ? fmt::format("{:.6f}", *v) : std::string(); }
+}  // namespace
+
 std::string metrics_csv_row(const EpochMetrics& m) {
-  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{}\n", to_string(m.stage), m.epoch, m.reward,
-                     m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds, m.learning_rate);
+  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{},{},{},{}\n", to_string(m.stage), m.epoch,
+                     m.reward, m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds,
+                     m.learning_rate, csv_optional(m.validation_iid), csv_optional(m.validation_goals_only),
+                     csv_optional(m.validation_full_image));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -227,33 +235,61 @@ struct Trainer::Impl {
     return value;
   }
 
-  double validation_accuracy() {
+  // The classifier on the full validation images.
+  double validation_full_image_accuracy() {
     torch::NoGradGuard no_grad;
     agent->eval();
-    const Stage s = stage();
     const int n = validation.images.count;
     if (n == 0) return 0;
+    const int chunk = config.batch_images * config.rollouts;
+    const auto area = static_cast<std::size_t>(frame.area_px());
+    long correct = 0;
+    for (int first = 0; first < n; first += chunk) {
+      const int k = std::min(chunk, n - first);
+      torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
+      std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
+      correct += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
+    }
+    return static_cast<double>(correct) / n;
+  }
+
+  // One stochastic pass of `sampling` over the validation digits; image i drives with
+  // derive_seed(derive_seed(seed, stream), i)'s chunk stream, the same every epoch.
+  double validation_rollout_accuracy(Sampling sampling, std::uint64_t stream) {
+    torch::NoGradGuard no_grad;
+    agent->eval();
+    const int n = validation.images.count;
+    if (n == 0) return 0;
+    sampling.with_grad = false;
+    sampling.precision = config.precision;
     const int chunk = config.batch_images * config.rollouts;
     long correct = 0;
     for (int first = 0; first < n; first += chunk) {
       const int k = std::min(chunk, n - first);
       std::vector<int> indices(k);
       for (int i = 0; i < k; ++i) indices[i] = first + i;
-      if (s == Stage::Pretrain) {
-        const auto area = static_cast<std::size_t>(frame.area_px());
-        torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
-        std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
-        correct += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
-      } else {
-        const RolloutBatch batch =
-            make_batch(validation, indices, 1, config.world, frame,
-                       core::derive_seed(core::derive_seed(config.seed, streams::kTrainValidation), first));
-        const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, false, config.precision),
-                                           {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
-        correct += count_correct(out.log_probs, batch.labels);
-      }
+      const RolloutBatch batch = make_batch(validation, indices, 1, config.world, frame,
+                                            core::derive_seed(core::derive_seed(config.seed, stream), first));
+      const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling,
+                                         {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
+      correct += count_correct(out.log_probs, batch.labels);
     }
     return static_cast<double>(correct) / n;
+  }
+
+  // The epoch's validation figures: this stage's policy (full images in pretraining), the two
+  // baselines with the same classifier, and the classifier on full images.
+  void validate(EpochMetrics& m) {
+    const Stage s = stage();
+    m.validation_full_image = validation_full_image_accuracy();
+    Sampling iid;
+    Sampling goals_only;
+    goals_only.learned_goals = true;
+    m.validation_iid = validation_rollout_accuracy(iid, streams::kTrainValidationIid);
+    m.validation_goals_only = validation_rollout_accuracy(goals_only, streams::kTrainValidationGoalsOnly);
+    m.validation_accuracy = s == Stage::Pretrain ? *m.validation_full_image
+                                                 : validation_rollout_accuracy(sampling_for(s, false, config.precision),
+                                                                               streams::kTrainValidation);
   }
 
   void write_metrics() const {
@@ -337,7 +373,7 @@ struct Trainer::Impl {
       m.loss = sums.batches ? sums.loss / sums.batches : 0;
       m.train_accuracy = sums.robots ? static_cast<double>(sums.correct) / sums.robots : 0;
       m.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
-      m.validation_accuracy = validation_accuracy();
+      validate(m);
       // Wall time: this process's part of the epoch, plus the training time before a resume.
       m.seconds = seconds_before + seconds_since(epoch_start);
       m.learning_rate = config.learning_rate;

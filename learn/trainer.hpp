@@ -24,9 +24,14 @@ struct EpochMetrics {
   double loss = 0;                 ///< mean -J-hat over the epoch's batches
   double train_accuracy = 0;       ///< share of the epoch's rollouts classified right
   double validation_accuracy = 0;  ///< one stochastic pass over the validation digits, this stage's policy
-  double images_per_s = 0;         ///< training images per second (validation excluded)
-  double seconds = 0;              ///< wall time of the epoch, validation included
-  double learning_rate = 0;        ///< Adam's step size in this epoch (may be lowered on --resume)
+  // The same classifier under the baselines' policies, and on full images (one pass each over the
+  // validation digits); empty in rows written before they were measured.
+  std::optional<double> validation_iid;         ///< i.i.d. goals and actions
+  std::optional<double> validation_goals_only;  ///< learned goals, i.i.d. actions
+  std::optional<double> validation_full_image;  ///< the classifier on full, unmasked images
+  double images_per_s = 0;                      ///< training images per second (validation excluded)
+  double seconds = 0;                           ///< wall time of the epoch, validation included
+  double learning_rate = 0;                     ///< Adam's step size in this epoch (may be lowered on --resume)
 };
 /// metrics.csv's header line and one row.
 std::string metrics_csv_header();

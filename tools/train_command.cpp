@@ -326,10 +326,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   hooks.on_epoch = [&](const learn::EpochMetrics& m) {
     progress.end_line();
     fmt::print(
-        "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f}  {:.1f} images/s  "
-        "{:.1f} s\n",
-        learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s,
-        m.seconds);
+        "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {:.4f}, goals "
+        "only {:.4f}, full images {:.4f})  {:.1f} images/s  {:.1f} s\n",
+        learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
+        m.validation_iid.value_or(0), m.validation_goals_only.value_or(0), m.validation_full_image.value_or(0),
+        m.images_per_s, m.seconds);
     std::fflush(stdout);
   };
   const learn::TrainResult result = trainer->run(hooks);

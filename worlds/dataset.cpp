@@ -91,10 +91,13 @@ fs::path default_data_root() {
   return fs::path(SCOUT_SOURCE_DIR) / "data";
 }
 
+std::array<std::string_view, 3> named_datasets() { return {"mnist", "mnist-10k", "fashion-mnist"}; }
+
 fs::path dataset_folder(const std::string& name, const fs::path& data_root) {
   // The data folder may be the project's (MNIST in its mnist/ subfolder) or a folder that holds
   // MNIST's IDX files itself, such as a user's full download.
   if (name == "mnist") return find_idx(data_root, std::string("train") + kImagesKind) ? data_root : data_root / "mnist";
+  if (name == "mnist-10k") return data_root / "mnist-10k";
   if (name == "fashion-mnist") return "/usr/share/datasets/fashion-mnist";
   return fs::path(name);
 }

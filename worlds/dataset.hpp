@@ -1,9 +1,11 @@
 #pragma once
 /// Labelled image sets on disk: the project's data folder, Debian's Fashion-MNIST, or any
 /// folder of IDX files with the standard names, and their train / validation / test splits.
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "worlds/idx.hpp"
@@ -21,9 +23,14 @@ struct LabeledImages {
 /// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
 std::filesystem::path default_data_root();
 
+/// The data sets known by name: "mnist" (the whole of MNIST, `scout data`), "mnist-10k" (its
+/// first 10,000 training digits, for fast tests) and "fashion-mnist" (Debian's package).
+std::array<std::string_view, 3> named_datasets();
+
 /// Folder holding data set `name`: "mnist" -> <data_root>/mnist, or <data_root> itself when it
-/// holds train-images-idx3-ubyte[.gz] (a user's MNIST download), "fashion-mnist" ->
-/// /usr/share/datasets/fashion-mnist, anything else is a folder path used as given.
+/// holds train-images-idx3-ubyte[.gz] (a user's MNIST download), "mnist-10k" ->
+/// <data_root>/mnist-10k, "fashion-mnist" -> /usr/share/datasets/fashion-mnist, anything else is
+/// a folder path used as given.
 std::filesystem::path dataset_folder(const std::string& name, const std::filesystem::path& data_root);
 
 /// Loads one split of an IDX folder. File names: train-*, validation-*, t10k-* with

@@ -186,7 +186,8 @@ FloorSet load_dataset(const World& world, const fs::path& data_root) {
     // The data set's own message names its folder or file; the prefix names the world's field.
     // The project's MNIST is the data set most often missing: say how to install it.
     std::error_code ec;
-    const bool mnist_missing = world.floor.dataset == "mnist" && !fs::is_directory(folder, ec);
+    const bool mnist_missing =
+        (world.floor.dataset == "mnist" || world.floor.dataset == "mnist-10k") && !fs::is_directory(folder, ec);
     const std::string hint = !mnist_missing ? ""
                              : data_root == default_data_root()
                                  ? " (run `scout data` to install MNIST)"

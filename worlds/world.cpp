@@ -28,6 +28,8 @@
 #include <variant>
 #include <vector>
 
+#include "worlds/dataset.hpp"
+
 namespace scout::worlds {
 
 const char* to_string(Split split) {
@@ -163,7 +165,7 @@ constexpr double kIntMax = std::numeric_limits<int>::max();
 // clang-format off
 constexpr Row<FloorSpec> kFloorRows[] = {
     {"dataset", Type::Dataset, &FloorSpec::dataset, {}, "non-empty", "",
-     "`mnist`, `fashion-mnist`, or a folder of IDX files (relative to the world file)"},
+     "`mnist`, `mnist-10k`, `fashion-mnist`, or a folder of IDX files (relative to the world file)"},
     {"split", Type::SplitName, &FloorSpec::split, {}, "", "",
      "which split of `dataset` the floor comes from"},
     {"index", Type::IndexOrRandom, &FloorSpec::index, closed(0, kIntMax), "and below the split's size", "",
@@ -334,8 +336,11 @@ std::string_view type_text(Type type) {
   return {};
 }
 
-/// Data sets known by name; any other `dataset` is a folder.
-bool named_dataset(std::string_view dataset) { return dataset == "mnist" || dataset == "fashion-mnist"; }
+/// Data sets known by name (dataset_folder resolves them); any other `dataset` is a folder.
+bool named_dataset(std::string_view dataset) {
+  const auto names = named_datasets();
+  return std::find(names.begin(), names.end(), dataset) != names.end();
+}
 
 /// A field's value as plain text, as to_yaml writes it (without its quotes): the docs' defaults.
 template <class Spec>
@@ -688,7 +693,8 @@ void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const 
       spec.*std::get<std::uint64_t Spec::*>(row.member) = read_u64(f);
       return;
     case Type::Dataset:
-      spec.*std::get<std::string Spec::*>(row.member) = read_string(f, "mnist, fashion-mnist or a folder of IDX files");
+      spec.*std::get<std::string Spec::*>(row.member) =
+          read_string(f, "mnist, mnist-10k, fashion-mnist or a folder of IDX files");
       return;
     case Type::SplitName:
       spec.*std::get<Split Spec::*>(row.member) = read_split(f);

