@@ -85,11 +85,18 @@ Data read_data(const EvalConfig& config, const worlds::World& world, int classes
   d.set.images = worlds::read_idx_images(config.images);
   d.set.labels = worlds::read_idx_labels(config.labels);
   d.set.files = {config.images, config.labels};
+  if (config.image_limit < 0)
+    throw InputError(fmt::format("image_limit: expected 0 (all) or a positive count, got {}", config.image_limit));
   const std::string images = config.images.string(), labels = config.labels.string();
   if (d.set.images.count == 0) throw InputError(images + ": expected at least one image, the file has none");
   if (d.set.labels.size() != static_cast<std::size_t>(d.set.images.count))
     throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels, d.set.images.count,
                                  images, d.set.labels.size()));
+  if (config.image_limit > 0 && config.image_limit < d.set.images.count) {
+    d.set.images.count = config.image_limit;
+    d.set.images.pixels.resize(static_cast<std::size_t>(config.image_limit) * d.set.images.rows * d.set.images.cols);
+    d.set.labels.resize(static_cast<std::size_t>(config.image_limit));
+  }
   for (std::size_t i = 0; i < d.set.labels.size(); ++i)
     if (d.set.labels[i] >= classes)
       throw InputError(
@@ -109,6 +116,7 @@ Data read_data(const EvalConfig& config, const worlds::World& world, int classes
 // What one pass over all images gave: per image, log pi_c.
 struct Pass {
   int correct = 0, top2 = 0;
+  long revealed_px = 0;     // summed over the images: pixels seen by the end of the rollout
   torch::Tensor log_probs;  // [images, D]
 };
 
@@ -148,6 +156,7 @@ class Evaluator {
       batch.count = k;
       const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
+      for (int i = 0; i < k; ++i) pass.revealed_px += engine_->state().seen[static_cast<std::size_t>(i)].count();
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);
@@ -235,7 +244,9 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   if (network.image_channels != worlds::ImageSet::channels)
     throw InputError(fmt::format("{}: network.image_channels: expected {} (the floors' channels), got {}", checkpoint,
                                  worlds::ImageSet::channels, network.image_channels));
-  const worlds::World world = config.world_file ? worlds::load_world(*config.world_file) : state.config.world;
+  const worlds::World world = config.world        ? *config.world
+                              : config.world_file ? worlds::load_world(*config.world_file)
+                                                  : state.config.world;
   const Data data = read_data(config, world, network.classes);
   set_torch_threads(0);
   torch::NoGradGuard no_grad;
@@ -259,7 +270,10 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   report.runs = runs;
   report.images = n;
   report.checkpoint = checkpoint;
-  report.world = config.world_file ? config.world_file->string() : world.file.string();
+  report.world = config.world_file && !config.world ? config.world_file->string() : world.file.string();
+  report.patch_px = world.camera.patch_px;
+  report.episodes = world.task.episodes;
+  report.steps = world.task.steps;
   report.seed = config.seed;
   report.learned_goals = learned.goals;
   report.learned_actions = learned.actions;
@@ -269,6 +283,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
 
   Evaluator evaluator(*agent, world, data, config.batch_robots, precision, stop);
   std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
+  long revealed_px = 0;
   torch::Tensor probability_sum = torch::zeros({n, classes}, torch::kDouble);
   std::vector<long> row_counts(classes, 0);
   for (int label : report.labels) ++row_counts[label];
@@ -277,6 +292,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
     const Pass pass = evaluator.run(sampling, seed_k);
     accuracy[k] = static_cast<double>(pass.correct) / n;
     top2[k] = static_cast<double>(pass.top2) / n;
+    revealed_px += pass.revealed_px;
     probability_sum += pass.log_probs.to(torch::kDouble).exp();
     // This run's confusion counts, row-normalised; rows of absent labels stay 0.
     const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
@@ -287,6 +303,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
       for (int col = 0; col < classes; ++col)
         if (row_counts[row] > 0)
           report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
+    if (config.agent_only) continue;
     iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid)).correct) / n;
     // Without a learned goal layer the baseline would only measure an untrained planner.
     goals_only_accuracy[k] =
@@ -297,11 +314,18 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   }
   report.accuracy = mean_ci95(accuracy);
   report.top2 = mean_ci95(top2);
-  report.iid_accuracy = mean_of(iid_accuracy);
-  report.goals_only_accuracy = mean_of(goals_only_accuracy);
-  report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
-  report.greedy_accuracy =
-      static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy)).correct) / n;
+  report.revealed_fraction = static_cast<double>(revealed_px) / (static_cast<double>(n) * runs * data.frame.area_px());
+  if (config.agent_only) {
+    constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
+    report.iid_accuracy = report.goals_only_accuracy = report.full_image_accuracy = report.greedy_accuracy =
+        kNotMeasured;
+  } else {
+    report.iid_accuracy = mean_of(iid_accuracy);
+    report.goals_only_accuracy = mean_of(goals_only_accuracy);
+    report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
+    report.greedy_accuracy =
+        static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy)).correct) / n;
+  }
 
   const torch::Tensor mean_probabilities = (probability_sum / runs).contiguous();
   const double* m = mean_probabilities.data_ptr<double>();
@@ -327,6 +351,7 @@ std::string report_json(const EvalReport& report) {
   if (!std::isnan(report.goals_only_accuracy)) j["baselines"]["goals_only"] = report.goals_only_accuracy;
   j["full_image_accuracy"] = report.full_image_accuracy;
   j["greedy_accuracy"] = report.greedy_accuracy;
+  j["revealed_fraction"] = report.revealed_fraction;
   j["runs"] = report.runs;
   j["images"] = report.images;
   j["seconds"] = report.seconds;

@@ -12,6 +12,7 @@
 
 #include "agent/config.hpp"
 #include "core/stop.hpp"
+#include "worlds/world.hpp"
 
 namespace scout::learn {
 
@@ -23,6 +24,10 @@ struct EvalConfig {
   std::uint64_t seed = 1;                           ///< run k uses derive_seed(seed, k)
   int batch_robots = 240;                           ///< robots per rollout batch
   std::optional<agent::Precision> precision;        ///< default: the checkpoint's; Auto: this CPU's
+  /// A world given whole (scout report's budget sweep: other m, E, T); overrides world_file.
+  std::optional<worlds::World> world;
+  int image_limit = 0;      ///< the first K images only (0: all)
+  bool agent_only = false;  ///< only the R stochastic runs: no baselines, full images or greedy run
 };
 
 /// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).
@@ -39,12 +44,14 @@ struct EvalReport {
   double goals_only_accuracy = 0;              ///< baseline: learned goals, i.i.d. actions (NaN: no learned goal layer)
   double full_image_accuracy = 0;              ///< the classifier on full images (u_c = x)
   double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
+  double revealed_fraction = 0;                ///< share of the floor's pixels seen by the end, stochastic runs
   int runs = 0, images = 0;
   double seconds = 0;
   std::vector<int> labels;                                 ///< per image
   std::vector<std::vector<double>> probabilities;          ///< per image: mean pi_c over the runs (D values)
   std::string checkpoint;                                  ///< the checkpoint file, as given
   std::string world;                                       ///< the world file used (--world or the checkpoint's)
+  int patch_px = 0, episodes = 0, steps = 0;               ///< the task evaluated: m, E, T
   std::uint64_t seed = 0;                                  ///< the evaluation's seed
   bool learned_goals = false;                              ///< the checkpoint's history has a mode (ii) or (iii) epoch
   bool learned_actions = false;                            ///< ... a mode (iii) epoch

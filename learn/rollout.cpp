@@ -140,7 +140,9 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       records[i].steps.reserve(static_cast<std::size_t>(E) * T);
       records[i].path.reserve(static_cast<std::size_t>(E) * T + 1);
       records[i].path.push_back(state_.pose[i]);
+      records[i].tick_path_px.push_back(robots_->position_px(i));
     }
+    tick_positions_.resize(static_cast<std::size_t>(count));
   }
 
   for (int e = 0; e < E; ++e) {
@@ -164,7 +166,11 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       timing_.other_s += seconds_since(t0);
 
       t0 = Clock::now();
-      robots_->move(commands_, results_);
+      if (record)
+        for (int i = 0; i < count; ++i) tick_positions_[i].clear();
+      robots_->move(commands_, results_,
+                    record ? std::span(tick_positions_.data(), static_cast<std::size_t>(count))
+                           : std::span<std::vector<Eigen::Vector2d>>());
       for (int i = 0; i < count; ++i) state_.pose[i] = robots_->grid_pose(i);
       timing_.physics_s += seconds_since(t0);
       observe(count);
@@ -190,6 +196,8 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
           s.revealed_px = state_.seen[i].count();
           records[i].steps.push_back(s);
           records[i].path.push_back(state_.pose[i]);
+          records[i].tick_path_px.insert(records[i].tick_path_px.end(), tick_positions_[i].begin(),
+                                         tick_positions_[i].end());
         }
       }
       timing_.other_s += seconds_since(t0);

@@ -84,6 +84,9 @@ struct RolloutRecord {
   std::vector<StepRecord> steps;          ///< E * T of them, no-op moves included
   std::vector<grid::Cell> path;           ///< start, then the grid pose after each move
   std::vector<SnapshotRecord> snapshots;  ///< at the start of each episode (goal drawn) and at the end
+  /// The robot's centre (floor pixels, continuous) at the start and after every physics tick:
+  /// move k added steps[k].result.ticks of them (animations, `scout run --video`).
+  std::vector<Eigen::Vector2d> tick_path_px;
 };
 
 /// Where a batch's time went, seconds.
@@ -132,6 +135,7 @@ class RolloutEngine {
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
   std::vector<render::PixelPose> pixel_poses_;
+  std::vector<std::vector<Eigen::Vector2d>> tick_positions_;  // per robot, one move's ticks (record only)
   RolloutTiming timing_;
 };
 

@@ -58,12 +58,33 @@ void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int
 
 cv::Point pixel_centre(PixelPose pose, int scale) { return {pose.x * scale + scale / 2, pose.y * scale + scale / 2}; }
 
+// The outline of an m x m window centred on a continuous position (pixels), clipped to the
+// floor, drawn with sub-pixel precision: the camera window of a robot between grid poses. At a
+// cell centre (x + 0.5, y + 0.5) it covers exactly the cells draw_window does.
+void draw_moving_window(cv::Mat& image, const Snapshot& snapshot, const Snapshot::Body& body, int thickness,
+                        const cv::Scalar& colour) {
+  const double s = snapshot.scale;
+  const double left = std::max(0.0, body.x_px - 0.5 - snapshot.patch_px / 2);
+  const double top = std::max(0.0, body.y_px - 0.5 - snapshot.patch_px / 2);
+  const double right = std::min<double>(snapshot.width_px, body.x_px - 0.5 - snapshot.patch_px / 2 + snapshot.patch_px);
+  const double bottom =
+      std::min<double>(snapshot.height_px, body.y_px - 0.5 - snapshot.patch_px / 2 + snapshot.patch_px);
+  if (left >= right || top >= bottom) return;
+  // Inside the window, like draw_window's bands: the rectangle runs through the bands' middles.
+  const double inset = thickness / 2.0;
+  constexpr int kShift = 4;  // OpenCV fixed point: 1/16 output pixel
+  auto fixed = [](double v) { return static_cast<int>(std::lround(v * (1 << kShift))); };
+  cv::rectangle(image, cv::Point(fixed(left * s + inset), fixed(top * s + inset)),
+                cv::Point(fixed(right * s - inset), fixed(bottom * s - inset)), colour, thickness, cv::LINE_AA, kShift);
+}
+
 // One horizontal bar per class, labelled with its index; the most probable class highlighted.
-void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
+// `pending`: the labels only, nothing highlighted (no prediction yet).
+void draw_panel(cv::Mat& panel, std::span<const float> probabilities, bool pending) {
   panel.setTo(kPanelBackground);
   const int classes = static_cast<int>(probabilities.size());
   const auto best = std::max_element(probabilities.begin(), probabilities.end());
-  const int best_class = static_cast<int>(best - probabilities.begin());
+  const int best_class = pending ? -1 : static_cast<int>(best - probabilities.begin());
   const double row_px = static_cast<double>(panel.rows) / classes;
   const int label_px = std::max(12, panel.cols / 6);
   const int bar_space_px = std::max(1, panel.cols - label_px - 8);
@@ -72,7 +93,7 @@ void draw_panel(cv::Mat& panel, std::span<const float> probabilities) {
     const int top = static_cast<int>(std::lround(c * row_px));
     const int bottom = static_cast<int>(std::lround((c + 1) * row_px));
     const int margin = std::max(0, (bottom - top) / 6);
-    float p = probabilities[static_cast<std::size_t>(c)];
+    float p = pending ? 0.0f : probabilities[static_cast<std::size_t>(c)];
     if (!std::isfinite(p)) p = 0.0f;
     p = std::clamp(p, 0.0f, 1.0f);
     const int length = static_cast<int>(std::lround(p * bar_space_px));
@@ -245,7 +266,20 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   // The robot's window last, so that it stays visible when it meets the goal.
   const int outline_px = std::max(1, s / 5);
   if (snapshot.goal) draw_window(map, snapshot, *snapshot.goal, outline_px, kGoalColour);
-  draw_window(map, snapshot, snapshot.robot, outline_px, kRobotColour);
+  if (snapshot.body) {
+    const Snapshot::Body& body = *snapshot.body;
+    constexpr int kShift = 4;
+    const double radius = std::max(1.0, body.radius_px * s);
+    cv::Mat overlay = map.clone();
+    cv::circle(
+        overlay,
+        cv::Point(static_cast<int>(std::lround(body.x_px * s * 16)), static_cast<int>(std::lround(body.y_px * s * 16))),
+        static_cast<int>(std::lround(radius * 16)), kRobotColour, cv::FILLED, cv::LINE_AA, kShift);
+    cv::addWeighted(overlay, 0.35, map, 0.65, 0.0, map);  // the disc shows the floor under it
+    draw_moving_window(map, snapshot, body, outline_px, kRobotColour);
+  } else {
+    draw_window(map, snapshot, snapshot.robot, outline_px, kRobotColour);
+  }
 
   if (legend) {
     cv::Mat strip = image(cv::Rect(width, 0, legend_width, height));
@@ -253,7 +287,7 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   }
   if (has_panel) {
     cv::Mat panel = image(cv::Rect(width + legend_width, 0, panel_width, height));
-    draw_panel(panel, snapshot.class_probabilities);
+    draw_panel(panel, snapshot.class_probabilities, snapshot.prediction_pending);
   }
 
   Picture picture;

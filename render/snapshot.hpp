@@ -28,6 +28,17 @@ struct Snapshot {
   std::span<const float> goal_probabilities;   ///< optional goal distribution pi_g over the floor's pixels
                                                ///< (width*height, row-major); drawn as a heat map
   int scale = 10;                              ///< output pixels per floor pixel
+  /// The robot's body between grid poses (animations): its centre in continuous floor pixels
+  /// (pixel (x, y) spans [x, x + 1) x [y, y + 1)) and its radius. Drawn as a disc, and the camera
+  /// window follows it instead of sitting on `robot`. Unset: the window at `robot`, no disc.
+  struct Body {
+    double x_px = 0, y_px = 0;
+    double radius_px = 0;
+  };
+  std::optional<Body> body;
+  /// With class_probabilities: draw the panel's labels but no bars yet (the classifier is asked
+  /// only after the last move), so that every frame of a video has the same size.
+  bool prediction_pending = false;
 };
 
 /// A BGR image as bytes (rows * cols * 3) with its size.

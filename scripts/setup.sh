@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets up Scout on a fresh Debian 12 machine, idempotently: installs the Debian packages it
 # needs (only the missing ones), builds it (Release) into build/, and installs the MNIST data
-# (`scout data`: a no-op once done). Run as root, or with sudo available.
+# (`scout data`: the whole of MNIST and its 10,000-digit subset; a no-op once done). Run as root, or with sudo available.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -9,13 +9,15 @@ packages=(
   build-essential cmake pkg-config git ca-certificates
   libbox2d-dev            # physics (sim/)
   libosmesa6-dev libgl-dev  # offscreen OpenGL camera (render/)
-  libopencv-dev           # trajectory images, PNG floors
+  libopencv-dev           # trajectory images, PNG floors, MP4 videos
+  libgif-dev              # GIF videos (scout run --video)
   libtorch-dev            # networks (agent/, learn/)
   libopenblas0-pthread    # fast BLAS for LibTorch (else the reference BLAS)
   libeigen3-dev           # geometry
   libyaml-cpp-dev         # world files
   libcli11-dev libfmt-dev nlohmann-json3-dev zlib1g-dev libssl-dev
   libgtest-dev            # tests
+  python3 python3-numpy python3-matplotlib python3-pytest  # scout report's figures, Python tests (/usr/bin/python3)
   dataset-fashion-mnist   # Fashion-MNIST floors
 )
 

@@ -136,10 +136,14 @@ bool RobotBatch::touching_wall(int robot) const {
   return false;
 }
 
-void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results) {
+void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results,
+                      std::span<std::vector<Eigen::Vector2d>> tick_positions_px) {
   if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size())
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(commands.size()) + " commands for " +
                                 std::to_string(count_) + " robots and " + std::to_string(results.size()) + " results");
+  if (!tick_positions_px.empty() && tick_positions_px.size() < commands.size())
+    throw std::invalid_argument("RobotBatch::move: " + std::to_string(tick_positions_px.size()) + " tick traces for " +
+                                std::to_string(commands.size()) + " commands");
   const float dt = static_cast<float>(params_.physics.dt_s);
   const double units_per_m = kUnitsPerPx / frame_.pixel_size_m;
   const double tolerance_u = params_.controller.tolerance_px * kUnitsPerPx;
@@ -178,6 +182,7 @@ void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult
       const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
       peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(r.body->GetLinearVelocity().Length())});
       const double x = now.x / kUnitsPerPx, y = now.y / kUnitsPerPx;
+      if (!tick_positions_px.empty()) tick_positions_px[i].emplace_back(x, y);
       out.beyond_border_px =
           std::max({out.beyond_border_px, 0.5 - x, x - (frame_.width_px - 0.5), 0.5 - y, y - (frame_.height_px - 0.5)});
       if (!out.touched_wall) out.touched_wall = touching_wall(i);

@@ -52,8 +52,11 @@ class RobotBatch {
 
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
   /// i < commands.size(), all in one call; results[i] tells how it went. Targets are not
-  /// clamped: a command past the floor's edge ends against the wall.
-  void move(std::span<const grid::Cell> commands, std::span<MoveResult> results);
+  /// clamped: a command past the floor's edge ends against the wall. With `tick_positions_px`
+  /// (one vector per commanded robot), robot i appends its centre (pixels) after every tick: the
+  /// motion between grid poses, for animations.
+  void move(std::span<const grid::Cell> commands, std::span<MoveResult> results,
+            std::span<std::vector<Eigen::Vector2d>> tick_positions_px = {});
 
   /// The robot centre's continuous position in the floor frame, pixels and metres.
   Eigen::Vector2d position_px(int robot) const;

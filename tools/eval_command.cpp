@@ -32,6 +32,7 @@ struct EvalOptions {
   std::string checkpoint, images, labels, world;
   std::string seed;  // empty: 1
   int runs = 20;
+  int limit = 0;  // the first K images only (0: all)
   std::string json_out, predictions_out;
   std::string precision;  // empty: the checkpoint's
 };
@@ -83,6 +84,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   config.labels = opt.labels;
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
+  config.image_limit = opt.limit;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
   // Checked by the option; auto is resolved here and announced once the evaluation has run.
   if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
@@ -143,6 +145,9 @@ void add_eval_command(CLI::App& app, const Context& context) {
                   "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 | fp32 "
                   "(default: the checkpoint's)")
       ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
+  cmd->add_option("--limit", opt->limit, "Evaluate on the first K images only (0: all)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 100000000));
   cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");

@@ -18,8 +18,10 @@
 #include "learn/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "render/snapshot.hpp"
+#include "render/video.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
+#include "tools/run_video.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"
 
@@ -45,6 +47,8 @@ struct RunOptions {
   std::string checkpoint;  // empty: mode (i)
   bool greedy = false;
   bool heat_map = false;
+  std::string video;  // empty: none
+  double fps = 30;
 };
 
 /// One rollout to do: its digit, and its seed, which fixes its start and its choices.
@@ -153,6 +157,8 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
 
 void run_command(const RunOptions& opt, const Context& context) {
   if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
+  // A bad video path is refused before any work, like a bad --out.
+  if (!opt.video.empty()) render::check_video_path("--video", opt.video);
   std::unique_ptr<learn::TrainedAgent> agent;
   if (!opt.checkpoint.empty()) {
     agent = learn::TrainedAgent::load(opt.checkpoint);
@@ -176,6 +182,12 @@ void run_command(const RunOptions& opt, const Context& context) {
   inputs.push_back(opt.world);
   if (agent) inputs.push_back(learn::resolve_checkpoint(opt.checkpoint));
   OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
+  if (!opt.video.empty() && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
+    throw InputError(fmt::format("--scale: expected at most {} for a video of a {} x {} floor, got {}",
+                                 render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
+                                 frame.height_px, opt.scale));
+  std::unique_ptr<render::VideoWriter> video;
+  if (!opt.video.empty()) video = std::make_unique<render::VideoWriter>(opt.video, opt.fps);
 
   const auto t0 = core::Clock::now();
   const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
@@ -224,6 +236,17 @@ void run_command(const RunOptions& opt, const Context& context) {
       for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
       moves += static_cast<long>(rec.steps.size());
       revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
+      if (video) {
+        interrupt_token().throw_if_requested();
+        append_run_frames(*video, {.record = &rec,
+                                   .floor = batch_floors.data() + area * i,
+                                   .frame = frame,
+                                   .patch_px = world.camera.patch_px,
+                                   .robot_radius_px = world.robot.radius_m / world.floor.pixel_size_m,
+                                   .scale = opt.scale,
+                                   .class_probabilities = p,
+                                   .fps = opt.fps});
+      }
       if (!opt.no_images) {
         interrupt_token().throw_if_requested();
         const AgentOverlay overlay{.class_probabilities = p, .agent = opt.heat_map ? agent.get() : nullptr, .robot = i};
@@ -246,6 +269,11 @@ void run_command(const RunOptions& opt, const Context& context) {
                               {"learned_actions", agent->learned().actions}};
   }
   manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
+  if (video) {
+    video->finish();
+    manifest["outputs"]["video"] = {
+        {"path", opt.video}, {"frames", video->frames()}, {"fps", opt.fps}, {"codec", video->codec()}};
+  }
   write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
   out.commit();
 
@@ -255,6 +283,8 @@ void run_command(const RunOptions& opt, const Context& context) {
   fmt::print("trajectory: {}\n", (fs::path(out.target()) / "trajectory.json").string());
   if (!opt.no_images)
     fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
+  if (video)
+    fmt::print("video:      {} ({} frames at {} fps, {})\n", opt.video, video->frames(), opt.fps, video->codec());
 }
 
 }  // namespace
@@ -291,6 +321,13 @@ void add_run_command(CLI::App& app, const Context& context) {
   cmd->add_flag("--heat-map", opt->heat_map,
                 "With --checkpoint (learned goals): draw each episode's goal distribution on its picture")
       ->needs(checkpoint);
+  cmd->add_option("--video", opt->video,
+                  "Also animate the runs, one after another, frame by frame at physics ticks: FILE.mp4 (H.264, "
+                  "else MPEG-4) or FILE.gif");
+  cmd->add_option("--fps", opt->fps,
+                  "Video frames per second (one frame per 1/60 s physics tick: 30 plays at half speed)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 100.0));
   cmd->callback([opt, &context] {
     install_interrupt_handler();
     run_command(*opt, context);

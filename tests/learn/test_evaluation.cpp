@@ -522,5 +522,49 @@ TEST_F(Evaluation, WithTheWholeFloorInViewEveryFigureIsTheFullImageAccuracy) {
   EXPECT_DOUBLE_EQ(r.greedy_accuracy, full);
 }
 
+// scout report's budget sweep: a world given whole, the first K images, only the agent's runs,
+// and the share of the floor revealed.
+TEST_F(Evaluation, AWorldGivenWholeOnTheFirstImagesRevealsItsShareOfTheFloor) {
+  const fs::path whole_file = temp_->write("whole2.yaml", "floor: {dataset: " + (temp_->path() / "data").string() +
+                                                              ", split: test, index: random}\n"
+                                                              "robot: {start: [6, 6]}\n"
+                                                              "camera: {patch_px: 12}\n"
+                                                              "task: {episodes: 2, steps: 2, step_px: 2}\n");
+  EvalConfig c = config(2, 4);
+  c.world = worlds::load_world(whole_file);
+  c.world_file = temp_->path() / "no-such-world.yaml";  // the whole world wins
+  c.image_limit = 4;
+  c.agent_only = true;
+  c.precision = agent::Precision::Float32;
+  const EvalReport r = evaluate(c);
+  EXPECT_EQ(r.images, 4);
+  EXPECT_EQ(r.labels.size(), 4u);
+  EXPECT_EQ(r.patch_px, 12);
+  EXPECT_EQ(r.revealed_fraction, 1.0);  // a 12 x 12 window centred on the 12 x 12 floor
+  Replay replay;
+  replay.agent = load_agent(*checkpoint_);
+  replay.agent->eval();
+  replay.data.images = worlds::read_idx_images(c.images);
+  replay.data.labels = worlds::read_idx_labels(c.labels);
+  replay.data.images.count = 4;
+  replay.data.images.pixels.resize(4 * 144);
+  replay.data.labels.resize(4);
+  EXPECT_DOUBLE_EQ(r.accuracy.mean, replay.full_image_correct() / 4.0);
+  EXPECT_TRUE(std::isnan(r.iid_accuracy));
+  EXPECT_TRUE(std::isnan(r.greedy_accuracy));
+  EXPECT_TRUE(std::isnan(r.full_image_accuracy));
+
+  // A 1-pixel camera sees one pixel per pose: the start and E x T = 4 moves, at most 5 of 144.
+  worlds::World pinhole = *c.world;
+  pinhole.camera.patch_px = 1;
+  pinhole.robot.start.reset();
+  c.world = pinhole;
+  const EvalReport narrow = evaluate(c);
+  EXPECT_GE(narrow.revealed_fraction, 1.0 / 144);
+  EXPECT_LE(narrow.revealed_fraction, 5.0 / 144);
+  c.image_limit = -1;
+  EXPECT_EQ(refusal(c), "image_limit: expected 0 (all) or a positive count, got -1");
+}
+
 }  // namespace
 }  // namespace scout::learn

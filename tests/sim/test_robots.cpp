@@ -60,6 +60,40 @@ TEST(RobotBatch, MovesLandOnTheCommandedCellInAllFourDirections) {
   }
 }
 
+// The tick traces (animations): one centre per tick, each at most a tick's travel from the last,
+// ending where the robot is; the same moves with and without traces end in the same place.
+TEST(RobotBatch, TickTracesFollowTheBodyTickByTick) {
+  RobotBatch traced(kFloor, preset(), 3), plain(kFloor, preset(), 3);
+  const std::vector<grid::Cell> starts = {{14, 14}, {0, 5}, {27, 27}};
+  for (int i = 0; i < 3; ++i) {
+    traced.place(i, starts[i]);
+    plain.place(i, starts[i]);
+  }
+  const std::vector<grid::Cell> commands = {{2, 0}, {-2, 0}, {0, 0}};  // the second runs into the wall
+  std::vector<MoveResult> traced_results(3), plain_results(3);
+  std::vector<std::vector<Eigen::Vector2d>> traces(3);
+  traced.move(commands, traced_results, traces);
+  plain.move(commands, plain_results);
+  const double tick_travel_px = preset().body.max_speed_mps * preset().physics.dt_s / kFloor.pixel_size_m;
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_EQ(traces[i].size(), static_cast<std::size_t>(traced_results[i].ticks)) << i;
+    EXPECT_EQ(traced_results[i].ticks, plain_results[i].ticks) << i;
+    Eigen::Vector2d last = kFloor.cell_centre_px(starts[i]);
+    for (const Eigen::Vector2d& p : traces[i]) {
+      EXPECT_LE((p - last).norm(), tick_travel_px * (1 + 1e-4)) << i;
+      last = p;
+    }
+    if (!traces[i].empty()) {
+      EXPECT_LT((traces[i].back() - traced.position_px(i)).norm(), 1e-9) << i;
+    }
+    EXPECT_LT((traced.position_px(i) - plain.position_px(i)).norm(), 1e-12) << i;
+  }
+  EXPECT_GT(traces[0].size(), 5u);
+  EXPECT_TRUE(traces[2].empty()) << "a robot already on its cell takes no tick";
+  std::vector<std::vector<Eigen::Vector2d>> too_few(2);
+  EXPECT_THROW(traced.move(commands, traced_results, too_few), std::invalid_argument);
+}
+
 TEST(RobotBatch, MovesOntoAndAwayFromEachBorder) {
   // For each border: onto it by 1 and by 2 pixels, then away from it by 2, and along it.
   struct Case {

@@ -1,0 +1,126 @@
+// Running another program without a shell: posix_spawnp, output to a log file.
+#include "core/process.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <system_error>
+#include <vector>
+
+extern char** environ;
+
+namespace scout::core {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr std::size_t kMaxQuotedOutput = 200;
+
+}  // namespace
+
+std::string last_output_line(const fs::path& log) {
+  std::ifstream in(log, std::ios::binary | std::ios::ate);
+  if (!in) return {};
+  // The tail is enough: npm's last line is its summary or the path of its debug log.
+  constexpr std::streamoff kTail = 64 * 1024;
+  const std::streamoff size = in.tellg();
+  in.seekg(size > kTail ? size - kTail : 0);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+
+  std::string line;
+  std::size_t end = text.size();
+  while (end > 0) {
+    const std::size_t newline = text.find_last_of("\r\n", end - 1);
+    const std::size_t begin = newline == std::string::npos ? 0 : newline + 1;
+    std::string clean;
+    for (std::size_t i = begin; i < end; ++i) {
+      const auto u = static_cast<unsigned char>(text[i]);
+      if (u == 0x1b) {  // ESC [ parameters final-byte (colours), or ESC and one more byte
+        ++i;
+        if (i < end && text[i] == '[') {
+          while (i + 1 < end && !(text[i + 1] >= '@' && text[i + 1] <= '~')) ++i;
+          ++i;
+        }
+        continue;
+      }
+      clean += (u < 0x20 || u == 0x7f) ? ' ' : text[i];
+    }
+    const std::size_t first = clean.find_first_not_of(' ');
+    if (first != std::string::npos) {
+      line = clean.substr(first, clean.find_last_not_of(' ') - first + 1);
+      break;
+    }
+    if (newline == std::string::npos) break;
+    end = newline;
+  }
+  if (line.size() > kMaxQuotedOutput) {
+    std::size_t cut = kMaxQuotedOutput;
+    while (cut > 0 && (static_cast<unsigned char>(line[cut]) & 0xC0) == 0x80) --cut;  // not inside a character
+    line = line.substr(0, cut) + "...";
+  }
+  return line;
+}
+
+// (process.hpp) Runs a program found on PATH with an argument vector (no shell, so nothing is re-parsed) in
+// `cwd`. Its stdout and stderr both go to `log` (npm prints the tarball name on stdout and its
+// "npm ERR!" lines on stderr), never to the user's terminal: a failure is reported as one line
+// that quotes the last line of the log.
+ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& log) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));  // posix_spawn's API
+  argv.push_back(nullptr);
+
+  // Absolute, since the child changes to `cwd` before the open would otherwise be resolved.
+  std::error_code ec;
+  const fs::path log_file = fs::absolute(log, ec);
+  ProgramResult result;
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                   0600);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
+  pid_t pid = 0;
+  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) {
+    result.run_error = std::strerror(rc);
+    return result;
+  }
+
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) {
+      result.run_error = std::string("waitpid: ") + std::strerror(errno);
+      return result;
+    }
+  }
+  if (WIFEXITED(status)) {
+    result.exited = true;
+    result.code = WEXITSTATUS(status);
+  } else {
+    result.code = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  }
+  if (!result.exited || result.code != 0) result.last_line = last_output_line(log);
+  return result;
+}
+
+std::string ProgramResult::describe(const std::string& program) const {
+  std::string what;
+  if (!run_error.empty())
+    what = fmt::format("(cannot run {}: {})", program, run_error);
+  else
+    what = exited ? fmt::format("(exit {})", code) : fmt::format("(killed by signal {})", code);
+  return last_line.empty() ? what : what + ": " + last_line;
+}
+
+}  // namespace scout::core

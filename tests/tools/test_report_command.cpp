@@ -1,0 +1,116 @@
+// `scout report` end to end on the EvalRun fixture's tiny model (real Box2D, OSMesa, LibTorch and
+// matplotlib): the folder's files, numbers that agree with the evaluation and with each other, an
+// evaluation found beside the model and not repeated, and bad inputs refused with one line.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "tests/support/eval_run_fixture.hpp"
+
+namespace scout::testing::report_command_tests {
+
+using namespace scout::testing::eval_run_support;
+
+// `scout ARGS` with an environment variable set (the shell runs the command line).
+Result scout_with_env(const std::string& assignment, const std::string& args) {
+  return scout::testing::run_cli(assignment + " " + SCOUT_BINARY, args);
+}
+
+std::string read_text(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST_F(EvalRun, ReportEvaluatesAndDrawsTheTableAndFigures) {
+  const Result r = scout("report " + path("run") + " --out " + path("report") + test_data() +
+                         " --runs 2 --sweep-digits 9 --sweep-runs 1 --episodes 4 --seed 4");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("evaluating on 9 digits, 2 runs"), std::string::npos) << r.output;
+  for (const char* file : {"REPORT.md", "report-data.json", "eval.json", "manifest.json", "accuracy_vs_epochs.png",
+                           "confusion.png", "episodes.png", "budget.png"})
+    EXPECT_TRUE(fs::is_regular_file(path("report") + "/" + file)) << file;
+  EXPECT_FALSE(fs::exists(path("report") + "/.plot.log"));
+
+  const json eval = read_json(path("report") + "/eval.json");
+  const json data = read_json(path("report") + "/report-data.json");
+  EXPECT_EQ(eval["runs"], 2);
+  EXPECT_EQ(eval["images"], kTestImages);
+  EXPECT_EQ(data["model"]["eval"]["accuracy"], eval["accuracy"]);
+  // The history is the checkpoint's: one epoch of each mode, with its validation baselines.
+  ASSERT_EQ(data["model"]["history"].size(), 3u);
+  for (const json& row : data["model"]["history"])
+    for (const char* key :
+         {"validation_accuracy", "validation_iid", "validation_goals_only", "validation_full_image"}) {
+      ASSERT_TRUE(row[key].is_number()) << key;
+      EXPECT_GE(row[key].get<double>(), 0.0);
+      EXPECT_LE(row[key].get<double>(), 1.0);
+    }
+  // Ten sweep points; a bigger window reveals more of the floor on the same digits.
+  const json& points = data["sweep"]["points"];
+  ASSERT_EQ(points.size(), 10u);
+  EXPECT_EQ(points[0]["patch_px"], 2);
+  EXPECT_EQ(points[4]["patch_px"], 10);
+  EXPECT_LT(points[0]["revealed_fraction"].get<double>(), points[4]["revealed_fraction"].get<double>());
+  // Four episodes, the right ones first, each with what the picture needs.
+  ASSERT_EQ(data["episodes"].size(), 4u);
+  for (const json& e : data["episodes"]) {
+    EXPECT_EQ(e["floor"].size(), static_cast<std::size_t>(kSide * kSide));
+    EXPECT_EQ(e["seen"].size(), static_cast<std::size_t>(kSide * kSide));
+    EXPECT_EQ(e["goals"].size(), 2u);  // E = 2
+    EXPECT_EQ(e["path"].size(), 5u);   // the start and E x T = 4 moves
+    EXPECT_EQ(e["goal_map"].size(), static_cast<std::size_t>(kSide * kSide));
+  }
+  const std::string report = read_text(path("report") + "/REPORT.md");
+  EXPECT_NE(report.find("94.61 ± 0.17 %"), std::string::npos);
+  EXPECT_NE(report.find("](budget.png)"), std::string::npos);
+  EXPECT_NE(report.find("scout train " + world()), std::string::npos) << "the training command is missing";
+}
+
+TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
+  const Result e =
+      scout("eval --checkpoint " + path("run") + test_data() + " --runs 2 --json " + path("run") + "/test-eval.json");
+  ASSERT_EQ(e.status, 0) << e.output;
+  const Result r =
+      scout("report " + path("run") + " --out " + path("beside") + test_data() + " --sweep-digits 0 --episodes 0");
+  fs::remove(path("run") + "/test-eval.json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find("evaluating"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("beside") + "/eval.json"));
+  EXPECT_FALSE(fs::exists(path("beside") + "/budget.png"));
+  const std::string report = read_text(path("beside") + "/REPORT.md");
+  EXPECT_NE(report.find("scout eval --checkpoint " + path("run")), std::string::npos) << report;
+}
+
+TEST_F(EvalRun, ReportRefusesBadInputsWithOneLine) {
+  const Result other =
+      scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --runs 1 --json " + path("other-eval.json"));
+  ASSERT_EQ(other.status, 0) << other.output;
+  struct Case {
+    std::string args, message_start;
+  };
+  const Case cases[] = {
+      {"--eval " + path("other-eval.json"),
+       "scout: error: --eval: " + path("other-eval.json") + ": manifest.checkpoint_sha256: expected "},
+      {"--compare nolabel", "scout: error: --compare: expected LABEL=EVAL.json, got \"nolabel\""},
+      {"--compare x=" + path("missing.json"), "scout: error: --compare: " + path("missing.json") + ": cannot open"},
+      {"--images " + path("data/t10k-images-idx3-ubyte"),
+       "scout: error: --images and --labels: expected both or neither"},
+  };
+  for (const Case& c : cases) {
+    const Result r = scout("report " + path("run") + " --out " + path("refused") + " " + c.args);
+    EXPECT_EQ(r.status, 1) << c.args << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind(c.message_start, 0), 0u) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(path("refused")));
+  }
+  const Result no_script = scout_with_env("SCOUT_REPORT_SCRIPT=" + path("nope.py"),
+                                          "report " + path("run") + " --out " + path("refused") + test_data());
+  EXPECT_EQ(no_script.status, 1) << no_script.output;
+  EXPECT_NE(no_script.output.find("the report's plotting script is missing"), std::string::npos) << no_script.output;
+}
+
+}  // namespace scout::testing::report_command_tests

@@ -1,0 +1,96 @@
+// `scout run --video` end to end: real Box2D ticks and the tiny trained agent of the EvalRun
+// fixture; the file decoded again (giflib, OpenCV) holds exactly one frame per physics tick plus
+// the documented holds; bad paths are one line before any work.
+#include <gif_lib.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <opencv2/videoio.hpp>
+#include <string>
+
+#include "tests/support/eval_run_fixture.hpp"
+
+namespace scout::testing::run_video_tests {
+
+using namespace scout::testing::eval_run_support;
+
+// What append_run_frames promises, from trajectory.json: a hold of round(0.4 fps) frames on each
+// episode's goal, a frame per tick (one for a move that needed none), round(fps) at the end.
+int expected_frames(const json& trajectory, double fps, int episodes) {
+  const int goal_hold = std::max(1, static_cast<int>(std::lround(fps * 0.4)));
+  const int final_hold = std::max(1, static_cast<int>(std::lround(fps)));
+  int frames = 0;
+  for (const json& run : trajectory["runs"]) {
+    frames += episodes * goal_hold + final_hold;
+    for (const json& step : run["steps"]) frames += std::max(1, step["ticks"].get<int>());
+  }
+  return frames;
+}
+
+struct GifInfo {
+  int frames = 0, width = 0, height = 0;
+};
+
+GifInfo read_gif(const fs::path& file) {
+  GifInfo info;
+  int error = 0;
+  GifFileType* gif = DGifOpenFileName(file.c_str(), &error);
+  if (gif == nullptr) return info;
+  if (DGifSlurp(gif) == GIF_OK) info = {gif->ImageCount, gif->SWidth, gif->SHeight};
+  DGifCloseFile(gif, &error);
+  return info;
+}
+
+TEST_F(EvalRun, AGifHoldsOneFramePerPhysicsTickOfEveryRun) {
+  const Result r = scout("run " + world() + " --checkpoint " + checkpoint() + " --out " + path("gif-out") +
+                         " --count 2 --no-images --scale 8 --video " + path("runs.gif") + " --fps 20");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json trajectory = read_json(path("gif-out") + "/trajectory.json");
+  const int expected = expected_frames(trajectory, 20, 2);
+  const json video = read_json(path("gif-out") + "/manifest.json")["outputs"]["video"];
+  EXPECT_EQ(video["frames"], expected);
+  EXPECT_EQ(video["codec"], "gif");
+  const GifInfo gif = read_gif(path("runs.gif"));
+  EXPECT_EQ(gif.frames, expected);
+  EXPECT_EQ(gif.height, kSide * 8);
+  EXPECT_GT(gif.width, kSide * 8) << "no prediction panel beside the floor";
+  EXPECT_NE(r.output.find("video:      " + path("runs.gif") + " (" + std::to_string(expected) + " frames"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST_F(EvalRun, AnMp4OfModeIHasTheFloorOnlyAndEveryTick) {
+  // Without a checkpoint: mode (i), no prediction, so no panel.
+  const Result r = scout("run " + world() + " --out " + path("mp4-out") + " --count 1 --no-images --scale 10 --video " +
+                         path("run.mp4"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json trajectory = read_json(path("mp4-out") + "/trajectory.json");
+  cv::VideoCapture in(path("run.mp4"), cv::CAP_FFMPEG);
+  ASSERT_TRUE(in.isOpened());
+  int frames = 0;
+  for (cv::Mat image; in.read(image); ++frames) {
+    ASSERT_EQ(image.cols, kSide * 10);
+    ASSERT_EQ(image.rows, kSide * 10);
+  }
+  EXPECT_EQ(frames, expected_frames(trajectory, 30, 2));  // --fps defaults to 30
+}
+
+TEST_F(EvalRun, BadVideoPathsAreOneLineBeforeAnyWork) {
+  const std::string bad[][2] = {
+      {path("v.avi"), "--video: " + path("v.avi") + ": expected a file name ending in .mp4 or .gif, got \".avi\""},
+      {path("no/such/v.gif"),
+       "--video: " + path("no/such/v.gif") + ": the folder " + path("no/such") + " does not exist"}};
+  for (const auto& [file, message] : bad) {
+    // A world file that does not exist: the video path is checked first.
+    const Result r = scout("run " + path("missing.yaml") + " --out " + path("never") + " --video " + file);
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_EQ(r.output, "scout: error: " + message + "\n");
+    EXPECT_FALSE(fs::exists(path("never")));
+  }
+  const Result fps = scout("run " + world() + " --out " + path("never") + " --video " + path("v.gif") + " --fps 0");
+  EXPECT_EQ(fps.status, 2) << fps.output;
+  EXPECT_FALSE(fs::exists(path("v.gif")));
+}
+
+}  // namespace scout::testing::run_video_tests

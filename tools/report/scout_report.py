@@ -1,0 +1,395 @@
+#!/usr/bin/python3
+"""Draws `scout report`'s figures and writes its REPORT.md.
+
+`scout report` gathers every figure (evaluations, the training history, the budget sweep, test
+episodes) into one JSON file; this script only draws and formats them, with matplotlib, so the
+plots come from a well-kept plotting library and the numbers from Scout. Usage:
+
+    /usr/bin/python3 scout_report.py REPORT_DATA.json OUT_DIR
+
+It writes OUT_DIR/REPORT.md and OUT_DIR/*.png. Any error is one line on stderr and exit status 1.
+"""
+import json
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")  # headless: no display is needed or used
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+MODE_NAMES = {"full": "full images", "i": "mode (i)", "ii": "mode (ii)", "iii": "mode (iii)"}
+MODE_COLOURS = {"full": "#7f7f7f", "i": "#1f77b4", "ii": "#2ca02c", "iii": "#d62728"}
+DPI = 110
+
+
+class ReportError(Exception):
+    pass
+
+
+def need(d, key, where):
+    if not isinstance(d, dict) or key not in d:
+        raise ReportError(f"{where}: missing field '{key}'")
+    return d[key]
+
+
+def pct(x, digits=2):
+    return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.{digits}f} %"
+
+
+def pct_ci(interval):
+    if interval is None:
+        return "—"
+    return f"{100 * interval['mean']:.2f} ± {100 * interval['ci95']:.2f} %"
+
+
+def save(fig, out_dir, name):
+    path = os.path.join(out_dir, name)
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return name
+
+
+# ---- figures --------------------------------------------------------------------------------
+
+
+def plot_history(history, out_dir):
+    """Validation accuracy against training epochs, per mode, with the baselines."""
+    if not history:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    x = np.arange(1, len(history) + 1)
+    modes = [h["mode"] for h in history]
+    start = 0
+    for k in range(1, len(history) + 1):  # shade each mode's epochs
+        if k == len(history) or modes[k] != modes[start]:
+            ax.axvspan(start + 0.5, k + 0.5, color=MODE_COLOURS.get(modes[start], "#cccccc"), alpha=0.08, lw=0)
+            ax.text((start + k + 1) / 2, 0.02, MODE_NAMES.get(modes[start], modes[start]), ha="center",
+                    va="bottom", fontsize=8, transform=ax.get_xaxis_transform())
+            start = k
+
+    def series(key):
+        return np.array([np.nan if h.get(key) is None else h[key] for h in history], dtype=float)
+
+    ax.plot(x, series("validation_accuracy"), "o-", color="black", ms=3, label="the agent (this mode's policy)")
+    ax.plot(x, series("validation_goals_only"), "s--", color="#2ca02c", ms=3, label="learned goals, i.i.d. actions")
+    ax.plot(x, series("validation_iid"), "^--", color="#1f77b4", ms=3, label="i.i.d. goals and actions")
+    ax.plot(x, series("validation_full_image"), ":", color="#7f7f7f", label="the classifier on full images")
+    ax.set_xlabel("epoch (all modes, in order)")
+    ax.set_ylabel("validation accuracy")
+    finite = np.concatenate([series(k) for k in ("validation_accuracy", "validation_iid", "validation_goals_only")])
+    finite = finite[np.isfinite(finite)]
+    low = max(0.0, min(finite.min() if finite.size else 0.0, 0.8) - 0.02)
+    ax.set_ylim(low, 1.0)
+    ax.set_xlim(0.5, len(history) + 0.5)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8, frameon=False)
+    ax.set_title("Validation accuracy against epochs (one stochastic pass per epoch)")
+    return save(fig, out_dir, "accuracy_vs_epochs.png")
+
+
+def plot_confusion(evaluation, out_dir):
+    confusion = np.array(need(evaluation, "confusion", "eval"), dtype=float)
+    classes = confusion.shape[0]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1.15, 1]})
+    im = ax.imshow(confusion, cmap="Blues", vmin=0, vmax=1)
+    for i in range(classes):
+        for j in range(classes):
+            v = confusion[i, j]
+            if v >= 0.005 or i == j:
+                ax.text(j, i, f"{100 * v:.0f}" if i != j else f"{100 * v:.1f}", ha="center", va="center",
+                        fontsize=7, color="white" if v > 0.5 else "black")
+    ax.set_xticks(range(classes))
+    ax.set_yticks(range(classes))
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true label")
+    ax.set_title("Confusion matrix (% of each true class)")
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    per_class = np.diag(confusion)
+    bx.bar(range(classes), per_class, color="#4c72b0")
+    for c, v in enumerate(per_class):
+        bx.text(c, v + 0.002, f"{100 * v:.1f}", ha="center", va="bottom", fontsize=7)
+    mean = need(evaluation, "accuracy", "eval")["mean"]
+    bx.axhline(mean, color="black", ls="--", lw=1, label=f"overall {100 * mean:.2f} %")
+    bx.set_ylim(max(0.0, per_class.min() - 0.05), 1.0)
+    bx.set_xticks(range(classes))
+    bx.set_xlabel("class")
+    bx.set_ylabel("accuracy")
+    bx.set_title("Per-class accuracy")
+    bx.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    return save(fig, out_dir, "confusion.png")
+
+
+def plot_episodes(episodes, out_dir):
+    """A grid of test episodes in the paper's style: what the robot revealed with its path and
+    goals, the goal planner's heat map, and the prediction bars."""
+    if not episodes:
+        return None
+    rows = len(episodes)
+    fig, axes = plt.subplots(rows, 3, figsize=(8.4, 2.45 * rows), gridspec_kw={"width_ratios": [1, 1, 1.25]})
+    axes = np.atleast_2d(axes)
+    for r, ep in enumerate(episodes):
+        w, h = ep["width"], ep["height"]
+        floor = np.array(ep["floor"], dtype=float).reshape(h, w) / 255.0
+        seen = np.array(ep["seen"], dtype=bool).reshape(h, w)
+        shown = np.where(seen, floor, np.nan)
+        a, b, c = axes[r]
+        cmap = plt.get_cmap("gray").copy()
+        cmap.set_bad("#3b4a6b")  # unseen pixels
+        a.imshow(shown, cmap=cmap, vmin=0, vmax=1, interpolation="nearest")
+        path = np.array(ep["path"], dtype=float)
+        a.plot(path[:, 0], path[:, 1], "-", color="#ff9f1c", lw=1.2)
+        a.plot(path[0, 0], path[0, 1], "o", color="#ff9f1c", ms=4)
+        m = ep["patch_px"]
+        # A window at cell (x, y) covers columns x - m // 2 .. x - m // 2 + m - 1 (pixel centres at
+        # integers in imshow's coordinates, so its edges are half a pixel further out).
+        for k, g in enumerate(ep["goals"]):
+            a.add_patch(plt.Rectangle((g[0] - m // 2 - 0.5, g[1] - m // 2 - 0.5), m, m, fill=False, ec="#2ecc71",
+                                      lw=1))
+            a.text(g[0], g[1], str(k + 1), color="#2ecc71", fontsize=7, ha="center", va="center")
+        end = path[-1]
+        a.add_patch(plt.Rectangle((end[0] - m // 2 - 0.5, end[1] - m // 2 - 0.5), m, m, fill=False, ec="#00b4ff",
+                                  lw=1.2))
+        a.set_xlim(-0.5, w - 0.5)
+        a.set_ylim(h - 0.5, -0.5)
+        a.set_xticks([])
+        a.set_yticks([])
+        verdict = "right" if ep["prediction"] == ep["label"] else "wrong"
+        a.set_title(f"label {ep['label']}, revealed {100 * seen.mean():.0f} %", fontsize=8)
+        goal_map = ep.get("goal_map")
+        if goal_map:
+            b.imshow(floor, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+            heat = np.array(goal_map, dtype=float).reshape(h, w)
+            b.imshow(heat, cmap="inferno", alpha=0.65, interpolation="nearest")
+            b.set_title(f"goal map π_g, episode {ep.get('goal_map_episode', 1)}", fontsize=8)
+        else:
+            b.imshow(floor, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+            b.set_title("the digit (i.i.d. goals)", fontsize=8)
+        b.set_xticks([])
+        b.set_yticks([])
+        p = np.array(ep["probabilities"], dtype=float)
+        colours = ["#bbbbbb"] * len(p)
+        colours[ep["prediction"]] = "#2ca02c" if verdict == "right" else "#d62728"
+        if verdict == "wrong":
+            colours[ep["label"]] = "#1f77b4"
+        c.bar(range(len(p)), p, color=colours)
+        c.set_ylim(0, 1)
+        c.set_xticks(range(len(p)))
+        c.tick_params(labelsize=7)
+        c.set_title(f"π_c: predicts {ep['prediction']} ({verdict})", fontsize=8)
+    fig.suptitle("Test episodes: revealed floor, path (orange), goals (green), final window (blue); "
+                 "goal heat map; prediction (green right, red wrong, blue the true class)", fontsize=8)
+    fig.tight_layout()
+    return save(fig, out_dir, "episodes.png")
+
+
+def plot_budget(sweep, paper, model_point, out_dir):
+    points = need(sweep, "points", "sweep")
+    if not points:
+        return None
+    fig, ax = plt.subplots(figsize=(7.5, 4.6))
+    for kind, marker, colour, label in (("patch", "o-", "#1f77b4", "patch size m (E × T = 4 × 5)"),
+                                        ("moves", "s-", "#d62728", "episodes E × moves T (m = 6)")):
+        pts = sorted((p for p in points if p["kind"] == kind), key=lambda p: p["revealed_fraction"])
+        if not pts:
+            continue
+        xs = [p["revealed_fraction"] for p in pts]
+        ys = [p["accuracy"] for p in pts]
+        ax.plot(xs, ys, marker, color=colour, ms=4, label=label)
+        for p in pts:
+            tag = f"m={p['patch_px']}" if kind == "patch" else f"{p['episodes']}×{p['steps']}"
+            ax.annotate(tag, (p["revealed_fraction"], p["accuracy"]), textcoords="offset points", xytext=(4, -10),
+                        fontsize=7, color=colour)
+    if model_point is not None:
+        ax.plot([model_point[0]], [model_point[1]], "*", color="black", ms=12, label="this model, as trained")
+    paper_fraction = paper.get("revealed_fraction")
+    if paper_fraction is not None:
+        ax.plot([paper_fraction], [paper["accuracy"] / 100], "D", color="#9467bd", ms=7,
+                label=f"the paper: {paper['accuracy']:.2f} % (m = 6, 4 × 5)")
+    ram = paper.get("ram")
+    if ram:
+        ax.plot([ram["revealed_fraction"]], [ram["accuracy"] / 100], "P", color="#8c564b", ms=9,
+                label=f"RAM: {ram['accuracy']:.2f} % ({ram['glimpses']} glimpses of {ram['side']}×{ram['side']}, "
+                      "at most this share)")
+    ax.set_xlabel("fraction of the floor's pixels revealed by the end (mean over episodes)")
+    ax.set_ylabel("test accuracy")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(max(0.0, min(p["accuracy"] for p in points) - 0.05), 1.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title(f"Accuracy against the observation budget ({sweep['digits']} test digits, "
+                 f"{sweep['runs']} run{'s' if sweep['runs'] != 1 else ''} each)", fontsize=9)
+    return save(fig, out_dir, "budget.png")
+
+
+# ---- REPORT.md ------------------------------------------------------------------------------
+
+
+def error_removal(evaluation):
+    """The shares of the i.i.d. errors that learned goals and then learned actions remove."""
+    base = evaluation.get("baselines", {})
+    iid, goals = base.get("iid"), base.get("goals_only")
+    acc = evaluation["accuracy"]["mean"]
+    if iid is None or goals is None or iid >= 1:
+        return None
+    e0, e1, e2 = 1 - iid, 1 - goals, 1 - acc
+    return (e0 - e1) / e0, (e1 - e2) / e0
+
+
+def table_rows(data):
+    paper = data["paper"]
+    rows = []
+    rows.append(("The paper (GPU, 60,000 digits)", f"{paper['accuracy']:.2f} ± {paper['ci95']:.2f} %",
+                 f"{paper['top2']:.2f} %", f"{paper['full_image']:.2f} %", "—", "paper, § Experiments"))
+    rows.append(("The paper, transfer (ResNet-18)", f"{paper['transfer']:.2f} % (max)", "—", "—", "—",
+                 "paper, Fig. (transfer)"))
+    for entry in [data["model"]] + data.get("compare", []):
+        ev = entry["eval"]
+        base = ev.get("baselines", {})
+        rows.append((entry["label"], pct_ci(ev["accuracy"]), pct_ci(ev.get("top2")), pct(ev.get("full_image")),
+                     f"{pct(base.get('iid'))} / {pct(base.get('goals_only'))}",
+                     f"`{entry['eval_command']}`" if entry.get("eval_command") else entry.get("eval_source", "")))
+    return rows
+
+
+def write_report(data, figures, out_dir):
+    model = data["model"]
+    ev = model["eval"]
+    lines = []
+    add = lines.append
+    add(f"# Scout report: {model['label']}")
+    add("")
+    add(f"Model `{model['path']}`; evaluated on {ev.get('images', '?')} digits "
+        f"({ev.get('data', 'the official MNIST test set')}), {ev.get('runs', '?')} stochastic runs, "
+        f"precision {ev.get('precision', '?')}. Generated by `{data['command']}` in {data['seconds']:.0f} s"
+        f" on {data.get('cpu', 'this CPU')}.")
+    add("")
+    add("## The paper's table beside Scout's")
+    add("")
+    add("| | accuracy (95 % CI) | top-2 | classifier on full images | i.i.d. / learned goals only | from |")
+    add("|---|---|---|---|---|---|")
+    for r in table_rows(data):
+        add("| " + " | ".join(r) + " |")
+    add("")
+    add("Accuracies are on the official 10,000 test digits, means over runs with 95 % Student-t intervals "
+        "(half-widths). The paper's figures are its own (20 runs); \"full images\" is the trained agent's "
+        "classifier given the whole digit (u_c = x).")
+    add("")
+    for entry in [model] + data.get("compare", []):
+        cmds = entry.get("train_commands") or []
+        if cmds:
+            add(f"**{entry['label']}** was trained with:")
+            add("")
+            add("```sh")
+            for c in cmds:
+                add(c)
+            add("```")
+            add("")
+    removal = error_removal(ev)
+    add("## Accuracy against epochs")
+    add("")
+    if figures.get("history"):
+        add(f"![validation accuracy against epochs]({figures['history']})")
+        add("")
+        add("Each epoch ends with one stochastic pass over the validation digits (never the test set) under "
+            "the mode's own policy, under the two baselines with the same classifier, and with the "
+            "classifier on full images.")
+    else:
+        add("The model carries no training history.")
+    add("")
+    if removal:
+        g, a = removal
+        base = ev["baselines"]
+        add(f"On the test digits, i.i.d. goals and actions leave {pct(1 - base['iid'])} errors; learned goals "
+            f"remove {100 * g:.0f} % of them and learned actions another {100 * a:.0f} % (the paper: about a "
+            f"third each). Greedy decoding (argmax goals and actions, one run): {pct(ev.get('greedy'))}.")
+        add("")
+    add("## Confusion matrix and per-class accuracy")
+    add("")
+    add(f"![confusion matrix]({figures['confusion']})")
+    add("")
+    diag = np.diag(np.array(ev["confusion"], dtype=float))
+    add("| class | " + " | ".join(str(c) for c in range(len(diag))) + " |")
+    add("|---|" + "---|" * len(diag))
+    add("| accuracy | " + " | ".join(f"{100 * v:.1f}" for v in diag) + " |")
+    add("")
+    if figures.get("episodes"):
+        add("## Test episodes")
+        add("")
+        add(f"![test episodes]({figures['episodes']})")
+        add("")
+        eps = data.get("episodes", [])
+        right = sum(1 for e in eps if e["prediction"] == e["label"])
+        add(f"{right} right and {len(eps) - right} wrong, drawn from the first test digits in order "
+            f"(seed {data.get('episode_seed', '?')}).")
+        add("")
+    if figures.get("budget"):
+        sweep = data["sweep"]
+        add("## Accuracy against the observation budget")
+        add("")
+        add(f"![accuracy against the budget]({figures['budget']})")
+        add("")
+        add(f"The same networks (fully convolutional) at other patch sizes m and other E × T, each on the "
+            f"first {sweep['digits']} test digits, {sweep['runs']} stochastic run(s), seed {sweep['seed']}.")
+        add("")
+        add("| m | E × T | revealed | accuracy |")
+        add("|---|---|---|---|")
+        for p in sorted(sweep["points"], key=lambda p: (p["kind"], p["revealed_fraction"])):
+            add(f"| {p['patch_px']} | {p['episodes']} × {p['steps']} | {100 * p['revealed_fraction']:.1f} % | "
+                f"{100 * p['accuracy']:.2f} % |")
+        add("")
+        ram = data["paper"].get("ram")
+        if ram:
+            add(f"RAM (Mnih et al., 2014) reaches {ram['accuracy']:.2f} % on MNIST with {ram['glimpses']} glimpses "
+                f"of {ram['side']} × {ram['side']} pixels, at most {100 * ram['revealed_fraction']:.0f} % of the "
+                "digit, choosing each glimpse anywhere; Scout's robot must drive between its views.")
+            add("")
+    add("## Files")
+    add("")
+    add("- `report-data.json`: every number above, as `scout report` gathered it")
+    for name in sorted(v for v in figures.values() if v):
+        add(f"- `{name}`")
+    add("")
+    with open(os.path.join(out_dir, "REPORT.md"), "w", encoding="utf-8") as f:
+        f.write("\n".join(lines))
+
+
+def main(argv):
+    if len(argv) != 3:
+        raise ReportError("usage: scout_report.py REPORT_DATA.json OUT_DIR")
+    data_file, out_dir = argv[1], argv[2]
+    try:
+        with open(data_file, encoding="utf-8") as f:
+            data = json.load(f)
+    except (OSError, ValueError) as e:
+        raise ReportError(f"{data_file}: {e}")
+    if not os.path.isdir(out_dir):
+        raise ReportError(f"{out_dir}: no such folder")
+    model = need(data, "model", data_file)
+    evaluation = need(model, "eval", data_file + ": model")
+    figures = {
+        "history": plot_history(model.get("history", []), out_dir),
+        "confusion": plot_confusion(evaluation, out_dir),
+        "episodes": plot_episodes(data.get("episodes", []), out_dir),
+    }
+    sweep = data.get("sweep")
+    if sweep:
+        point = model.get("revealed_fraction")
+        figures["budget"] = plot_budget(sweep, data["paper"], (point, evaluation["accuracy"]["mean"])
+                                        if point is not None else None, out_dir)
+    write_report(data, figures, out_dir)
+
+
+if __name__ == "__main__":
+    try:
+        main(sys.argv)
+    except ReportError as e:
+        print(f"scout_report.py: {e}", file=sys.stderr)
+        sys.exit(1)
+    except (KeyError, TypeError, ValueError, IndexError) as e:
+        print(f"scout_report.py: {sys.argv[1] if len(sys.argv) > 1 else 'input'}: malformed report data "
+              f"({type(e).__name__}: {e})", file=sys.stderr)
+        sys.exit(1)

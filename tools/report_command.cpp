@@ -1,0 +1,491 @@
+// scout report: the paper's table and figures for a model or a run, in one folder. Scout gathers
+// the numbers (an evaluation on the official test digits, the training history, a budget sweep,
+// test episodes) into report-data.json; a small matplotlib script that ships with Scout
+// (tools/report/scout_report.py, run on /usr/bin/python3) draws the figures and writes REPORT.md.
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/process.hpp"
+#include "core/random.hpp"
+#include "core/timing.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/evaluation.hpp"
+#include "learn/rollout.hpp"
+#include "learn/seed_streams.hpp"
+#include "learn/trained_agent.hpp"
+#include "tools/commands.hpp"
+#include "tools/output.hpp"
+#include "worlds/dataset.hpp"
+#include "worlds/idx.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+// The paper's figures (§ Experiments) and, for scale, RAM's (Mnih et al. 2014, MNIST 28 x 28).
+constexpr double kPaperAccuracy = 94.61, kPaperCi95 = 0.17, kPaperTop2 = 98.30, kPaperFullImage = 94.92;
+constexpr double kPaperTransfer = 95.19;
+constexpr double kRamAccuracy = 98.88;
+constexpr int kRamGlimpses = 6, kRamSide = 8;
+
+struct ReportOptions {
+  std::string model;  // a model file or a run folder
+  std::string out;
+  std::string eval_file;
+  std::string images, labels;  // default: the official test digits of data set mnist
+  std::string data_root;
+  std::vector<std::string> compare;  // LABEL=EVAL.json
+  int runs = 20;
+  int sweep_digits = 1000;
+  int sweep_runs = 2;
+  int episodes = 8;
+  std::string seed;  // empty: 1
+  bool overwrite = false;
+};
+
+json read_json_file(const fs::path& file, const std::string& option) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: {}: cannot open", option, file.string()));
+  json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object())
+    throw InputError(fmt::format("{}: {}: expected a JSON object (an evaluation written by scout eval --json)", option,
+                                 file.string()));
+  return j;
+}
+
+// An evaluation report as `scout eval --json` writes it: the fields the report reads, checked.
+void check_eval_json(const json& j, const fs::path& file) {
+  auto number_at = [&](const json& parent, const char* key, const std::string& path) {
+    if (!parent.is_object() || !parent.contains(key) || !parent[key].is_number())
+      throw InputError(fmt::format("{}: {}: expected a number", file.string(), path));
+  };
+  for (const char* interval : {"accuracy", "top2"}) {
+    if (!j.contains(interval) || !j[interval].is_object())
+      throw InputError(fmt::format("{}: {}: expected an object with mean and ci95", file.string(), interval));
+    number_at(j[interval], "mean", std::string(interval) + ".mean");
+    number_at(j[interval], "ci95", std::string(interval) + ".ci95");
+  }
+  number_at(j, "full_image_accuracy", "full_image_accuracy");
+  if (!j.contains("confusion") || !j["confusion"].is_array() || j["confusion"].empty())
+    throw InputError(fmt::format("{}: confusion: expected a square matrix of numbers", file.string()));
+  const std::size_t classes = j["confusion"].size();
+  for (const json& row : j["confusion"]) {
+    if (!row.is_array() || row.size() != classes)
+      throw InputError(fmt::format("{}: confusion: expected a square matrix of numbers", file.string()));
+    for (const json& v : row)
+      if (!v.is_number())
+        throw InputError(fmt::format("{}: confusion: expected a square matrix of numbers", file.string()));
+  }
+  if (!j.contains("baselines") || !j["baselines"].is_object())
+    throw InputError(fmt::format("{}: baselines: expected an object with iid and goals_only", file.string()));
+}
+
+// The manifest a model or run came with: RUN/manifest.json, or X-manifest.json beside X.pt.
+fs::path manifest_beside(const fs::path& model) {
+  std::error_code ec;
+  if (fs::is_directory(model, ec)) return model / kManifestFile;
+  return model.parent_path() / (model.stem().string() + "-manifest.json");
+}
+
+// The evaluation a model or run keeps beside it: RUN/test-eval.json, or X-test-eval.json.
+fs::path eval_beside(const fs::path& model) {
+  std::error_code ec;
+  if (fs::is_directory(model, ec)) return model / "test-eval.json";
+  return model.parent_path() / (model.stem().string() + "-test-eval.json");
+}
+
+std::string shell_line(const json& argv) {
+  std::string line = "scout";
+  for (std::size_t i = 1; i < argv.size(); ++i) {
+    const std::string a = argv[i].is_string() ? argv[i].get<std::string>() : argv[i].dump();
+    line += " " + (a.find_first_of(" \t'\"") == std::string::npos ? a : "'" + a + "'");
+  }
+  return line;
+}
+
+// The training commands in a manifest (the first, then each resumption), as shell lines.
+std::vector<std::string> training_commands(const fs::path& manifest) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  if (!fs::is_regular_file(manifest, ec)) return out;
+  std::ifstream in(manifest, std::ios::binary);
+  const json m = json::parse(in, nullptr, false);
+  if (m.is_discarded() || !m.is_object()) return out;
+  if (m.contains("command_line") && m["command_line"].is_array()) out.push_back(shell_line(m["command_line"]));
+  if (m.contains("resumed") && m["resumed"].is_array())
+    for (const json& r : m["resumed"])
+      if (r.is_object() && r.contains("command_line") && r["command_line"].is_array())
+        out.push_back(shell_line(r["command_line"]));
+  return out;
+}
+
+std::string eval_command_of(const json& eval) {
+  if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("command_line") &&
+      eval["manifest"]["command_line"].is_array())
+    return shell_line(eval["manifest"]["command_line"]);
+  return {};
+}
+
+// What the report's table reads of an evaluation.
+json eval_summary(const json& e) {
+  json s;
+  s["accuracy"] = e["accuracy"];
+  s["top2"] = e["top2"];
+  s["confusion"] = e["confusion"];
+  s["baselines"] = e["baselines"];
+  s["full_image"] = e["full_image_accuracy"];
+  s["greedy"] = e.contains("greedy_accuracy") ? e["greedy_accuracy"] : json(nullptr);
+  s["runs"] = e.contains("runs") ? e["runs"] : json(nullptr);
+  s["images"] = e.contains("images") ? e["images"] : json(nullptr);
+  s["precision"] = e.contains("precision") ? e["precision"] : json(nullptr);
+  s["revealed_fraction"] = e.contains("revealed_fraction") ? e["revealed_fraction"] : json(nullptr);
+  return s;
+}
+
+json history_json(const std::vector<learn::EpochMetrics>& history) {
+  json rows = json::array();
+  auto optional = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+  for (const learn::EpochMetrics& m : history)
+    rows.push_back({{"mode", learn::to_string(m.stage)},
+                    {"epoch", m.epoch},
+                    {"validation_accuracy", m.validation_accuracy},
+                    {"validation_iid", optional(m.validation_iid)},
+                    {"validation_goals_only", optional(m.validation_goals_only)},
+                    {"validation_full_image", optional(m.validation_full_image)},
+                    {"seconds", m.seconds},
+                    {"learning_rate", m.learning_rate}});
+  return rows;
+}
+
+// The budget sweep: the same networks at other patch sizes m, and at other numbers of episodes E
+// (T as trained), on the first `digits` test digits.
+json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const worlds::World& trained,
+                  const fs::path& images, const fs::path& labels, std::uint64_t seed) {
+  struct Point {
+    int patch, episodes;
+    const char* kind;
+  };
+  std::vector<Point> points;
+  for (int m : {2, 4, 6, 8, 10}) points.push_back({m, trained.task.episodes, "patch"});
+  for (int e : {1, 2, 4, 6, 8}) points.push_back({trained.camera.patch_px, e, "moves"});
+  json out;
+  out["digits"] = opt.sweep_digits;
+  out["runs"] = opt.sweep_runs;
+  out["seed"] = seed;
+  out["points"] = json::array();
+  for (const Point& p : points) {
+    worlds::World world = trained;
+    world.camera.patch_px = p.patch;
+    world.task.episodes = p.episodes;
+    learn::EvalConfig config;
+    config.checkpoint = checkpoint;
+    config.images = images;
+    config.labels = labels;
+    config.world = world;
+    config.runs = opt.sweep_runs;
+    config.seed = seed;
+    config.image_limit = opt.sweep_digits;
+    config.agent_only = true;
+    const learn::EvalReport r = learn::evaluate(config, interrupt_token());
+    out["points"].push_back({{"kind", p.kind},
+                             {"patch_px", p.patch},
+                             {"episodes", p.episodes},
+                             {"steps", world.task.steps},
+                             {"accuracy", r.accuracy.mean},
+                             {"ci95", r.accuracy.ci95},
+                             {"revealed_fraction", r.revealed_fraction}});
+    fmt::print("  budget: m = {:>2}, E x T = {} x {}: accuracy {:.4f}, {:.1f} % revealed\n", p.patch, p.episodes,
+               world.task.steps, r.accuracy.mean, 100 * r.revealed_fraction);
+    std::fflush(stdout);
+  }
+  return out;
+}
+
+// Test episodes for the picture grid: the first test digits in order, driven by the agent with
+// its goal maps recorded; half right and half wrong where there are enough wrong ones.
+json test_episodes(const ReportOptions& opt, const fs::path& checkpoint, const worlds::ImageSet& images,
+                   const std::vector<std::uint8_t>& labels, std::uint64_t seed) {
+  std::unique_ptr<learn::TrainedAgent> agent = learn::TrainedAgent::load(checkpoint);
+  const worlds::World& world = agent->config().world;
+  const grid::FloorFrame frame{
+      .width_px = images.cols, .height_px = images.rows, .pixel_size_m = world.floor.pixel_size_m};
+  const int n = std::min(images.count, 240);
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  std::vector<std::uint8_t> floors(images.pixels.begin(),
+                                   images.pixels.begin() + static_cast<std::ptrdiff_t>(area * n));
+  std::vector<grid::Cell> starts(n);
+  std::vector<std::uint64_t> policy_seeds(n);
+  for (int i = 0; i < n; ++i) {
+    const std::uint64_t seed_i = core::derive_seed(seed, static_cast<std::uint64_t>(i));
+    core::Rng start_rng(core::derive_seed(seed_i, learn::streams::kRunStart));
+    starts[i] = learn::draw_start(world, frame, start_rng);
+    policy_seeds[i] = core::derive_seed(seed_i, learn::streams::kRunPolicy);
+  }
+  const auto engine = make_engine(world, frame, n);
+  agent->begin(frame, world.camera.patch_px, policy_seeds, /*greedy=*/false, agent->learned().goals);
+  const std::vector<learn::RolloutRecord> records = engine->run(floors, starts, agent->policy());
+  const std::vector<float> probabilities = agent->classify(engine->state(), n);
+  const int classes = agent->classes();
+
+  std::vector<int> right, wrong;
+  for (int i = 0; i < n; ++i) {
+    const float* p = probabilities.data() + static_cast<std::size_t>(i) * classes;
+    const int predicted = static_cast<int>(std::max_element(p, p + classes) - p);
+    (predicted == labels[i] ? right : wrong).push_back(i);
+  }
+  const int want_wrong = std::min<int>(opt.episodes / 2, static_cast<int>(wrong.size()));
+  const int want_right = std::min<int>(opt.episodes - want_wrong, static_cast<int>(right.size()));
+  std::vector<int> chosen(right.begin(), right.begin() + want_right);
+  chosen.insert(chosen.end(), wrong.begin(), wrong.begin() + want_wrong);
+
+  json out = json::array();
+  const int last_episode = world.task.episodes - 1;
+  for (int i : chosen) {
+    const learn::RolloutRecord& r = records[i];
+    const float* p = probabilities.data() + static_cast<std::size_t>(i) * classes;
+    json e;
+    e["index"] = i;
+    e["label"] = labels[i];
+    e["prediction"] = static_cast<int>(std::max_element(p, p + classes) - p);
+    e["probabilities"] = std::vector<float>(p, p + classes);
+    e["width"] = frame.width_px;
+    e["height"] = frame.height_px;
+    e["patch_px"] = world.camera.patch_px;
+    e["floor"] = std::vector<int>(floors.begin() + static_cast<std::ptrdiff_t>(area * i),
+                                  floors.begin() + static_cast<std::ptrdiff_t>(area * (i + 1)));
+    e["seen"] = r.snapshots.back().seen;
+    json path = json::array();
+    for (const grid::Cell& c : r.path) path.push_back({c.x(), c.y()});
+    e["path"] = path;
+    json goals = json::array();
+    for (const learn::StepRecord& s : r.steps)
+      if (s.step == 0) goals.push_back({s.goal.x(), s.goal.y()});
+    e["goals"] = goals;
+    if (agent->learned().goals) {
+      e["goal_map"] = agent->goal_map(i, last_episode);
+      e["goal_map_episode"] = last_episode + 1;
+    }
+    out.push_back(e);
+  }
+  return out;
+}
+
+std::string cpu_name() {
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("model name", 0) == 0) {
+      const std::size_t colon = line.find(':');
+      if (colon != std::string::npos) return line.substr(line.find_first_not_of(' ', colon + 1));
+    }
+  return "an unknown CPU";
+}
+
+fs::path report_script() {
+  if (const char* env = std::getenv("SCOUT_REPORT_SCRIPT"); env != nullptr && *env != '\0') return env;
+  return fs::path(SCOUT_SOURCE_DIR) / "tools" / "report" / "scout_report.py";
+}
+
+std::string python_interpreter() {
+  if (const char* env = std::getenv("SCOUT_PYTHON"); env != nullptr && *env != '\0') return env;
+  return "/usr/bin/python3";  // Debian's, with python3-matplotlib (MEASURED.md: another python3 may lack it)
+}
+
+void report_command(const ReportOptions& opt, const Context& context) {
+  const auto t0 = core::Clock::now();
+  if (opt.episodes < 0 || opt.episodes > 64)
+    throw InputError(fmt::format("--episodes: expected 0..64, got {}", opt.episodes));
+  const fs::path model = opt.model;
+  const fs::path checkpoint = learn::resolve_checkpoint(model);
+  const learn::CheckpointInfo info = learn::read_checkpoint_info(checkpoint);
+  const std::uint64_t seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
+  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
+  const fs::path test_folder = worlds::dataset_folder("mnist", data_root);
+  const fs::path images = opt.images.empty() ? test_folder / "t10k-images-idx3-ubyte" : fs::path(opt.images);
+  const fs::path labels = opt.labels.empty() ? test_folder / "t10k-labels-idx1-ubyte" : fs::path(opt.labels);
+  if (opt.images.empty() != opt.labels.empty())
+    throw InputError("--images and --labels: expected both or neither (default: the official MNIST test set)");
+  const fs::path script = report_script();
+  std::error_code ec;
+  if (!fs::is_regular_file(script, ec))
+    throw InputError(
+        fmt::format("{}: the report's plotting script is missing (set SCOUT_REPORT_SCRIPT)", script.string()));
+
+  // Every input is read and checked before minutes of work.
+  struct Compared {
+    std::string label;
+    fs::path file;
+    json eval;
+  };
+  std::vector<Compared> compared;
+  for (const std::string& entry : opt.compare) {
+    const std::size_t eq = entry.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == entry.size())
+      throw InputError(fmt::format("--compare: expected LABEL=EVAL.json, got \"{}\"", entry));
+    Compared c{entry.substr(0, eq), entry.substr(eq + 1), {}};
+    c.eval = read_json_file(c.file, "--compare");
+    check_eval_json(c.eval, c.file);
+    compared.push_back(std::move(c));
+  }
+  fs::path eval_file = opt.eval_file;
+  if (eval_file.empty() && fs::is_regular_file(eval_beside(model), ec)) eval_file = eval_beside(model);
+  json eval;
+  if (!eval_file.empty()) {
+    eval = read_json_file(eval_file, "--eval");
+    check_eval_json(eval, eval_file);
+    const std::string model_sha = worlds::sha256_file(checkpoint);
+    if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("checkpoint_sha256") &&
+        eval["manifest"]["checkpoint_sha256"] != model_sha)
+      throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
+                                   eval_file.string(), model_sha, checkpoint.string(),
+                                   eval["manifest"]["checkpoint_sha256"].dump()));
+  }
+  const worlds::ImageSet test_images = worlds::read_idx_images(images);
+  const std::vector<std::uint8_t> test_labels = worlds::read_idx_labels(labels);
+  if (test_labels.size() != static_cast<std::size_t>(test_images.count))
+    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels.string(),
+                                 test_images.count, images.string(), test_labels.size()));
+  OutputDir out(opt.out, opt.overwrite, {model, checkpoint, images, labels});
+
+  fmt::print("scout report: {} -> {}\n", model.string(), opt.out);
+  std::fflush(stdout);
+  std::string eval_source;
+  if (eval.is_null()) {
+    fmt::print("  evaluating on {} digits, {} runs (no evaluation beside the model)\n", test_images.count, opt.runs);
+    std::fflush(stdout);
+    learn::EvalConfig config;
+    config.checkpoint = checkpoint;
+    config.images = images;
+    config.labels = labels;
+    config.runs = opt.runs;
+    config.seed = seed;
+    const learn::EvalReport r = learn::evaluate(config, interrupt_token());
+    eval = json::parse(learn::report_json(r));
+    eval["manifest"] = make_manifest(context.argv, "", {images, labels}, "");
+    write_file_atomic(out.path() / "eval.json", eval.dump(2) + "\n");
+    eval_source = "eval.json (evaluated by this report)";
+  } else {
+    eval_source = eval_file.string();
+  }
+
+  json data;
+  data["command"] = shell_line(json(context.argv));
+  data["cpu"] = cpu_name();
+  data["paper"] = {{"accuracy", kPaperAccuracy},
+                   {"ci95", kPaperCi95},
+                   {"top2", kPaperTop2},
+                   {"full_image", kPaperFullImage},
+                   {"transfer", kPaperTransfer},
+                   {"ram",
+                    {{"accuracy", kRamAccuracy},
+                     {"glimpses", kRamGlimpses},
+                     {"side", kRamSide},
+                     {"revealed_fraction", std::min(1.0, kRamGlimpses * kRamSide * kRamSide / 784.0)}}}};
+  json m;
+  m["label"] = fmt::format("Scout: {}", model.filename().string());
+  m["path"] = model.string();
+  m["eval"] = eval_summary(eval);
+  m["eval"]["data"] = images.string();
+  m["eval_source"] = eval_source;
+  m["eval_command"] = eval_command_of(eval);
+  m["train_commands"] = training_commands(manifest_beside(model));
+  m["history"] = history_json(info.history);
+  m["revealed_fraction"] = eval.contains("revealed_fraction") ? eval["revealed_fraction"] : json(nullptr);
+  data["model"] = m;
+  data["compare"] = json::array();
+  for (const Compared& c : compared) {
+    json e;
+    e["label"] = c.label;
+    e["eval"] = eval_summary(c.eval);
+    e["eval_source"] = c.file.string();
+    e["eval_command"] = eval_command_of(c.eval);
+    const std::string checkpoint_field = c.eval.value("checkpoint", "");
+    if (!checkpoint_field.empty()) e["train_commands"] = training_commands(manifest_beside(checkpoint_field));
+    data["compare"].push_back(e);
+  }
+  if (opt.sweep_digits > 0) {
+    fmt::print("  budget sweep: {} digits, {} runs per point\n", std::min(opt.sweep_digits, test_images.count),
+               opt.sweep_runs);
+    std::fflush(stdout);
+    data["sweep"] = budget_sweep(opt, checkpoint, info.config.world, images, labels, seed);
+    data["sweep"]["digits"] = std::min(opt.sweep_digits, test_images.count);
+    // The paper's task on the sweep's axis: its point sits where this model's m = 6, 4 x 5 does.
+    for (const json& p : data["sweep"]["points"])
+      if (p["patch_px"] == 6 && p["episodes"] == 4 && p["steps"] == 5)
+        data["paper"]["revealed_fraction"] = p["revealed_fraction"];
+    if (m["revealed_fraction"].is_null())
+      for (const json& p : data["sweep"]["points"])
+        if (p["patch_px"] == info.config.world.camera.patch_px && p["episodes"] == info.config.world.task.episodes)
+          data["model"]["revealed_fraction"] = p["revealed_fraction"];
+  }
+  data["episode_seed"] = seed;
+  data["episodes"] = opt.episodes > 0 ? test_episodes(opt, checkpoint, test_images, test_labels, seed) : json::array();
+  interrupt_token().throw_if_requested();
+  data["seconds"] = core::seconds_since(t0);
+  write_file_atomic(out.path() / "report-data.json", data.dump(1) + "\n");
+
+  const core::ProgramResult plot = core::run_program(
+      {python_interpreter(), script.string(), (out.path() / "report-data.json").string(), out.path().string()},
+      fs::current_path(), out.path() / ".plot.log");
+  if (plot.failed())
+    throw InputError(fmt::format("{} {} failed {}; is python3-matplotlib installed (./scripts/setup.sh)?",
+                                 python_interpreter(), script.string(), plot.describe(python_interpreter())));
+  fs::remove(out.path() / ".plot.log", ec);
+  json manifest = make_manifest(context.argv, worlds::to_yaml(info.config.world), {images, labels}, "");
+  manifest["checkpoint"] = {{"path", model.string()}, {"sha256", worlds::sha256_file(checkpoint)}};
+  write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
+  out.commit();
+  fmt::print("report: {} ({:.0f} s)\n", (fs::path(out.target()) / "REPORT.md").string(), core::seconds_since(t0));
+}
+
+}  // namespace
+
+void add_report_command(CLI::App& app, const Context& context) {
+  auto opt = std::make_shared<ReportOptions>();
+  auto* cmd = app.add_subcommand(
+      "report",
+      "The paper's table and figures for a model or run: DIR/REPORT.md with the paper's figures beside Scout's, "
+      "accuracy against epochs with both baselines, the confusion matrix, test episodes and accuracy against the "
+      "observation budget (figures drawn by matplotlib on /usr/bin/python3).");
+  cmd->add_option("model", opt->model, "A model file (models/mnist.pt) or a run folder (RUN/checkpoint.pt)")
+      ->required();
+  cmd->add_option("--out", opt->out, "Report folder to create (must not exist unless --overwrite)")->required();
+  cmd->add_option("--eval", opt->eval_file,
+                  "The model's evaluation (scout eval --json); default: X-test-eval.json beside X.pt or "
+                  "RUN/test-eval.json, else the report evaluates it");
+  cmd->add_option("--images", opt->images, "Test images (default: the official MNIST test set of data set mnist)");
+  cmd->add_option("--labels", opt->labels, "Test labels (with --images)");
+  cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  cmd->add_option("--runs", opt->runs, "R: stochastic runs when the report evaluates the model")
+      ->capture_default_str()
+      ->check(decimal_in(1, 1000));
+  cmd->add_option("--compare", opt->compare,
+                  "Another model's row in the table: LABEL=EVAL.json (scout eval --json; repeatable)");
+  cmd->add_option("--sweep-digits", opt->sweep_digits, "Test digits per point of the budget sweep (0: no sweep)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 1000000));
+  cmd->add_option("--sweep-runs", opt->sweep_runs, "Stochastic runs per point of the budget sweep")
+      ->capture_default_str()
+      ->check(decimal_in(1, 100));
+  cmd->add_option("--episodes", opt->episodes, "Test episodes in the picture grid (half right, half wrong)")
+      ->capture_default_str()
+      ->check(decimal_in(0, 64));
+  cmd->add_option("--seed", opt->seed, "Seed of the evaluation, the sweep and the episodes (default 1)")
+      ->check(seed_validator());
+  cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing report folder");
+  cmd->callback([opt, &context] { report_command(*opt, context); });
+}
+
+}  // namespace scout::tools

@@ -1,0 +1,31 @@
+#pragma once
+// `scout run --video`: a rollout's frames, one per physics tick.
+#include <cstdint>
+#include <span>
+
+#include "grid/grid.hpp"
+#include "learn/rollout.hpp"
+#include "render/video.hpp"
+
+namespace scout::tools {
+
+/// One run to animate.
+struct RunAnimation {
+  const learn::RolloutRecord* record = nullptr;  ///< recorded by RolloutEngine::run (ticks included)
+  const std::uint8_t* floor = nullptr;           ///< H * W bytes
+  grid::FloorFrame frame;
+  int patch_px = 6;
+  double robot_radius_px = 2.5;
+  int scale = 10;
+  std::span<const float> class_probabilities;  ///< the final prediction (empty: no panel)
+  double fps = 30;
+};
+
+/// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame
+/// per physics tick with the robot's disc and camera window where the body is, the floor revealed
+/// as the camera saw it after each move, the path so far and the goal; at the end a one-second
+/// hold on the final picture with the prediction bars, which stay empty until then (the
+/// classifier is asked once, after the last move). Returns the number of frames added.
+int append_run_frames(render::VideoWriter& video, const RunAnimation& run);
+
+}  // namespace scout::tools
