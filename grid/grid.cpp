@@ -1,5 +1,8 @@
 #include "grid/grid.hpp"
 
+#include <stdexcept>
+#include <string>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -74,6 +77,17 @@ int RevealMask::reveal(const Window& window) {
   }
   count_ += fresh;
   return fresh;
+}
+
+void RevealMask::assign(std::span<const std::uint8_t> seen) {
+  if (seen.size() != seen_.size())
+    throw std::invalid_argument("RevealMask::assign: " + std::to_string(seen.size()) + " bytes for a floor of " +
+                                std::to_string(seen_.size()) + " pixels");
+  count_ = 0;
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    seen_[k] = seen[k] != 0 ? 1 : 0;
+    count_ += seen_[k];
+  }
 }
 
 void RevealMask::clear() {

@@ -4,6 +4,7 @@
 /// the reference that the Box2D world is tested against.
 #include <Eigen/Core>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace scout::grid {
@@ -64,6 +65,9 @@ class RevealMask {
   /// Marks the window as seen; returns how many pixels were new.
   int reveal(const Window& window);
   void clear();
+  /// Replaces what is seen with `seen` (one byte per floor pixel, row-major, non-zero = seen),
+  /// e.g. from an observation. Throws std::invalid_argument for the wrong size.
+  void assign(std::span<const std::uint8_t> seen);
   bool seen(int x, int y) const { return seen_[static_cast<std::size_t>(y) * width_ + x] != 0; }
   int count() const { return count_; }
   const std::vector<std::uint8_t>& data() const { return seen_; }  ///< row-major, 1 = seen

@@ -20,7 +20,7 @@
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
-#include "learn/seed_streams.hpp"
+#include "core/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"

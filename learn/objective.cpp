@@ -6,7 +6,8 @@
 #include <stdexcept>
 
 #include "learn/internal/precision.hpp"
-#include "learn/seed_streams.hpp"
+#include "core/seed_streams.hpp"
+#include "env/runs.hpp"
 
 namespace scout::learn {
 
@@ -30,7 +31,7 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       batch.labels[r] = data.labels[image];
       const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + r);
       core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
-      batch.starts[r] = draw_start(world, frame, start_rng);
+      batch.starts[r] = env::draw_start(world, frame, start_rng);
       batch.seeds[r] = core::derive_seed(robot_seed, streams::kRobotPolicy);
     }
   }

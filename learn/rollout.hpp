@@ -11,21 +11,22 @@
 
 #include "core/random.hpp"
 #include "grid/grid.hpp"
-#include "render/camera.hpp"
+#include "env/batch_env.hpp"
 #include "sim/robots.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
 
-/// What a policy can read: each robot's grid pose, goal and what it has seen (METHOD.md's y and h).
+/// What a policy can read: each robot's grid pose, goal and what it has seen (METHOD.md's y and
+/// h). Views of the engine's arrays, valid until its next move.
 struct BatchState {
   grid::FloorFrame frame;
   int patch_px = 0;
-  int count = 0;                       ///< robots in this rollout batch
-  std::vector<grid::Cell> pose;        ///< grid pose of the actual position, per robot
-  std::vector<grid::Cell> goal;        ///< current goal per robot
-  std::vector<grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
-  std::vector<std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
+  int count = 0;                           ///< robots in this rollout batch
+  std::span<const grid::Cell> pose;        ///< grid pose of the actual position, per robot
+  std::span<const grid::Cell> goal;        ///< current goal per robot
+  std::span<const grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
+  std::span<const std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
 
   const std::uint8_t* observed_image(int robot) const {
     return observed.data() + static_cast<std::size_t>(robot) * frame.area_px();
@@ -99,8 +100,9 @@ struct RolloutTiming {
   double peak_speed_mps = 0;
 };
 
-/// Runs batches of rollouts over the physics (sim::RobotBatch) and the camera
-/// (render::PatchCamera). Buffers are allocated once for up to `max_robots`.
+/// Runs batches of rollouts: E episodes of T moves of the paper's protocol (env/protocol.hpp),
+/// with goals and axes from a Policy, over an env::BatchEnv (the physics and the camera).
+/// Buffers are allocated once for up to `max_robots`.
 class RolloutEngine {
  public:
   RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots);
@@ -114,32 +116,28 @@ class RolloutEngine {
                                  Policy& policy, bool record = true);
 
   const BatchState& state() const { return state_; }
-  const RolloutTiming& timing() const { return timing_; }
-  void reset_timing() { timing_ = {}; }
-  int max_robots() const { return max_robots_; }
-  const sim::RobotBatch& robots() const { return *robots_; }
+  /// Where the time went: the environment's physics and camera, and everything else (the
+  /// policy, the protocol, the records) as other_s.
+  RolloutTiming timing() const;
+  void reset_timing();
+  int max_robots() const;
+  const sim::RobotBatch& robots() const;
   /// The GL renderer in use (for manifests).
   std::string camera_description() const;
 
  private:
-  void observe(int count);
+  void refresh_state();
 
   worlds::TaskSpec task_;
-  int max_robots_;
+  std::unique_ptr<env::BatchEnv> env_;
   BatchState state_;
-  std::unique_ptr<sim::RobotBatch> robots_;
-  std::unique_ptr<render::PatchCamera> camera_;
-  std::vector<std::uint8_t> patches_;  // camera read-back
-  std::vector<grid::Cell> commands_;   // per-move scratch, sized once per batch
-  std::vector<sim::MoveResult> results_;
+  std::vector<grid::Cell> goals_;
+  std::vector<grid::Cell> commands_;  // per-move scratch, sized once per batch
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
-  std::vector<render::PixelPose> pixel_poses_;
-  std::vector<std::vector<Eigen::Vector2d>> tick_positions_;  // per robot, one move's ticks (record only)
-  RolloutTiming timing_;
+  std::vector<RolloutRecord>* recording_ = nullptr;  // the run's records while the tick hook fills them
+  double other_s_ = 0;
 };
 
-/// The start cell of a rollout: the world file's, or uniform over the floor from `rng`.
-grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng);
 
 }  // namespace scout::learn

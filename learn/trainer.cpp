@@ -21,7 +21,7 @@
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
-#include "learn/seed_streams.hpp"
+#include "core/seed_streams.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::learn {

@@ -14,6 +14,7 @@
 
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "env/runs.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"
 #include "render/camera.hpp"
@@ -91,7 +92,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
                           ? *world.floor.index
                           : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
     std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
-    starts[i] = learn::draw_start(world, frame, rng);
+    starts[i] = env::draw_start(world, frame, rng);
   }
   auto seeds_for = [n](int repeat) {
     std::vector<std::uint64_t> seeds(n);

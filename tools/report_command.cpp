@@ -18,10 +18,11 @@
 #include "core/process.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "env/runs.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/evaluation.hpp"
 #include "learn/rollout.hpp"
-#include "learn/seed_streams.hpp"
+#include "core/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"
@@ -230,9 +231,9 @@ json test_episodes(const ReportOptions& opt, const fs::path& checkpoint, const w
   std::vector<std::uint64_t> policy_seeds(n);
   for (int i = 0; i < n; ++i) {
     const std::uint64_t seed_i = core::derive_seed(seed, static_cast<std::uint64_t>(i));
-    core::Rng start_rng(core::derive_seed(seed_i, learn::streams::kRunStart));
-    starts[i] = learn::draw_start(world, frame, start_rng);
-    policy_seeds[i] = core::derive_seed(seed_i, learn::streams::kRunPolicy);
+    core::Rng start_rng(core::derive_seed(seed_i, streams::kRunStart));
+    starts[i] = env::draw_start(world, frame, start_rng);
+    policy_seeds[i] = core::derive_seed(seed_i, streams::kRunPolicy);
   }
   const auto engine = make_engine(world, frame, n);
   agent->begin(frame, world.camera.patch_px, policy_seeds, /*greedy=*/false, agent->learned().goals);

@@ -12,10 +12,10 @@
 #include <span>
 
 #include "core/random.hpp"
+#include "env/runs.hpp"
 #include "core/timing.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
-#include "learn/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "render/snapshot.hpp"
 #include "render/video.hpp"
@@ -51,32 +51,11 @@ struct RunOptions {
   double fps = 30;
 };
 
-/// One rollout to do: its digit, and its seed, which fixes its start and its choices.
-struct PlannedRun {
-  std::uint64_t seed;
-  int index;
-  grid::Cell start;
-};
-
-std::vector<PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
-                                  const grid::FloorFrame& frame, std::uint64_t seed, int count) {
-  // With `index: random`, runs walk a seeded permutation of the split: up to the split's size
-  // every run has its own digit, and run k's digit depends on the seed and k, not on --count.
-  std::vector<int> digit_order;
-  if (!world.floor.index) {
-    digit_order.resize(static_cast<std::size_t>(floors.size()));
-    for (int i = 0; i < floors.size(); ++i) digit_order[i] = i;
-    core::Rng order_rng(core::derive_seed(seed, learn::streams::kRunDigitOrder));
-    core::shuffle(digit_order, order_rng);
-  }
-  std::vector<PlannedRun> runs(count);
-  for (int k = 0; k < count; ++k) {
-    PlannedRun& r = runs[k];
-    r.seed = core::derive_seed(seed, static_cast<std::uint64_t>(k));
-    r.index = world.floor.index ? *world.floor.index : digit_order[static_cast<std::size_t>(k) % digit_order.size()];
-    core::Rng start_rng(core::derive_seed(r.seed, learn::streams::kRunStart));
-    r.start = learn::draw_start(world, frame, start_rng);
-  }
+std::vector<env::PlannedRun> plan_runs(const worlds::World& world, const worlds::FloorSet& floors,
+                                       const grid::FloorFrame& frame, std::uint64_t seed, int count) {
+  const env::RunSequence sequence(world, frame, floors.size(), seed);
+  std::vector<env::PlannedRun> runs(count);
+  for (int k = 0; k < count; ++k) runs[k] = sequence.run(static_cast<std::uint64_t>(k));
   return runs;
 }
 
@@ -85,7 +64,7 @@ json cell_json(const grid::Cell& c) { return json::array({c.x(), c.y()}); }
 // One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
 // by step, in files of any size). `probabilities`: the trained agent's pi_c at the end (empty
 // without --checkpoint, and then the text is exactly what it always was).
-std::string run_json(const PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors,
+std::string run_json(const env::PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors,
                      std::span<const float> probabilities) {
   json j;
   j["seed"] = run.seed;
@@ -190,7 +169,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   if (!opt.video.empty()) video = std::make_unique<render::VideoWriter>(opt.video, opt.fps);
 
   const auto t0 = core::Clock::now();
-  const std::vector<PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
+  const std::vector<env::PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
   const int batch_robots = std::min(opt.count, kBatchRobots);
   const auto engine_owner = make_engine(world, frame, batch_robots);
   learn::RolloutEngine& engine = *engine_owner;
@@ -212,10 +191,10 @@ void run_command(const RunOptions& opt, const Context& context) {
     std::vector<grid::Cell> starts(n);
     std::vector<std::uint64_t> policy_seeds(n);
     for (int i = 0; i < n; ++i) {
-      const PlannedRun& r = runs[first + i];
+      const env::PlannedRun& r = runs[first + i];
       std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
       starts[i] = r.start;
-      policy_seeds[i] = core::derive_seed(r.seed, learn::streams::kRunPolicy);
+      policy_seeds[i] = r.policy_seed;
     }
     std::vector<learn::RolloutRecord> records;
     std::vector<float> probabilities;  // n * D with a checkpoint

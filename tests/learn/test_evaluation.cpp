@@ -20,6 +20,7 @@
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
+#include "env/runs.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
 #include "learn/trainer.hpp"
@@ -365,7 +366,7 @@ TEST_F(Evaluation, TheTrainedAgentDrivesAndClassifiesABatch) {
   std::vector<std::uint64_t> seeds;
   core::Rng rng(1);
   for (int i = 0; i < 5; ++i) {
-    starts.push_back(draw_start(world, frame, rng));
+    starts.push_back(env::draw_start(world, frame, rng));
     seeds.push_back(core::derive_seed(7, i));
   }
   RolloutEngine engine(world, frame, 5);

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "core/random.hpp"
+#include "env/runs.hpp"
 #include "learn/rollout.hpp"
 
 namespace scout::learn {
@@ -34,7 +35,7 @@ Batch random_batch(int count, std::uint64_t seed) {
   core::Rng rng(seed + 1);
   const worlds::World world = preset_world();
   for (int i = 0; i < count; ++i) {
-    b.starts.push_back(draw_start(world, kFloor, rng));
+    b.starts.push_back(env::draw_start(world, kFloor, rng));
     b.seeds.push_back(core::derive_seed(seed, static_cast<std::uint64_t>(i)));
   }
   return b;

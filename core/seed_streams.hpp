@@ -6,7 +6,7 @@
 /// data set's, worlds/dataset.hpp's kSplitSeed.)
 #include <cstdint>
 
-namespace scout::learn::streams {
+namespace scout::streams {
 
 // `scout run`: run k's seed is derive_seed(command seed, k); below it:
 inline constexpr std::uint64_t kRunStart = 2;   ///< run k's start cell
@@ -35,4 +35,4 @@ inline constexpr std::uint64_t kEvalIid = std::uint64_t{1} << 40;  ///< i.i.d. g
 inline constexpr std::uint64_t kEvalGoalsOnly = kEvalIid + 1;      ///< learned goals, i.i.d. actions
 inline constexpr std::uint64_t kEvalGreedy = kEvalIid + 2;         ///< the greedy run (below the eval seed)
 
-}  // namespace scout::learn::streams
+}  // namespace scout::streams

@@ -1,0 +1,157 @@
+#include "env/batch_env.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "core/timing.hpp"
+#include "render/camera.hpp"
+
+namespace scout::env {
+
+using core::Clock;
+using core::seconds_since;
+
+BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
+    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots) {
+  if (max_robots <= 0) throw std::invalid_argument("BatchEnv: max_robots must be positive");
+  robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
+  camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots);
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  poses_.resize(max_robots);
+  seen_.assign(max_robots, grid::RevealMask(frame));
+  observed_.resize(area * max_robots);
+  floors_.resize(area * max_robots);
+  patches_.resize(static_cast<std::size_t>(max_robots) * patch_px_ * patch_px_);
+  pixel_poses_.resize(max_robots);
+  moves_.resize(max_robots);
+  results_.resize(max_robots);
+  ticks_.resize(max_robots);
+}
+
+BatchEnv::~BatchEnv() = default;
+
+std::string BatchEnv::camera_description() const { return camera_->gl_description(); }
+
+std::span<const std::uint8_t> BatchEnv::patches() const {
+  return {patches_.data(), static_cast<std::size_t>(count_) * patch_px_ * patch_px_};
+}
+std::span<const grid::Cell> BatchEnv::poses() const { return {poses_.data(), static_cast<std::size_t>(count_)}; }
+std::span<const std::uint8_t> BatchEnv::observed() const {
+  return {observed_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
+}
+std::span<const grid::RevealMask> BatchEnv::seen() const { return {seen_.data(), static_cast<std::size_t>(count_)}; }
+std::span<const int> BatchEnv::moves() const { return {moves_.data(), static_cast<std::size_t>(count_)}; }
+std::span<const sim::MoveResult> BatchEnv::last_results() const {
+  return {results_.data(), static_cast<std::size_t>(count_)};
+}
+Eigen::Vector2d BatchEnv::pose_m(int robot) const { return robots_->position_m(robot); }
+
+void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
+
+// Puts robot i on its floor, at rest on its start, with nothing seen yet.
+void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start) {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
+  std::fill_n(observed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  robots_->place(robot, start);
+  poses_[robot] = robots_->grid_pose(robot);
+  seen_[robot].clear();
+  moves_[robot] = 0;
+  results_[robot] = sim::MoveResult{};
+}
+
+void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts) {
+  const int count = static_cast<int>(starts.size());
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  if (count <= 0 || count > max_robots_)
+    throw std::invalid_argument("BatchEnv::reset: " + std::to_string(count) + " robots, at most " +
+                                std::to_string(max_robots_));
+  if (floors.size() != area * count)
+    throw std::invalid_argument("BatchEnv::reset: floors hold " + std::to_string(floors.size()) + " bytes, expected " +
+                                std::to_string(area * count));
+  for (const grid::Cell& s : starts)
+    if (!frame_.contains(s)) throw std::invalid_argument("BatchEnv::reset: a start cell is off the floor");
+  const auto t0 = Clock::now();
+  count_ = count;
+  for (int i = 0; i < count; ++i) place(i, floors.subspan(area * i, area), starts[i]);
+  camera_->load_floors(std::span(floors_.data(), area * count), count);
+  timing_.observe_s += seconds_since(t0);
+  observe();
+}
+
+void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
+                            std::span<const grid::Cell> starts) {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  if (starts.size() != robots.size() || floors.size() != area * robots.size())
+    throw std::invalid_argument("BatchEnv::reset_robots: " + std::to_string(robots.size()) + " robots, " +
+                                std::to_string(starts.size()) + " starts and " + std::to_string(floors.size()) +
+                                " floor bytes");
+  for (std::size_t k = 0; k < robots.size(); ++k) {
+    if (robots[k] < 0 || robots[k] >= count_)
+      throw std::invalid_argument("BatchEnv::reset_robots: robot " + std::to_string(robots[k]) + " of " +
+                                  std::to_string(count_));
+    if (!frame_.contains(starts[k])) throw std::invalid_argument("BatchEnv::reset_robots: a start cell is off the floor");
+  }
+  if (robots.empty()) return;
+  const auto t0 = Clock::now();
+  for (std::size_t k = 0; k < robots.size(); ++k) place(robots[k], floors.subspan(area * k, area), starts[k]);
+  // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
+  camera_->load_floors(std::span(floors_.data(), area * count_), count_);
+  timing_.observe_s += seconds_since(t0);
+  // Looking again from an unchanged pose reveals nothing new and writes the same y.
+  observe();
+}
+
+void BatchEnv::step(std::span<const grid::Cell> commands) {
+  if (static_cast<int>(commands.size()) != count_)
+    throw std::invalid_argument("BatchEnv::step: " + std::to_string(commands.size()) + " commands for " +
+                                std::to_string(count_) + " robots");
+  auto t0 = Clock::now();
+  if (tick_hook_) {
+    for (int i = 0; i < count_; ++i) ticks_[i].clear();
+    robots_->move(commands, std::span(results_.data(), commands.size()), std::span(ticks_.data(), commands.size()));
+  } else {
+    robots_->move(commands, std::span(results_.data(), commands.size()));
+  }
+  for (int i = 0; i < count_; ++i) {
+    poses_[i] = robots_->grid_pose(i);
+    ++moves_[i];
+    timing_.ticks += results_[i].ticks;
+    timing_.peak_speed_mps = std::max(timing_.peak_speed_mps, results_[i].peak_speed_mps);
+  }
+  timing_.moves += count_;
+  timing_.physics_s += seconds_since(t0);
+  observe();
+  if (tick_hook_)
+    for (int i = 0; i < count_; ++i) tick_hook_(i, ticks_[i]);
+}
+
+// The camera at every robot's grid pose; what it sees is revealed and written into y.
+void BatchEnv::observe() {
+  auto t0 = Clock::now();
+  static_assert(sizeof(render::PixelPose) == 2 * sizeof(int));
+  for (int i = 0; i < count_; ++i) pixel_poses_[i] = {poses_[i].x(), poses_[i].y()};
+  const std::size_t patch_bytes = static_cast<std::size_t>(patch_px_) * patch_px_;
+  camera_->capture(std::span(pixel_poses_.data(), count_), std::span(patches_.data(), patch_bytes * count_));
+  timing_.render_s += seconds_since(t0);
+
+  t0 = Clock::now();
+  const int m = patch_px_;
+  const int width = frame_.width_px;
+  const int half = m / 2;
+  for (int i = 0; i < count_; ++i) {
+    const grid::Window w = grid::camera_window(poses_[i], m, frame_);
+    seen_[i].reveal(w);
+    std::uint8_t* y = observed_.data() + static_cast<std::size_t>(i) * frame_.area_px();
+    const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
+    // The patch's (0, 0) is the window's unclipped corner (pose - m/2).
+    const int px0 = poses_[i].x() - half, py0 = poses_[i].y() - half;
+    for (int yy = w.y0; yy < w.y1; ++yy)
+      for (int xx = w.x0; xx < w.x1; ++xx)
+        y[static_cast<std::size_t>(yy) * width + xx] = patch[(yy - py0) * m + (xx - px0)];
+  }
+  timing_.observe_s += seconds_since(t0);
+}
+
+}  // namespace scout::env

@@ -1,0 +1,107 @@
+#pragma once
+/// A batch of robots, each over its own floor, behind reset and step: the controller and Box2D
+/// move them (sim/), the OSMesa camera looks for them (render/), and every robot's observation
+/// sits in contiguous arrays. Torch-free and below agent/ and learn/: Scout's own rollouts,
+/// `scout run` and the Python package drive robots through this one API.
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "grid/grid.hpp"
+#include "render/camera.hpp"
+#include "sim/robots.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::env {
+
+/// Sees every physics tick of a step: called once per robot after the step, in robot order, with
+/// the robot's centre (continuous floor pixels) after each tick of its move (none for a robot
+/// that did not move). For animations.
+using TickHook = std::function<void(int robot, std::span<const Eigen::Vector2d> tick_positions_px)>;
+
+/// Where a batch's time went, seconds, since the last reset_timing().
+struct EnvTiming {
+  double physics_s = 0;  ///< the controller and Box2D
+  double render_s = 0;   ///< the camera
+  double observe_s = 0;  ///< revealing windows and writing y
+  long moves = 0;        ///< agent-steps: moves x robots
+  long ticks = 0;        ///< Box2D ticks summed over robots
+  double peak_speed_mps = 0;
+};
+
+class BatchEnv {
+ public:
+  /// Buffers for up to `max_robots` robots on floors of `frame`, with the world's robot,
+  /// controller, physics and camera. Throws std::runtime_error if the camera cannot start.
+  BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots);
+  ~BatchEnv();
+  BatchEnv(const BatchEnv&) = delete;
+  BatchEnv& operator=(const BatchEnv&) = delete;
+
+  /// Starts robots 0 .. starts.size() - 1 over `floors` (H * W bytes each, concatenated): each
+  /// is placed at rest on its start cell, what it has seen is cleared, its move count is 0, and
+  /// the camera takes its first look. Robots beyond are idle until the next reset.
+  void reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts);
+  /// Starts again only robots[k] (< count()), over floors[k] from starts[k]; the others keep
+  /// their state (an autoreset of finished robots).
+  void reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
+                    std::span<const grid::Cell> starts);
+  /// One move per robot (commands.size() == count()): commands[i] pixels from its grid pose
+  /// (zero: it stays, no tick), driven by the controller and Box2D; then the camera looks from
+  /// every robot's new grid pose and what it sees is revealed.
+  void step(std::span<const grid::Cell> commands);
+  /// Set (or clear, with an empty function) the hook that sees every physics tick.
+  void set_tick_hook(TickHook hook);
+
+  int count() const { return count_; }
+  int max_robots() const { return max_robots_; }
+  const grid::FloorFrame& frame() const { return frame_; }
+  int patch_px() const { return patch_px_; }
+
+  // Robots 0 .. count() - 1, robot-major and contiguous:
+  /// The camera's last image of each robot, count * m * m bytes, row-major; pixels of the window
+  /// that lie off the floor are 0.
+  std::span<const std::uint8_t> patches() const;
+  std::span<const grid::Cell> poses() const;  ///< grid pose of each robot's actual position
+  /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
+  std::span<const std::uint8_t> observed() const;
+  std::span<const grid::RevealMask> seen() const;  ///< the pixels each robot has seen
+  std::span<const int> moves() const;              ///< moves made since each robot's reset
+  std::span<const sim::MoveResult> last_results() const;  ///< how each robot's last move went
+  /// A robot's centre in metres (floor frame), continuous.
+  Eigen::Vector2d pose_m(int robot) const;
+
+  const EnvTiming& timing() const { return timing_; }
+  void reset_timing() { timing_ = {}; }
+  const sim::RobotBatch& robots() const { return *robots_; }
+  /// The GL renderer in use (for manifests).
+  std::string camera_description() const;
+
+ private:
+  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start);
+  void observe();
+
+  grid::FloorFrame frame_;
+  int patch_px_;
+  int max_robots_;
+  int count_ = 0;
+  std::unique_ptr<sim::RobotBatch> robots_;
+  std::unique_ptr<render::PatchCamera> camera_;
+  std::vector<grid::Cell> poses_;
+  std::vector<grid::RevealMask> seen_;
+  std::vector<std::uint8_t> observed_;
+  std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
+  std::vector<std::uint8_t> patches_;
+  std::vector<render::PixelPose> pixel_poses_;
+  std::vector<int> moves_;
+  std::vector<sim::MoveResult> results_;
+  TickHook tick_hook_;
+  std::vector<std::vector<Eigen::Vector2d>> ticks_;  // per robot, the step's tick positions (hook only)
+  EnvTiming timing_;
+};
+
+}  // namespace scout::env

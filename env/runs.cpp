@@ -1,0 +1,37 @@
+#include "env/runs.hpp"
+
+#include <stdexcept>
+
+#include "core/seed_streams.hpp"
+
+namespace scout::env {
+
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng) {
+  if (world.robot.start) return {world.robot.start->first, world.robot.start->second};
+  const auto pixel = static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(frame.area_px())));
+  return {pixel % frame.width_px, pixel / frame.width_px};
+}
+
+RunSequence::RunSequence(const worlds::World& world, const grid::FloorFrame& frame, int split_size,
+                         std::uint64_t seed)
+    : world_(world), frame_(frame), seed_(seed) {
+  if (split_size <= 0) throw std::invalid_argument("RunSequence: the split has no digit");
+  if (!world.floor.index) {
+    digit_order_.resize(static_cast<std::size_t>(split_size));
+    for (int i = 0; i < split_size; ++i) digit_order_[i] = i;
+    core::Rng order_rng(core::derive_seed(seed, streams::kRunDigitOrder));
+    core::shuffle(digit_order_, order_rng);
+  }
+}
+
+PlannedRun RunSequence::run(std::uint64_t k) const {
+  PlannedRun r;
+  r.seed = core::derive_seed(seed_, k);
+  r.index = world_.floor.index ? *world_.floor.index : digit_order_[k % digit_order_.size()];
+  core::Rng start_rng(core::derive_seed(r.seed, streams::kRunStart));
+  r.start = draw_start(world_, frame_, start_rng);
+  r.policy_seed = core::derive_seed(r.seed, streams::kRunPolicy);
+  return r;
+}
+
+}  // namespace scout::env

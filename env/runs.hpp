@@ -1,0 +1,42 @@
+#pragma once
+/// Seeded sequences of rollouts: which digit and start run k of a command gets, and the seed its
+/// policy draws from. `scout run --seed s --count n` runs 0 .. n - 1 of the sequence of seed s;
+/// the Python environment's robot i runs k = i, then k = i + num_envs, i + 2 num_envs, ... (one
+/// sequence, dealt out), so the two give the same runs for the same seed.
+#include <cstdint>
+#include <vector>
+
+#include "core/random.hpp"
+#include "grid/grid.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::env {
+
+/// The start cell of a rollout: the world file's, or uniform over the floor from `rng`.
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng);
+
+/// One run of a sequence.
+struct PlannedRun {
+  std::uint64_t seed = 0;         ///< derive_seed(sequence seed, k)
+  int index = 0;                  ///< the digit, in its split
+  grid::Cell start;               ///< drawn from derive_seed(seed, kRunStart) (or the world's start)
+  std::uint64_t policy_seed = 0;  ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
+};
+
+/// The runs of one sequence seed over a split of `split_size` digits. With `index: random` run k
+/// takes entry k mod split_size of a permutation drawn from derive_seed(seed, kRunDigitOrder):
+/// every run its own digit up to the split's size, and run k the same whatever the count.
+class RunSequence {
+ public:
+  RunSequence(const worlds::World& world, const grid::FloorFrame& frame, int split_size, std::uint64_t seed);
+  PlannedRun run(std::uint64_t k) const;
+  std::uint64_t seed() const { return seed_; }
+
+ private:
+  worlds::World world_;
+  grid::FloorFrame frame_;
+  std::uint64_t seed_;
+  std::vector<int> digit_order_;  // empty with a fixed index
+};
+
+}  // namespace scout::env

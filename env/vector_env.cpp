@@ -1,0 +1,194 @@
+#include "env/vector_env.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "core/error.hpp"
+#include "worlds/dataset.hpp"
+
+namespace scout::env {
+
+namespace fs = std::filesystem;
+
+VectorEnv::VectorEnv(const VectorEnvConfig& config)
+    : num_envs_(config.num_envs), reward_(config.reward) {
+  if (config.num_envs < 1 || config.num_envs > 100000)
+    throw InputError(fmt::format("num_envs: expected an integer in 1..100000, got {}", config.num_envs));
+  world_ = worlds::load_world(config.world_file);
+  if (config.split) {
+    if (!world_.floor.image.empty())
+      throw InputError(fmt::format("split: {} has a PNG floor, not a data set with splits", config.world_file.string()));
+    world_.floor.split = *config.split;
+  }
+  const fs::path data_root = config.data_root.empty() ? worlds::default_data_root() : config.data_root;
+  floors_ = worlds::load_floors(world_, data_root);
+  frame_ = {.width_px = floors_.width_px(), .height_px = floors_.height_px(), .pixel_size_m = world_.floor.pixel_size_m};
+  for (int label : floors_.labels) classes_ = std::max(classes_, label + 1);
+  moves_ = world_.task.episodes * world_.task.steps;
+  seed_ = config.seed.value_or(world_.seed);
+  try {
+    env_ = std::make_unique<BatchEnv>(world_, frame_, num_envs_);
+  } catch (const std::runtime_error& e) {
+    throw InputError(std::string("the camera cannot start: ") + one_line(e.what()));
+  }
+  run_.resize(num_envs_);
+  planned_.resize(num_envs_);
+  done_.assign(num_envs_, 0);
+  time_step_.assign(num_envs_, 0);
+  commands_.resize(num_envs_);
+  floor_bytes_.resize(static_cast<std::size_t>(frame_.area_px()) * num_envs_);
+  starts_.resize(num_envs_);
+}
+
+VectorEnv::~VectorEnv() = default;
+
+// Plans robots[k]'s run run_[robots[k]]: its floor into floor_bytes_ row k, its start into starts_[k].
+void VectorEnv::plan(std::span<const int> robots) {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  for (std::size_t k = 0; k < robots.size(); ++k) {
+    const int i = robots[k];
+    planned_[i] = sequence_->run(run_[i]);
+    std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * k);
+    starts_[k] = planned_[i].start;
+    done_[i] = 0;
+    time_step_[i] = 0;
+  }
+}
+
+void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& out) {
+  if (seed || !sequence_) {
+    if (seed) seed_ = *seed;
+    sequence_ = std::make_unique<RunSequence>(world_, frame_, floors_.size(), seed_);
+    for (int i = 0; i < num_envs_; ++i) run_[i] = static_cast<std::uint64_t>(i);
+  } else {
+    for (int i = 0; i < num_envs_; ++i) run_[i] += static_cast<std::uint64_t>(num_envs_);
+  }
+  std::vector<int> all(num_envs_);
+  std::iota(all.begin(), all.end(), 0);
+  plan(all);
+  env_->reset(floor_bytes_, starts_);
+  if (out.reward) std::fill_n(out.reward, num_envs_, 0.0f);
+  if (out.terminated) std::fill_n(out.terminated, num_envs_, 0);
+  if (out.truncated) std::fill_n(out.truncated, num_envs_, 0);
+  write(out);
+}
+
+void VectorEnv::check(const VectorAction& action) const {
+  if (!sequence_) throw InputError("step: call reset first");
+  if (static_cast<int>(action.move.size()) != num_envs_)
+    throw InputError(fmt::format("action[\"move\"]: expected {} moves (one per robot), got {}", num_envs_,
+                                 action.move.size()));
+  for (int i = 0; i < num_envs_; ++i)
+    if (action.move[i] < 0 || action.move[i] > 3)
+      throw InputError(fmt::format("action[\"move\"][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i,
+                                   action.move[i]));
+  if (!action.prediction.empty()) {
+    if (classes_ == 0) throw InputError("action[\"prediction\"]: the floors have no labels to predict");
+    if (action.prediction.size() != static_cast<std::size_t>(num_envs_) * classes_)
+      throw InputError(fmt::format("action[\"prediction\"]: expected {} x {} logits, got {} values", num_envs_,
+                                   classes_, action.prediction.size()));
+    for (std::size_t k = 0; k < action.prediction.size(); ++k)
+      if (!std::isfinite(action.prediction[k]))
+        throw InputError(fmt::format("action[\"prediction\"][{}][{}]: expected a finite logit, got {}", k / classes_,
+                                     k % classes_, action.prediction[k]));
+  }
+  if (!action.goal.empty()) {
+    if (action.goal.size() != static_cast<std::size_t>(num_envs_) * 2)
+      throw InputError(fmt::format("action[\"goal\"]: expected {} x 2 cells, got {} values", num_envs_,
+                                   action.goal.size()));
+    for (int i = 0; i < num_envs_; ++i)
+      if (!frame_.contains({action.goal[2 * i], action.goal[2 * i + 1]}))
+        throw InputError(fmt::format("action[\"goal\"][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,
+                                     frame_.width_px, frame_.height_px, action.goal[2 * i], action.goal[2 * i + 1]));
+  }
+}
+
+void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
+  check(action);
+  // NEXT_STEP autoreset: who finished last step starts their next run now, their action ignored.
+  finished_.clear();
+  for (int i = 0; i < num_envs_; ++i)
+    if (done_[i]) {
+      run_[i] += static_cast<std::uint64_t>(num_envs_);
+      finished_.push_back(i);
+    }
+  const int s = world_.task.step_px;
+  const std::span<const grid::Cell> poses = env_->poses();
+  for (int i = 0; i < num_envs_; ++i) {
+    if (done_[i]) {
+      commands_[i] = grid::Cell::Zero();
+      continue;
+    }
+    static const grid::Cell kDirections[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    const grid::Cell d = kDirections[action.move[i]];
+    int length = s;
+    if (!action.goal.empty()) {  // the protocol's cut: never past the goal on this axis
+      const grid::Cell goal(action.goal[2 * i], action.goal[2 * i + 1]);
+      const int ahead = d.x() != 0 ? (goal.x() - poses[i].x()) * d.x() : (goal.y() - poses[i].y()) * d.y();
+      length = std::clamp(ahead, 0, s);
+    }
+    commands_[i] = d * length;
+  }
+  if (!finished_.empty()) {
+    plan(finished_);
+    const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+    env_->reset_robots(finished_, std::span(floor_bytes_.data(), area * finished_.size()),
+                       std::span(starts_.data(), finished_.size()));
+  }
+  env_->step(commands_);
+
+  const std::size_t D = static_cast<std::size_t>(classes_);
+  for (int i = 0; i < num_envs_; ++i) {
+    const bool reset_now = std::find(finished_.begin(), finished_.end(), i) != finished_.end();
+    if (!reset_now) ++time_step_[i];
+    const bool last = !reset_now && time_step_[i] >= moves_;
+    float r = 0.0f;
+    const int label = floors_.labels[planned_[i].index];
+    if (!reset_now && !action.prediction.empty() && label >= 0 && (reward_ == Reward::Dense || last)) {
+      // log softmax(logits)[label], in double for a stable log-sum-exp.
+      const float* logits = action.prediction.data() + D * i;
+      const double top = *std::max_element(logits, logits + D);
+      double sum = 0;
+      for (std::size_t c = 0; c < D; ++c) sum += std::exp(static_cast<double>(logits[c]) - top);
+      r = static_cast<float>(logits[label] - top - std::log(sum));
+    }
+    if (out.reward) out.reward[i] = r;
+    if (out.terminated) out.terminated[i] = last ? 1 : 0;
+    if (out.truncated) out.truncated[i] = 0;
+    done_[i] = last ? 1 : 0;
+  }
+  write(out);
+}
+
+void VectorEnv::write(const VectorOutputs& out) const {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  const std::span<const std::uint8_t> patches = env_->patches();
+  const std::span<const std::uint8_t> observed = env_->observed();
+  constexpr float kScale = 1.0f / 255.0f;
+  if (out.patch)
+    for (std::size_t k = 0; k < patches.size(); ++k) out.patch[k] = patches[k] * kScale;
+  if (out.revealed)
+    for (std::size_t k = 0; k < observed.size(); ++k) out.revealed[k] = observed[k] * kScale;
+  for (int i = 0; i < num_envs_; ++i) {
+    const grid::Cell pose = env_->poses()[i];
+    if (out.pose) {
+      out.pose[2 * i] = pose.x();
+      out.pose[2 * i + 1] = pose.y();
+    }
+    if (out.seen) std::copy_n(env_->seen()[i].data().data(), area, out.seen + area * i);
+    if (out.time_step) out.time_step[i] = time_step_[i];
+    if (out.label) out.label[i] = floors_.labels[planned_[i].index];
+    if (out.index) out.index[i] = planned_[i].index;
+    if (out.pose_m) {
+      const Eigen::Vector2d p = env_->pose_m(i);
+      out.pose_m[2 * i] = p.x();
+      out.pose_m[2 * i + 1] = p.y();
+    }
+    if (out.policy_seed) out.policy_seed[i] = planned_[i].policy_seed;
+  }
+}
+
+}  // namespace scout::env

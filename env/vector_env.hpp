@@ -1,0 +1,113 @@
+#pragma once
+/// The Gymnasium-style vector environment behind the Python package (python/): num_envs robots
+/// over the digits of one split, each moved one step at a time by an integer action, with
+/// observations written into caller-owned arrays, rewards from the caller's predictions, and
+/// Gymnasium's NEXT_STEP autoreset. Torch-free; the Python layer only wraps it.
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "env/batch_env.hpp"
+#include "env/runs.hpp"
+#include "worlds/floors.hpp"
+#include "worlds/world.hpp"
+
+namespace scout::env {
+
+/// dense: -cross-entropy of the prediction against the label after every move (ap_gym's
+/// convention); sparse: only after the last move of an episode. 0 where no prediction is given.
+enum class Reward { Dense, Sparse };
+
+struct VectorEnvConfig {
+  std::filesystem::path world_file;
+  int num_envs = 1;
+  std::optional<std::uint64_t> seed;   ///< default: the world file's `seed`
+  std::optional<worlds::Split> split;  ///< default: the world file's `floor.split`
+  std::filesystem::path data_root;     ///< empty: worlds::default_data_root()
+  Reward reward = Reward::Dense;
+};
+
+/// Where reset and step write: caller-owned, C-contiguous arrays of num_envs rows each. The
+/// step-only fields are ignored by reset.
+struct VectorOutputs {
+  float* patch = nullptr;              ///< N x m x m, the camera's image in [0, 1]
+  std::int32_t* pose = nullptr;        ///< N x 2, grid pose (x, y)
+  float* revealed = nullptr;           ///< N x H x W, the floor where seen, 0 elsewhere, in [0, 1]
+  std::uint8_t* seen = nullptr;        ///< N x H x W, 1 where seen
+  std::int32_t* time_step = nullptr;   ///< N, moves made in the episode
+  std::int32_t* label = nullptr;       ///< N, the digit's class (-1: unknown)
+  std::int32_t* index = nullptr;       ///< N, the digit's index in its split
+  double* pose_m = nullptr;            ///< N x 2, the robot's centre in metres
+  std::uint64_t* policy_seed = nullptr;  ///< N, the run's policy seed (scout.Agent draws from it)
+  float* reward = nullptr;             ///< N (step)
+  std::uint8_t* terminated = nullptr;  ///< N (step)
+  std::uint8_t* truncated = nullptr;   ///< N (step): always 0
+};
+
+/// The action of one step (spans of num_envs rows).
+struct VectorAction {
+  /// 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up), each step_px pixels.
+  std::span<const std::int32_t> move;
+  /// N x D logits of each robot's prediction, or empty.
+  std::span<const float> prediction;
+  /// N x 2 goals of the layered protocol, or empty. With goals, a move never passes its robot's
+  /// goal on its axis (it is cut short, as in the paper's protocol), so a robot on the goal's
+  /// row or column stays put there: what scout.Agent needs to replay `scout run` exactly.
+  std::span<const std::int32_t> goal;
+};
+
+class VectorEnv {
+ public:
+  /// Loads the world and its floors. Throws InputError (one line) for a bad world, split or data.
+  explicit VectorEnv(const VectorEnvConfig& config);
+  ~VectorEnv();
+
+  int num_envs() const { return num_envs_; }
+  int patch_px() const { return world_.camera.patch_px; }
+  int width() const { return frame_.width_px; }
+  int height() const { return frame_.height_px; }
+  int classes() const { return classes_; }     ///< D: the split's largest label + 1 (0: unlabelled)
+  int episode_moves() const { return moves_; } ///< E x T: the moves of an episode
+  int step_px() const { return world_.task.step_px; }
+  const worlds::World& world() const { return world_; }
+  const worlds::FloorSet& floors() const { return floors_; }
+  const BatchEnv& batch() const { return *env_; }
+
+  /// Starts every robot on a new run. With a seed, the sequence starts over: robot i runs run i
+  /// of that seed's sequence (as `scout run --seed s --count num_envs` does); without one, each
+  /// robot takes its next run (the first reset uses the configured or the world's seed).
+  void reset(std::optional<std::uint64_t> seed, const VectorOutputs& out);
+  /// One move per robot. A robot whose episode ended on the previous step starts its next run
+  /// instead (its action is ignored, its reward is 0). Throws InputError naming the bad entry of
+  /// `action` before anything moves.
+  void step(const VectorAction& action, const VectorOutputs& out);
+
+ private:
+  void check(const VectorAction& action) const;
+  void plan(std::span<const int> robots);
+  void write(const VectorOutputs& out) const;
+
+  worlds::World world_;
+  worlds::FloorSet floors_;
+  grid::FloorFrame frame_;
+  int num_envs_;
+  int classes_ = 0;
+  int moves_;
+  Reward reward_;
+  std::uint64_t seed_;
+  std::unique_ptr<RunSequence> sequence_;
+  std::unique_ptr<BatchEnv> env_;
+  std::vector<std::uint64_t> run_;        // each robot's current run k
+  std::vector<PlannedRun> planned_;       // and what it is
+  std::vector<std::uint8_t> done_;        // its episode ended on the last step
+  std::vector<int> time_step_;            // moves made in its episode
+  std::vector<grid::Cell> commands_;
+  std::vector<int> finished_;
+  std::vector<std::uint8_t> floor_bytes_;
+  std::vector<grid::Cell> starts_;
+};
+
+}  // namespace scout::env

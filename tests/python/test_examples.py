@@ -1,0 +1,29 @@
+"""The examples run as a user runs them: the random agent, and REINFORCE's short form, whose
+learned moves must beat i.i.d. moves by at least 15 points on held-out floors."""
+import os
+import re
+import subprocess
+import sys
+
+SOURCE = os.environ.get("SCOUT_SOURCE_DIR", os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
+EXAMPLES = os.path.join(SOURCE, "examples", "python")
+
+
+def run(script, *args):
+    result = subprocess.run([sys.executable, os.path.join(EXAMPLES, script), *args], capture_output=True, text=True,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_the_random_agent_runs_and_pays_about_log_one_tenth():
+    out = run("random_agent.py", "--num-envs", "16", "--runs", "2")
+    reward = float(re.search(r"mean reward per move (-?\d+\.\d+)", out).group(1))
+    assert -2.31 < reward < -2.0, out  # log(1/10) = -2.303 on every move but the reset steps'
+
+
+def test_reinforce_learns_to_look_at_the_corner():
+    out = run("reinforce_corner.py", "--seconds", "25")
+    found = re.search(r"learned moves (\d+\.\d) %, i.i.d. moves (\d+\.\d) % \(margin (-?\d+\.\d) points\)", out)
+    assert found, out
+    assert float(found.group(3)) >= 15.0, out
