@@ -278,18 +278,26 @@ struct Trainer::Impl {
   }
 
   // The epoch's validation figures: this stage's policy (full images in pretraining), the two
-  // baselines with the same classifier, and the classifier on full images.
+  // baselines with the same classifier, and the classifier on full images. The goals-only
+  // baseline waits for a learned goal layer (mode ii on): before it, the planner is untrained.
+  // In mode (i) the stage's policy is the i.i.d. baseline itself.
   void validate(EpochMetrics& m) {
     const Stage s = stage();
     m.validation_full_image = validation_full_image_accuracy();
-    Sampling iid;
-    Sampling goals_only;
-    goals_only.learned_goals = true;
-    m.validation_iid = validation_rollout_accuracy(iid, streams::kTrainValidationIid);
-    m.validation_goals_only = validation_rollout_accuracy(goals_only, streams::kTrainValidationGoalsOnly);
-    m.validation_accuracy = s == Stage::Pretrain ? *m.validation_full_image
-                                                 : validation_rollout_accuracy(sampling_for(s, false, config.precision),
-                                                                               streams::kTrainValidation);
+    if (s == Stage::ModeII || s == Stage::ModeIII) {
+      Sampling goals_only;
+      goals_only.learned_goals = true;
+      m.validation_goals_only = validation_rollout_accuracy(goals_only, streams::kTrainValidationGoalsOnly);
+    }
+    if (s == Stage::Pretrain) {
+      m.validation_accuracy = *m.validation_full_image;
+      m.validation_iid = validation_rollout_accuracy(Sampling{}, streams::kTrainValidationIid);
+    } else {
+      m.validation_accuracy =
+          validation_rollout_accuracy(sampling_for(s, false, config.precision), streams::kTrainValidation);
+      m.validation_iid = s == Stage::ModeI ? m.validation_accuracy
+                                           : validation_rollout_accuracy(Sampling{}, streams::kTrainValidationIid);
+    }
   }
 
   void write_metrics() const {

@@ -20,6 +20,7 @@ namespace {
 
 // Colours, BGR.
 const cv::Scalar kRobotColour(255, 0, 0);   // blue: the camera window
+const cv::Scalar kRimColour(255, 160, 90);  // light blue: the robot's disc in videos
 const cv::Scalar kGoalColour(0, 200, 0);    // green: the goal window
 const cv::Scalar kPathColour(0, 140, 255);  // orange: the path and its poses
 const cv::Scalar kPanelBackground(32, 32, 32);
@@ -267,15 +268,16 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   const int outline_px = std::max(1, s / 5);
   if (snapshot.goal) draw_window(map, snapshot, *snapshot.goal, outline_px, kGoalColour);
   if (snapshot.body) {
+    // The disc, light enough to show the floor under it, with a thin rim; then the camera window.
     const Snapshot::Body& body = *snapshot.body;
-    constexpr int kShift = 4;
-    const double radius = std::max(1.0, body.radius_px * s);
+    constexpr int kShift = 4;  // OpenCV fixed point: 1/16 output pixel
+    const cv::Point centre(static_cast<int>(std::lround(body.x_px * s * 16)),
+                           static_cast<int>(std::lround(body.y_px * s * 16)));
+    const int radius = static_cast<int>(std::lround(std::max(1.0, body.radius_px * s) * 16));
     cv::Mat overlay = map.clone();
-    cv::circle(
-        overlay,
-        cv::Point(static_cast<int>(std::lround(body.x_px * s * 16)), static_cast<int>(std::lround(body.y_px * s * 16))),
-        static_cast<int>(std::lround(radius * 16)), kRobotColour, cv::FILLED, cv::LINE_AA, kShift);
-    cv::addWeighted(overlay, 0.35, map, 0.65, 0.0, map);  // the disc shows the floor under it
+    cv::circle(overlay, centre, radius, kRobotColour, cv::FILLED, cv::LINE_AA, kShift);
+    cv::addWeighted(overlay, 0.25, map, 0.75, 0.0, map);
+    cv::circle(map, centre, radius, kRimColour, std::max(1, s / 8), cv::LINE_AA, kShift);
     draw_moving_window(map, snapshot, body, outline_px, kRobotColour);
   } else {
     draw_window(map, snapshot, snapshot.robot, outline_px, kRobotColour);

@@ -2,16 +2,20 @@
 // (OpenCV 4.6 cannot write GIF). Both are written to a temporary file that finish() renames.
 #include "render/video.hpp"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <gif_lib.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -52,29 +56,30 @@ namespace {
 class GifEncoder {
  public:
   GifEncoder(const fs::path& file, int width, int height) : width_(width), height_(height) {
+    // Opened here rather than by EGifOpenFileName, which creates files 0600: a video is as
+    // readable as any other output (0666 less the umask).
+    const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) throw InputError(fmt::format("{}: cannot create: {}", file.string(), std::strerror(errno)));
     int error = 0;
-    gif_ = EGifOpenFileName(file.c_str(), false, &error);
-    if (gif_ == nullptr) throw InputError(fmt::format("{}: cannot create: {}", file.string(), GifErrorString(error)));
-    EGifSetGifVersion(gif_, true);
-    check(EGifPutScreenDesc(gif_, width, height, 8, 0, nullptr), file);
+    gif_.reset(EGifOpenFileHandle(fd, &error));  // owns fd from here on, closed by EGifCloseFile
+    if (gif_ == nullptr) {
+      ::close(fd);
+      throw InputError(fmt::format("{}: cannot create: {}", file.string(), GifErrorString(error)));
+    }
+    EGifSetGifVersion(gif_.get(), true);
+    check(EGifPutScreenDesc(gif_.get(), width, height, 8, 0, nullptr), file);
     // NETSCAPE2.0: loop forever.
     static const char kApplication[] = "NETSCAPE2.0";
     static const unsigned char kLoop[3] = {1, 0, 0};
-    check(EGifPutExtensionLeader(gif_, APPLICATION_EXT_FUNC_CODE), file);
-    check(EGifPutExtensionBlock(gif_, 11, kApplication), file);
-    check(EGifPutExtensionBlock(gif_, 3, kLoop), file);
-    check(EGifPutExtensionTrailer(gif_), file);
+    check(EGifPutExtensionLeader(gif_.get(), APPLICATION_EXT_FUNC_CODE), file);
+    check(EGifPutExtensionBlock(gif_.get(), 11, kApplication), file);
+    check(EGifPutExtensionBlock(gif_.get(), 3, kLoop), file);
+    check(EGifPutExtensionTrailer(gif_.get()), file);
     const std::size_t area = static_cast<std::size_t>(width) * height;
     red_.resize(area);
     green_.resize(area);
     blue_.resize(area);
     indices_.resize(area);
-  }
-  ~GifEncoder() {
-    if (gif_ != nullptr) {
-      int error = 0;
-      EGifCloseFile(gif_, &error);
-    }
   }
   GifEncoder(const GifEncoder&) = delete;
   GifEncoder& operator=(const GifEncoder&) = delete;
@@ -102,18 +107,17 @@ class GifEncoder {
     control.TransparentColor = NO_TRANSPARENT_COLOR;
     GifByteType extension[4];
     const std::size_t length = EGifGCBToExtension(&control, extension);
-    int rc = EGifPutExtension(gif_, GRAPHICS_EXT_FUNC_CODE, static_cast<int>(length), extension);
-    if (rc != GIF_ERROR) rc = EGifPutImageDesc(gif_, 0, 0, width_, height_, false, palette);
+    int rc = EGifPutExtension(gif_.get(), GRAPHICS_EXT_FUNC_CODE, static_cast<int>(length), extension);
+    if (rc != GIF_ERROR) rc = EGifPutImageDesc(gif_.get(), 0, 0, width_, height_, false, palette);
     for (int y = 0; y < height_ && rc != GIF_ERROR; ++y)
-      rc = EGifPutLine(gif_, indices_.data() + static_cast<std::size_t>(y) * width_, width_);
+      rc = EGifPutLine(gif_.get(), indices_.data() + static_cast<std::size_t>(y) * width_, width_);
     GifFreeMapObject(palette);
     check(rc, file);
   }
 
   void close(const fs::path& file) {
     int error = 0;
-    const int rc = EGifCloseFile(gif_, &error);
-    gif_ = nullptr;  // freed by EGifCloseFile, whatever it returns
+    const int rc = EGifCloseFile(gif_.release(), &error);  // frees it whatever it returns
     if (rc == GIF_ERROR) throw InputError(fmt::format("{}: cannot write: {}", file.string(), GifErrorString(error)));
   }
 
@@ -123,7 +127,14 @@ class GifEncoder {
       throw InputError(fmt::format("{}: cannot write: {}", file.string(), GifErrorString(gif_->Error)));
   }
 
-  GifFileType* gif_ = nullptr;
+  // Closed (and the file handle with it) on every way out, a throw in the constructor included.
+  struct Closer {
+    void operator()(GifFileType* gif) const {
+      int error = 0;
+      EGifCloseFile(gif, &error);
+    }
+  };
+  std::unique_ptr<GifFileType, Closer> gif_;
   int width_, height_;
   std::vector<GifByteType> red_, green_, blue_, indices_;
 };
@@ -165,7 +176,10 @@ struct VideoWriter::Impl {
 
 VideoWriter::VideoWriter(const fs::path& file, double fps) : impl_(std::make_unique<Impl>()) {
   impl_->format = check_video_path("video", file);
-  if (!(fps > 0 && fps <= 100)) throw InputError(fmt::format("--fps: expected a number in (0, 100], got {}", fps));
+  if (!(fps > 0 && fps <= 100)) throw InputError(fmt::format("fps: expected a number in (0, 100], got {}", fps));
+  // A GIF keeps delays in hundredths of a second, and browsers slow a delay under 2 to 10.
+  if (impl_->format == VideoFormat::Gif && fps > 50)
+    throw InputError(fmt::format("fps: expected at most 50 for a GIF ({}), got {}", file.string(), fps));
   impl_->file = file;
   impl_->fps = fps;
   // Beside the target (same file system, so the rename is atomic), with the same extension,
@@ -219,11 +233,19 @@ void VideoWriter::add(const Picture& frame) {
 void VideoWriter::finish() {
   Impl& v = *impl_;
   if (v.frames == 0) throw InputError(v.file.string() + ": no frames to write");
-  if (v.format == VideoFormat::Mp4)
-    v.mp4.release();
-  else
-    v.gif->close(v.file);
   std::error_code ec;
+  if (v.format == VideoFormat::Mp4) {
+    v.mp4.release();
+    // VideoWriter reports no write error: read the file back, so that a full disk (a file cut
+    // short, without its index) is an error and not a broken video.
+    cv::VideoCapture check(v.temporary.string(), cv::CAP_FFMPEG);
+    const double frames = check.isOpened() ? check.get(cv::CAP_PROP_FRAME_COUNT) : -1;
+    if (frames != v.frames)
+      throw InputError(fmt::format("{}: the MP4 encoder wrote {} of {} frames (is the disk full?)", v.file.string(),
+                                   frames < 0 ? 0 : frames, v.frames));
+  } else {
+    v.gif->close(v.file);
+  }
   const auto size = fs::file_size(v.temporary, ec);
   if (ec || size == 0) throw InputError(fmt::format("{}: the encoder wrote nothing", v.file.string()));
   fs::rename(v.temporary, v.file, ec);

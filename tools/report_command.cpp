@@ -80,6 +80,19 @@ void check_eval_json(const json& j, const fs::path& file) {
     number_at(j[interval], "ci95", std::string(interval) + ".ci95");
   }
   number_at(j, "full_image_accuracy", "full_image_accuracy");
+  // Optional fields, copied into the report: a number or null where present.
+  auto number_or_null = [&](const json& parent, const char* key, const std::string& path) {
+    if (parent.contains(key) && !parent[key].is_number() && !parent[key].is_null())
+      throw InputError(fmt::format("{}: {}: expected a number or null", file.string(), path));
+  };
+  number_or_null(j, "greedy_accuracy", "greedy_accuracy");
+  number_or_null(j, "revealed_fraction", "revealed_fraction");
+  for (const char* count : {"runs", "images"})
+    if (j.contains(count) && !j[count].is_number_integer())
+      throw InputError(fmt::format("{}: {}: expected an integer", file.string(), count));
+  for (const char* text : {"precision", "checkpoint"})
+    if (j.contains(text) && !j[text].is_string())
+      throw InputError(fmt::format("{}: {}: expected a string", file.string(), text));
   if (!j.contains("confusion") || !j["confusion"].is_array() || j["confusion"].empty())
     throw InputError(fmt::format("{}: confusion: expected a square matrix of numbers", file.string()));
   const std::size_t classes = j["confusion"].size();
@@ -92,6 +105,26 @@ void check_eval_json(const json& j, const fs::path& file) {
   }
   if (!j.contains("baselines") || !j["baselines"].is_object())
     throw InputError(fmt::format("{}: baselines: expected an object with iid and goals_only", file.string()));
+  number_or_null(j["baselines"], "iid", "baselines.iid");
+  number_or_null(j["baselines"], "goals_only", "baselines.goals_only");
+  for (const char* interval : {"accuracy", "top2"})
+    for (const char* key : {"mean", "ci95"}) {
+      const double v = j[interval][key].get<double>();
+      if (!(v >= 0 && v <= 1))
+        throw InputError(
+            fmt::format("{}: {}.{}: expected a fraction in [0, 1], got {}", file.string(), interval, key, v));
+    }
+}
+
+// The digits an evaluation was made on, by SHA-256 (its manifest's data_sha256), or none.
+std::vector<std::string> evaluated_data(const json& eval) {
+  std::vector<std::string> out;
+  if (!eval.contains("manifest") || !eval["manifest"].is_object()) return out;
+  const json& m = eval["manifest"];
+  if (!m.contains("data_sha256") || !m["data_sha256"].is_object()) return out;
+  for (const auto& [path, sha] : m["data_sha256"].items())
+    if (sha.is_string()) out.push_back(sha.get<std::string>());
+  return out;
 }
 
 // The manifest a model or run came with: RUN/manifest.json, or X-manifest.json beside X.pt.
@@ -108,11 +141,18 @@ fs::path eval_beside(const fs::path& model) {
   return model.parent_path() / (model.stem().string() + "-test-eval.json");
 }
 
+// A command line as a shell would take it back: "scout" and the arguments, quoted where needed.
 std::string shell_line(const json& argv) {
   std::string line = "scout";
   for (std::size_t i = 1; i < argv.size(); ++i) {
     const std::string a = argv[i].is_string() ? argv[i].get<std::string>() : argv[i].dump();
-    line += " " + (a.find_first_of(" \t'\"") == std::string::npos ? a : "'" + a + "'");
+    if (!a.empty() && a.find_first_of(" \t\n'\"\\$`*?[]{}()<>|&;#~") == std::string::npos) {
+      line += " " + a;
+      continue;
+    }
+    std::string quoted = "'";
+    for (char c : a) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    line += " " + quoted + "'";
   }
   return line;
 }
@@ -185,6 +225,8 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
   json out;
   out["digits"] = opt.sweep_digits;
   out["runs"] = opt.sweep_runs;
+  out["trained"] = {
+      {"patch_px", trained.camera.patch_px}, {"episodes", trained.task.episodes}, {"steps", trained.task.steps}};
   out["seed"] = seed;
   out["points"] = json::array();
   for (const Point& p : points) {
@@ -221,6 +263,7 @@ json test_episodes(const ReportOptions& opt, const fs::path& checkpoint, const w
                    const std::vector<std::uint8_t>& labels, std::uint64_t seed) {
   std::unique_ptr<learn::TrainedAgent> agent = learn::TrainedAgent::load(checkpoint);
   const worlds::World& world = agent->config().world;
+  worlds::check_against_floor(world, images.cols, images.rows);
   const grid::FloorFrame frame{
       .width_px = images.cols, .height_px = images.rows, .pixel_size_m = world.floor.pixel_size_m};
   const int n = std::min(images.count, 240);
@@ -352,13 +395,28 @@ void report_command(const ReportOptions& opt, const Context& context) {
       throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
                                    eval_file.string(), model_sha, checkpoint.string(),
                                    eval["manifest"]["checkpoint_sha256"].dump()));
+    // The table says which digits its figures come from: an evaluation of other digits (the
+    // 10,000-digit set's test split, say) is refused rather than shown as the official test set.
+    const std::vector<std::string> evaluated = evaluated_data(eval);
+    for (const fs::path& file : {images, labels}) {
+      const std::string sha = worlds::sha256_file(file);
+      if (std::find(evaluated.begin(), evaluated.end(), sha) == evaluated.end())
+        throw InputError(fmt::format(
+            "--eval: {}: manifest.data_sha256: expected an evaluation of {} (SHA-256 {}), got one of other digits "
+            "(evaluate again with scout eval, or give --images and --labels)",
+            eval_file.string(), file.string(), sha));
+    }
   }
   const worlds::ImageSet test_images = worlds::read_idx_images(images);
   const std::vector<std::uint8_t> test_labels = worlds::read_idx_labels(labels);
+  if (test_images.count == 0) throw InputError(images.string() + ": expected at least one image, the file has none");
   if (test_labels.size() != static_cast<std::size_t>(test_images.count))
     throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels.string(),
                                  test_images.count, images.string(), test_labels.size()));
-  OutputDir out(opt.out, opt.overwrite, {model, checkpoint, images, labels});
+  std::vector<fs::path> inputs = {model, checkpoint, images, labels};
+  if (!eval_file.empty()) inputs.push_back(eval_file);
+  for (const Compared& c : compared) inputs.push_back(c.file);
+  OutputDir out(opt.out, opt.overwrite, inputs);
 
   fmt::print("scout report: {} -> {}\n", model.string(), opt.out);
   std::fflush(stdout);
@@ -398,7 +456,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
   m["label"] = fmt::format("Scout: {}", model.filename().string());
   m["path"] = model.string();
   m["eval"] = eval_summary(eval);
-  m["eval"]["data"] = images.string();
+  m["eval"]["data"] = fmt::format("{} ({} digits)", images.string(), eval.value("images", test_images.count));
   m["eval_source"] = eval_source;
   m["eval_command"] = eval_command_of(eval);
   m["train_commands"] = training_commands(manifest_beside(model));
@@ -412,8 +470,14 @@ void report_command(const ReportOptions& opt, const Context& context) {
     e["eval"] = eval_summary(c.eval);
     e["eval_source"] = c.file.string();
     e["eval_command"] = eval_command_of(c.eval);
-    const std::string checkpoint_field = c.eval.value("checkpoint", "");
-    if (!checkpoint_field.empty()) e["train_commands"] = training_commands(manifest_beside(checkpoint_field));
+    // The evaluated model's manifest: its path as scout eval was given it (relative to where it
+    // ran, usually the source tree), else beside the evaluation file.
+    if (c.eval.contains("checkpoint")) {
+      const fs::path given = c.eval["checkpoint"].get<std::string>();
+      std::error_code exists;
+      const fs::path model_path = fs::exists(given, exists) ? given : c.file.parent_path() / given.filename();
+      e["train_commands"] = training_commands(manifest_beside(model_path));
+    }
     data["compare"].push_back(e);
   }
   if (opt.sweep_digits > 0) {
@@ -440,9 +504,13 @@ void report_command(const ReportOptions& opt, const Context& context) {
   const core::ProgramResult plot = core::run_program(
       {python_interpreter(), script.string(), (out.path() / "report-data.json").string(), out.path().string()},
       fs::current_path(), out.path() / ".plot.log");
-  if (plot.failed())
-    throw InputError(fmt::format("{} {} failed {}; is python3-matplotlib installed (./scripts/setup.sh)?",
-                                 python_interpreter(), script.string(), plot.describe(python_interpreter())));
+  interrupt_token().throw_if_requested();  // a Ctrl-C reached the plotting script too
+  if (plot.failed()) {
+    const bool missing_module = plot.last_line.find("ModuleNotFoundError") != std::string::npos;
+    throw InputError(fmt::format("{} {} failed {}{}", python_interpreter(), script.string(),
+                                 plot.describe(python_interpreter()),
+                                 missing_module ? "; install python3-matplotlib (./scripts/setup.sh)" : ""));
+  }
   fs::remove(out.path() / ".plot.log", ec);
   json manifest = make_manifest(context.argv, worlds::to_yaml(info.config.world), {images, labels}, "");
   manifest["checkpoint"] = {{"path", model.string()}, {"sha256", worlds::sha256_file(checkpoint)}};

@@ -137,7 +137,20 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
 void run_command(const RunOptions& opt, const Context& context) {
   if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
   // A bad video path is refused before any work, like a bad --out.
-  if (!opt.video.empty()) render::check_video_path("--video", opt.video);
+  if (!opt.video.empty()) {
+    render::check_video_path("--video", opt.video);
+    if (opt.fps > 50 && render::check_video_path("--video", opt.video) == render::VideoFormat::Gif)
+      throw InputError(
+          fmt::format("--fps: expected at most 50 for a GIF (browsers slow faster ones down), got {}", opt.fps));
+    // --out is replaced as a whole when it is committed: a video inside it would be lost.
+    std::error_code ec;
+    const fs::path video = fs::weakly_canonical(fs::absolute(opt.video), ec);
+    const fs::path out = fs::weakly_canonical(fs::absolute(opt.out), ec);
+    const auto [stop, _] = std::mismatch(out.begin(), out.end(), video.begin(), video.end());
+    if (!ec && stop == out.end())
+      throw InputError(fmt::format("--video: {}: expected a file outside --out's folder {} (written as a whole)",
+                                   opt.video, opt.out));
+  }
   std::unique_ptr<learn::TrainedAgent> agent;
   if (!opt.checkpoint.empty()) {
     agent = learn::TrainedAgent::load(opt.checkpoint);

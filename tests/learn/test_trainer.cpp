@@ -256,22 +256,25 @@ TEST_F(Training, AShortRunOnRealDigitsBeatsChance) {
   std::printf("full-image validation %.3f; mode (i) validation %.3f, train %.3f\n",
               trainer.history().front().validation_accuracy, last.validation_accuracy, last.train_accuracy);
   EXPECT_GE(last.validation_accuracy, 0.3);
-  // Every epoch also measures the baselines and the full images on the same validation digits.
+  // Every epoch also measures the baselines and the full images on the same validation digits;
+  // the goals-only baseline waits for a learned goal layer.
   for (const EpochMetrics& m : trainer.history()) {
-    ASSERT_TRUE(m.validation_iid && m.validation_goals_only && m.validation_full_image);
-    for (double v : {*m.validation_iid, *m.validation_goals_only, *m.validation_full_image}) {
+    ASSERT_TRUE(m.validation_iid && m.validation_full_image);
+    EXPECT_FALSE(m.validation_goals_only) << "no learned goals before mode (ii)";
+    for (double v : {*m.validation_iid, *m.validation_full_image}) {
       EXPECT_GE(v, 0.0);
       EXPECT_LE(v, 1.0);
     }
-    // Pretraining's validation is the full images; mode (i)'s policy is the i.i.d. baseline (other draws).
+    // Pretraining's validation is the full images; mode (i)'s policy is the i.i.d. baseline.
     if (m.stage == Stage::Pretrain) {
       EXPECT_EQ(m.validation_accuracy, *m.validation_full_image);
     }
     if (m.stage == Stage::ModeI) {
-      EXPECT_NEAR(m.validation_accuracy, *m.validation_iid, 0.12);
+      EXPECT_EQ(m.validation_accuracy, *m.validation_iid);
     }
-    EXPECT_GT(*m.validation_full_image, *m.validation_iid) << "the full image is easier than six patches";
   }
+  // The classifier, pretrained on full images, reads them better than six patches.
+  EXPECT_GT(*trainer.history().front().validation_full_image, *trainer.history().front().validation_iid);
 }
 
 // One more epoch of mode (i) after a finished one-epoch run is the uninterrupted run's second epoch.

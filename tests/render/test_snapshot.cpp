@@ -157,6 +157,63 @@ TEST(DrawSnapshot, RobotWindowIsABlueOutlineAndGoalWindowAGreenOne) {
   EXPECT_FALSE(is_blue(pixel(picture, 95, 65)));
 }
 
+// Videos: a body between grid poses carries its camera window along at sub-pixel precision (at a
+// cell centre it is exactly the grid window), and its disc tints the floor under it.
+TEST(DrawSnapshot, ABodyBetweenCellsCarriesItsWindowAndItsDisc) {
+  const Scene scene;
+  Snapshot on_cell = scene.snapshot();
+  on_cell.robot = {3, 3};
+  const Picture grid_window = draw_snapshot(on_cell);
+  Snapshot body = on_cell;
+  body.body = Snapshot::Body{.x_px = 3.5, .y_px = 3.5, .radius_px = 0.5};
+  const Picture at_centre = draw_snapshot(body);
+  // The window's outline where draw_window puts it (output pixels 20..49).
+  for (int along : {22, 35, 47}) {
+    EXPECT_TRUE(is_blue(pixel(at_centre, 21, along))) << along;
+    EXPECT_TRUE(is_blue(pixel(at_centre, 48, along))) << along;
+    EXPECT_TRUE(is_blue(pixel(grid_window, 21, along))) << along;
+  }
+  EXPECT_TRUE(is_gray(pixel(at_centre, 18, 35), scene.value(1, 3)));
+  // The disc's middle is tinted blue, not the floor's gray.
+  const Bgr middle = pixel(at_centre, 35, 35);
+  EXPECT_FALSE(is_gray(middle, scene.value(3, 3)));
+  EXPECT_GT(middle.b, middle.r);
+  // Half a pixel (5 output pixels) to the right, the window moves with the body.
+  body.body->x_px = 4.0;
+  const Picture moved = draw_snapshot(body);
+  EXPECT_TRUE(is_blue(pixel(moved, 53, 35)));
+  EXPECT_FALSE(is_blue(pixel(moved, 21, 35)));
+}
+
+TEST(DrawSnapshot, APendingPredictionDrawsThePanelWithoutBars) {
+  const Scene scene;
+  const std::array<float, 10> probabilities = {0.05f, 0.02f, 0.03f, 0.1f, 0.05f, 0.05f, 0.05f, 0.6f, 0.03f, 0.02f};
+  Snapshot s = scene.snapshot();
+  s.class_probabilities = probabilities;
+  s.prediction_pending = true;
+  const Picture pending = draw_snapshot(s);
+  s.prediction_pending = false;
+  const Picture shown = draw_snapshot(s);
+  ASSERT_EQ(pending.width, shown.width);  // video frames keep one size
+  ASSERT_EQ(pending.height, shown.height);
+  auto count_bars = [](const Picture& p, int& bar_pixels, int& highlighted) {
+    bar_pixels = highlighted = 0;
+    for (int y = 0; y < p.height; ++y)
+      for (int x = Scene::kWidth * 10; x < p.width; ++x) {
+        const Bgr c = pixel(p, x, y);
+        bar_pixels += (c.b == 150 && c.g == 150 && c.r == 150) ? 1 : 0;
+        highlighted += (c.b == 0 && c.g == 140 && c.r == 255) ? 1 : 0;
+      }
+  };
+  int bars = 0, best = 0;
+  count_bars(pending, bars, best);
+  EXPECT_EQ(bars, 0);
+  EXPECT_EQ(best, 0);
+  count_bars(shown, bars, best);  // the same colours are there once the prediction is
+  EXPECT_GT(bars, 0);
+  EXPECT_GT(best, 0);
+}
+
 TEST(DrawSnapshot, EvenWindowSitsLeftAndAboveThePose) {
   const Scene scene;
   Snapshot snapshot = scene.snapshot();

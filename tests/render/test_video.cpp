@@ -3,6 +3,7 @@
 // paths refused with one line before any frame.
 #include <gif_lib.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <filesystem>
@@ -94,6 +95,10 @@ TEST(VideoWriter, GifFramesDelaysAndLoopReadBackWithGiflib) {
     EXPECT_EQ(video.codec(), "gif");
   }
   EXPECT_EQ(files_in(dir.path()), std::vector<fs::path>{"run.gif"});
+  // As readable as any other output: 0666 less the umask (giflib alone would make it 0600).
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  EXPECT_EQ(static_cast<unsigned>(fs::status(file).permissions()), 0666u & ~static_cast<unsigned>(mask));
   int error = 0;
   GifFileType* gif = DGifOpenFileName(file.c_str(), &error);
   ASSERT_NE(gif, nullptr) << GifErrorString(error);
@@ -171,7 +176,9 @@ TEST(VideoPath, BadPathsAreOneLineNamingOptionAndFile) {
   EXPECT_EQ(refusal("--video", dir.path() / "x.gif"),
             "--video: " + (dir.path() / "x.gif").string() + ": expected a file, got a folder");
   EXPECT_THROW(VideoWriter(dir.path() / "a.gif", 0), InputError);
-  EXPECT_THROW(VideoWriter(dir.path() / "a.gif", 101), InputError);
+  EXPECT_THROW(VideoWriter(dir.path() / "a.mp4", 101), InputError);
+  EXPECT_THROW(VideoWriter(dir.path() / "a.gif", 60), InputError);  // GIF delays are hundredths
+  EXPECT_NO_THROW(VideoWriter(dir.path() / "a.mp4", 60));
 }
 
 }  // namespace

@@ -80,7 +80,8 @@ TEST_F(EvalRun, BadVideoPathsAreOneLineBeforeAnyWork) {
   const std::string bad[][2] = {
       {path("v.avi"), "--video: " + path("v.avi") + ": expected a file name ending in .mp4 or .gif, got \".avi\""},
       {path("no/such/v.gif"),
-       "--video: " + path("no/such/v.gif") + ": the folder " + path("no/such") + " does not exist"}};
+       "--video: " + path("no/such/v.gif") + ": the folder " + path("no/such") + " does not exist"},
+      {path("v.gif") + " --fps 60", "--fps: expected at most 50 for a GIF (browsers slow faster ones down), got 60"}};
   for (const auto& [file, message] : bad) {
     // A world file that does not exist: the video path is checked first.
     const Result r = scout("run " + path("missing.yaml") + " --out " + path("never") + " --video " + file);
@@ -88,6 +89,14 @@ TEST_F(EvalRun, BadVideoPathsAreOneLineBeforeAnyWork) {
     EXPECT_EQ(r.output, "scout: error: " + message + "\n");
     EXPECT_FALSE(fs::exists(path("never")));
   }
+  // Inside an --out folder that --overwrite replaces as a whole, the video would be lost.
+  fs::create_directories(path("old-out"));
+  const Result inside =
+      scout("run " + world() + " --out " + path("old-out") + " --overwrite --video " + path("old-out") + "/v.mp4");
+  EXPECT_EQ(inside.status, 1) << inside.output;
+  EXPECT_EQ(inside.output, "scout: error: --video: " + path("old-out") +
+                               "/v.mp4: expected a file outside --out's folder " + path("old-out") +
+                               " (written as a whole)\n");
   const Result fps = scout("run " + world() + " --out " + path("never") + " --video " + path("v.gif") + " --fps 0");
   EXPECT_EQ(fps.status, 2) << fps.output;
   EXPECT_FALSE(fs::exists(path("v.gif")));

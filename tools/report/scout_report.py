@@ -74,7 +74,10 @@ def plot_history(history, out_dir):
         return np.array([np.nan if h.get(key) is None else h[key] for h in history], dtype=float)
 
     ax.plot(x, series("validation_accuracy"), "o-", color="black", ms=3, label="the agent (this mode's policy)")
-    ax.plot(x, series("validation_goals_only"), "s--", color="#2ca02c", ms=3, label="learned goals, i.i.d. actions")
+    # Before mode (ii) the goal planner is untrained: its "learned goals" pass says nothing.
+    goals_only = series("validation_goals_only")
+    goals_only[[m not in ("ii", "iii") for m in modes]] = np.nan
+    ax.plot(x, goals_only, "s--", color="#2ca02c", ms=3, label="learned goals, i.i.d. actions")
     ax.plot(x, series("validation_iid"), "^--", color="#1f77b4", ms=3, label="i.i.d. goals and actions")
     ax.plot(x, series("validation_full_image"), ":", color="#7f7f7f", label="the classifier on full images")
     ax.set_xlabel("epoch (all modes, in order)")
@@ -191,8 +194,10 @@ def plot_budget(sweep, paper, model_point, out_dir):
     if not points:
         return None
     fig, ax = plt.subplots(figsize=(7.5, 4.6))
-    for kind, marker, colour, label in (("patch", "o-", "#1f77b4", "patch size m (E × T = 4 × 5)"),
-                                        ("moves", "s-", "#d62728", "episodes E × moves T (m = 6)")):
+    trained = sweep.get("trained", {"patch_px": 6, "episodes": 4, "steps": 5})
+    for kind, marker, colour, label in (
+            ("patch", "o-", "#1f77b4", f"patch size m (E × T = {trained['episodes']} × {trained['steps']})"),
+            ("moves", "s-", "#d62728", f"episodes E × moves T (m = {trained['patch_px']})")):
         pts = sorted((p for p in points if p["kind"] == kind), key=lambda p: p["revealed_fraction"])
         if not pts:
             continue
@@ -208,7 +213,7 @@ def plot_budget(sweep, paper, model_point, out_dir):
     paper_fraction = paper.get("revealed_fraction")
     if paper_fraction is not None:
         ax.plot([paper_fraction], [paper["accuracy"] / 100], "D", color="#9467bd", ms=7,
-                label=f"the paper: {paper['accuracy']:.2f} % (m = 6, 4 × 5)")
+                label=f"the paper: {paper['accuracy']:.2f} % (m = 6, 4 × 5; at Scout's coverage of that task)")
     ram = paper.get("ram")
     if ram:
         ax.plot([ram["revealed_fraction"]], [ram["accuracy"] / 100], "P", color="#8c564b", ms=9,
@@ -274,8 +279,9 @@ def write_report(data, figures, out_dir):
     for r in table_rows(data):
         add("| " + " | ".join(r) + " |")
     add("")
-    add("Accuracies are on the official 10,000 test digits, means over runs with 95 % Student-t intervals "
-        "(half-widths). The paper's figures are its own (20 runs); \"full images\" is the trained agent's "
+    add(f"Scout's accuracies are on {ev.get('data', 'the test digits')}, means over runs with 95 % Student-t "
+        "intervals (half-widths); rows added with --compare say which digits in their own evaluation. The "
+        "paper's figures are its own (the official test set, 20 runs); \"full images\" is the trained agent's "
         "classifier given the whole digit (u_c = x).")
     add("")
     for entry in [model] + data.get("compare", []):
