@@ -91,7 +91,8 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
     if (robots[k] < 0 || robots[k] >= count_)
       throw std::invalid_argument("BatchEnv::reset_robots: robot " + std::to_string(robots[k]) + " of " +
                                   std::to_string(count_));
-    if (!frame_.contains(starts[k])) throw std::invalid_argument("BatchEnv::reset_robots: a start cell is off the floor");
+    if (!frame_.contains(starts[k]))
+      throw std::invalid_argument("BatchEnv::reset_robots: a start cell is off the floor");
   }
   if (robots.empty()) return;
   const auto t0 = Clock::now();

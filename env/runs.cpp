@@ -12,8 +12,7 @@ grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame,
   return {pixel % frame.width_px, pixel / frame.width_px};
 }
 
-RunSequence::RunSequence(const worlds::World& world, const grid::FloorFrame& frame, int split_size,
-                         std::uint64_t seed)
+RunSequence::RunSequence(const worlds::World& world, const grid::FloorFrame& frame, int split_size, std::uint64_t seed)
     : world_(world), frame_(frame), seed_(seed) {
   if (split_size <= 0) throw std::invalid_argument("RunSequence: the split has no digit");
   if (!world.floor.index) {

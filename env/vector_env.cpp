@@ -13,19 +13,20 @@ namespace scout::env {
 
 namespace fs = std::filesystem;
 
-VectorEnv::VectorEnv(const VectorEnvConfig& config)
-    : num_envs_(config.num_envs), reward_(config.reward) {
+VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs), reward_(config.reward) {
   if (config.num_envs < 1 || config.num_envs > 100000)
     throw InputError(fmt::format("num_envs: expected an integer in 1..100000, got {}", config.num_envs));
   world_ = worlds::load_world(config.world_file);
   if (config.split) {
     if (!world_.floor.image.empty())
-      throw InputError(fmt::format("split: {} has a PNG floor, not a data set with splits", config.world_file.string()));
+      throw InputError(
+          fmt::format("split: {} has a PNG floor, not a data set with splits", config.world_file.string()));
     world_.floor.split = *config.split;
   }
   const fs::path data_root = config.data_root.empty() ? worlds::default_data_root() : config.data_root;
   floors_ = worlds::load_floors(world_, data_root);
-  frame_ = {.width_px = floors_.width_px(), .height_px = floors_.height_px(), .pixel_size_m = world_.floor.pixel_size_m};
+  frame_ = {
+      .width_px = floors_.width_px(), .height_px = floors_.height_px(), .pixel_size_m = world_.floor.pixel_size_m};
   for (int label : floors_.labels) classes_ = std::max(classes_, label + 1);
   moves_ = world_.task.episodes * world_.task.steps;
   seed_ = config.seed.value_or(world_.seed);
@@ -79,12 +80,12 @@ void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& ou
 void VectorEnv::check(const VectorAction& action) const {
   if (!sequence_) throw InputError("step: call reset first");
   if (static_cast<int>(action.move.size()) != num_envs_)
-    throw InputError(fmt::format("action[\"move\"]: expected {} moves (one per robot), got {}", num_envs_,
-                                 action.move.size()));
+    throw InputError(
+        fmt::format("action[\"move\"]: expected {} moves (one per robot), got {}", num_envs_, action.move.size()));
   for (int i = 0; i < num_envs_; ++i)
     if (action.move[i] < 0 || action.move[i] > 3)
-      throw InputError(fmt::format("action[\"move\"][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i,
-                                   action.move[i]));
+      throw InputError(
+          fmt::format("action[\"move\"][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i, action.move[i]));
   if (!action.prediction.empty()) {
     if (classes_ == 0) throw InputError("action[\"prediction\"]: the floors have no labels to predict");
     if (action.prediction.size() != static_cast<std::size_t>(num_envs_) * classes_)
@@ -97,8 +98,8 @@ void VectorEnv::check(const VectorAction& action) const {
   }
   if (!action.goal.empty()) {
     if (action.goal.size() != static_cast<std::size_t>(num_envs_) * 2)
-      throw InputError(fmt::format("action[\"goal\"]: expected {} x 2 cells, got {} values", num_envs_,
-                                   action.goal.size()));
+      throw InputError(
+          fmt::format("action[\"goal\"]: expected {} x 2 cells, got {} values", num_envs_, action.goal.size()));
     for (int i = 0; i < num_envs_; ++i)
       if (!frame_.contains({action.goal[2 * i], action.goal[2 * i + 1]}))
         throw InputError(fmt::format("action[\"goal\"][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,

@@ -33,18 +33,18 @@ struct VectorEnvConfig {
 /// Where reset and step write: caller-owned, C-contiguous arrays of num_envs rows each. The
 /// step-only fields are ignored by reset.
 struct VectorOutputs {
-  float* patch = nullptr;              ///< N x m x m, the camera's image in [0, 1]
-  std::int32_t* pose = nullptr;        ///< N x 2, grid pose (x, y)
-  float* revealed = nullptr;           ///< N x H x W, the floor where seen, 0 elsewhere, in [0, 1]
-  std::uint8_t* seen = nullptr;        ///< N x H x W, 1 where seen
-  std::int32_t* time_step = nullptr;   ///< N, moves made in the episode
-  std::int32_t* label = nullptr;       ///< N, the digit's class (-1: unknown)
-  std::int32_t* index = nullptr;       ///< N, the digit's index in its split
-  double* pose_m = nullptr;            ///< N x 2, the robot's centre in metres
+  float* patch = nullptr;                ///< N x m x m, the camera's image in [0, 1]
+  std::int32_t* pose = nullptr;          ///< N x 2, grid pose (x, y)
+  float* revealed = nullptr;             ///< N x H x W, the floor where seen, 0 elsewhere, in [0, 1]
+  std::uint8_t* seen = nullptr;          ///< N x H x W, 1 where seen
+  std::int32_t* time_step = nullptr;     ///< N, moves made in the episode
+  std::int32_t* label = nullptr;         ///< N, the digit's class (-1: unknown)
+  std::int32_t* index = nullptr;         ///< N, the digit's index in its split
+  double* pose_m = nullptr;              ///< N x 2, the robot's centre in metres
   std::uint64_t* policy_seed = nullptr;  ///< N, the run's policy seed (scout.Agent draws from it)
-  float* reward = nullptr;             ///< N (step)
-  std::uint8_t* terminated = nullptr;  ///< N (step)
-  std::uint8_t* truncated = nullptr;   ///< N (step): always 0
+  float* reward = nullptr;               ///< N (step)
+  std::uint8_t* terminated = nullptr;    ///< N (step)
+  std::uint8_t* truncated = nullptr;     ///< N (step): always 0
 };
 
 /// The action of one step (spans of num_envs rows).
@@ -69,8 +69,8 @@ class VectorEnv {
   int patch_px() const { return world_.camera.patch_px; }
   int width() const { return frame_.width_px; }
   int height() const { return frame_.height_px; }
-  int classes() const { return classes_; }     ///< D: the split's largest label + 1 (0: unlabelled)
-  int episode_moves() const { return moves_; } ///< E x T: the moves of an episode
+  int classes() const { return classes_; }      ///< D: the split's largest label + 1 (0: unlabelled)
+  int episode_moves() const { return moves_; }  ///< E x T: the moves of an episode
   int step_px() const { return world_.task.step_px; }
   const worlds::World& world() const { return world_; }
   const worlds::FloorSet& floors() const { return floors_; }
@@ -100,10 +100,10 @@ class VectorEnv {
   std::uint64_t seed_;
   std::unique_ptr<RunSequence> sequence_;
   std::unique_ptr<BatchEnv> env_;
-  std::vector<std::uint64_t> run_;        // each robot's current run k
-  std::vector<PlannedRun> planned_;       // and what it is
-  std::vector<std::uint8_t> done_;        // its episode ended on the last step
-  std::vector<int> time_step_;            // moves made in its episode
+  std::vector<std::uint64_t> run_;   // each robot's current run k
+  std::vector<PlannedRun> planned_;  // and what it is
+  std::vector<std::uint8_t> done_;   // its episode ended on the last step
+  std::vector<int> time_step_;       // moves made in its episode
   std::vector<grid::Cell> commands_;
   std::vector<int> finished_;
   std::vector<std::uint8_t> floor_bytes_;

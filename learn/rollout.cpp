@@ -1,5 +1,6 @@
 #include "learn/rollout.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <string>

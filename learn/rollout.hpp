@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "core/random.hpp"
-#include "grid/grid.hpp"
 #include "env/batch_env.hpp"
+#include "grid/grid.hpp"
 #include "sim/robots.hpp"
 #include "worlds/world.hpp"
 
@@ -135,9 +135,7 @@ class RolloutEngine {
   std::vector<grid::Cell> commands_;  // per-move scratch, sized once per batch
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
-  std::vector<RolloutRecord>* recording_ = nullptr;  // the run's records while the tick hook fills them
   double other_s_ = 0;
 };
-
 
 }  // namespace scout::learn

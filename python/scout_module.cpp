@@ -167,8 +167,7 @@ class VectorEnvCore {
     const std::size_t n = static_cast<std::size_t>(env_->num_envs());
     py::gil_scoped_release release;
     const auto t0 = std::chrono::steady_clock::now();
-    for (py::ssize_t t = 0; t < moves.shape(0); ++t)
-      env_->step({.move = std::span(moves.data() + t * n, n)}, p);
+    for (py::ssize_t t = 0; t < moves.shape(0); ++t) env_->step({.move = std::span(moves.data() + t * n, n)}, p);
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
 

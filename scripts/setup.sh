@@ -18,6 +18,8 @@ packages=(
   libcli11-dev libfmt-dev nlohmann-json3-dev zlib1g-dev libssl-dev
   libgtest-dev            # tests
   python3 python3-numpy python3-matplotlib python3-pytest  # scout report's figures, Python tests (/usr/bin/python3)
+  python3-dev pybind11-dev  # the Python package (python/)
+  python3-torch           # the Python examples' REINFORCE agent
   dataset-fashion-mnist   # Fashion-MNIST floors
 )
 

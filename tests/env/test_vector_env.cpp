@@ -42,8 +42,8 @@ struct Buffers {
     policy_seed.resize(n);
   }
   VectorOutputs outputs() {
-    return {patch.data(), pose.data(), revealed.data(), seen.data(), time_step.data(), label.data(), index.data(),
-            pose_m.data(), policy_seed.data(), reward.data(), terminated.data(), truncated.data()};
+    return {patch.data(), pose.data(),   revealed.data(),    seen.data(),   time_step.data(),  label.data(),
+            index.data(), pose_m.data(), policy_seed.data(), reward.data(), terminated.data(), truncated.data()};
   }
 };
 
