@@ -69,8 +69,8 @@ class BatchEnv {
   std::span<const grid::Cell> poses() const;  ///< grid pose of each robot's actual position
   /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
   std::span<const std::uint8_t> observed() const;
-  std::span<const grid::RevealMask> seen() const;         ///< the pixels each robot has seen
-  std::span<const int> moves() const;                     ///< moves made since each robot's reset
+  std::span<const grid::RevealMask> seen() const;  ///< the pixels each robot has seen
+  std::span<const int> moves() const;              ///< step() calls since each robot's reset (a zero command counts)
   std::span<const sim::MoveResult> last_results() const;  ///< how each robot's last move went
   /// A robot's centre in metres (floor frame), continuous.
   Eigen::Vector2d pose_m(int robot) const;

@@ -14,8 +14,9 @@ namespace scout::env {
 namespace fs = std::filesystem;
 
 VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs), reward_(config.reward) {
-  if (config.num_envs < 1 || config.num_envs > 100000)
-    throw InputError(fmt::format("num_envs: expected an integer in 1..100000, got {}", config.num_envs));
+  if (config.num_envs < 1 || config.num_envs > kMaxEnvs)
+    throw InputError(
+        fmt::format("num_envs: expected an integer in 1..{} (the camera's batch), got {}", kMaxEnvs, config.num_envs));
   world_ = worlds::load_world(config.world_file);
   if (config.split) {
     if (!world_.floor.image.empty())
@@ -38,6 +39,7 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs)
   run_.resize(num_envs_);
   planned_.resize(num_envs_);
   done_.assign(num_envs_, 0);
+  reset_now_.assign(num_envs_, 0);
   time_step_.assign(num_envs_, 0);
   commands_.resize(num_envs_);
   floor_bytes_.resize(static_cast<std::size_t>(frame_.area_px()) * num_envs_);
@@ -77,42 +79,47 @@ void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& ou
   write(out);
 }
 
-void VectorEnv::check(const VectorAction& action) const {
+// Copies the action (so that what is checked is what is used, whoever owns the caller's
+// buffers) and checks the copy.
+void VectorEnv::take(const VectorAction& action) {
   if (!sequence_) throw InputError("step: call reset first");
   if (static_cast<int>(action.move.size()) != num_envs_)
     throw InputError(
-        fmt::format("action[\"move\"]: expected {} moves (one per robot), got {}", num_envs_, action.move.size()));
+        fmt::format("action['move']: expected {} moves (one per robot), got {}", num_envs_, action.move.size()));
+  move_.assign(action.move.begin(), action.move.end());
+  prediction_.assign(action.prediction.begin(), action.prediction.end());
+  goal_.assign(action.goal.begin(), action.goal.end());
   for (int i = 0; i < num_envs_; ++i)
-    if (action.move[i] < 0 || action.move[i] > 3)
-      throw InputError(
-          fmt::format("action[\"move\"][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i, action.move[i]));
-  if (!action.prediction.empty()) {
-    if (classes_ == 0) throw InputError("action[\"prediction\"]: the floors have no labels to predict");
-    if (action.prediction.size() != static_cast<std::size_t>(num_envs_) * classes_)
-      throw InputError(fmt::format("action[\"prediction\"]: expected {} x {} logits, got {} values", num_envs_,
-                                   classes_, action.prediction.size()));
-    for (std::size_t k = 0; k < action.prediction.size(); ++k)
-      if (!std::isfinite(action.prediction[k]))
-        throw InputError(fmt::format("action[\"prediction\"][{}][{}]: expected a finite logit, got {}", k / classes_,
-                                     k % classes_, action.prediction[k]));
+    if (move_[i] < 0 || move_[i] > 3)
+      throw InputError(fmt::format("action['move'][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i, move_[i]));
+  if (!prediction_.empty()) {
+    if (classes_ == 0) throw InputError("action['prediction']: the floors have no labels to predict");
+    if (prediction_.size() != static_cast<std::size_t>(num_envs_) * classes_)
+      throw InputError(fmt::format("action['prediction']: expected {} x {} logits, got {} values", num_envs_, classes_,
+                                   prediction_.size()));
+    for (std::size_t k = 0; k < prediction_.size(); ++k)
+      if (!std::isfinite(prediction_[k]))
+        throw InputError(fmt::format("action['prediction'][{}][{}]: expected a finite logit, got {}", k / classes_,
+                                     k % classes_, prediction_[k]));
   }
-  if (!action.goal.empty()) {
-    if (action.goal.size() != static_cast<std::size_t>(num_envs_) * 2)
-      throw InputError(
-          fmt::format("action[\"goal\"]: expected {} x 2 cells, got {} values", num_envs_, action.goal.size()));
+  if (!goal_.empty()) {
+    if (goal_.size() != static_cast<std::size_t>(num_envs_) * 2)
+      throw InputError(fmt::format("action['goal']: expected {} x 2 cells, got {} values", num_envs_, goal_.size()));
     for (int i = 0; i < num_envs_; ++i)
-      if (!frame_.contains({action.goal[2 * i], action.goal[2 * i + 1]}))
-        throw InputError(fmt::format("action[\"goal\"][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,
-                                     frame_.width_px, frame_.height_px, action.goal[2 * i], action.goal[2 * i + 1]));
+      if (!frame_.contains({goal_[2 * i], goal_[2 * i + 1]}))
+        throw InputError(fmt::format("action['goal'][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,
+                                     frame_.width_px, frame_.height_px, goal_[2 * i], goal_[2 * i + 1]));
   }
 }
 
 void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
-  check(action);
+  take(action);
   // NEXT_STEP autoreset: who finished last step starts their next run now, their action ignored.
   finished_.clear();
+  std::fill(reset_now_.begin(), reset_now_.end(), 0);
   for (int i = 0; i < num_envs_; ++i)
     if (done_[i]) {
+      reset_now_[i] = 1;
       run_[i] += static_cast<std::uint64_t>(num_envs_);
       finished_.push_back(i);
     }
@@ -124,14 +131,18 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
       continue;
     }
     static const grid::Cell kDirections[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
-    const grid::Cell d = kDirections[action.move[i]];
+    const grid::Cell d = kDirections[move_[i]];
     int length = s;
-    if (!action.goal.empty()) {  // the protocol's cut: never past the goal on this axis
-      const grid::Cell goal(action.goal[2 * i], action.goal[2 * i + 1]);
+    if (!goal_.empty()) {  // the protocol's cut: never past the goal on this axis
+      const grid::Cell goal(goal_[2 * i], goal_[2 * i + 1]);
       const int ahead = d.x() != 0 ? (goal.x() - poses[i].x()) * d.x() : (goal.y() - poses[i].y()) * d.y();
       length = std::clamp(ahead, 0, s);
     }
-    commands_[i] = d * length;
+    // A move past the floor's edge stops on the border pixel, where the wall would stop it, without
+    // the controller pushing against the wall until its tick limit.
+    const grid::Cell target(std::clamp(poses[i].x() + d.x() * length, 0, frame_.width_px - 1),
+                            std::clamp(poses[i].y() + d.y() * length, 0, frame_.height_px - 1));
+    commands_[i] = target - poses[i];
   }
   if (!finished_.empty()) {
     plan(finished_);
@@ -143,14 +154,14 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
 
   const std::size_t D = static_cast<std::size_t>(classes_);
   for (int i = 0; i < num_envs_; ++i) {
-    const bool reset_now = std::find(finished_.begin(), finished_.end(), i) != finished_.end();
+    const bool reset_now = reset_now_[i] != 0;
     if (!reset_now) ++time_step_[i];
     const bool last = !reset_now && time_step_[i] >= moves_;
     float r = 0.0f;
     const int label = floors_.labels[planned_[i].index];
-    if (!reset_now && !action.prediction.empty() && label >= 0 && (reward_ == Reward::Dense || last)) {
+    if (!reset_now && !prediction_.empty() && label >= 0 && (reward_ == Reward::Dense || last)) {
       // log softmax(logits)[label], in double for a stable log-sum-exp.
-      const float* logits = action.prediction.data() + D * i;
+      const float* logits = prediction_.data() + D * i;
       const double top = *std::max_element(logits, logits + D);
       double sum = 0;
       for (std::size_t c = 0; c < D; ++c) sum += std::exp(static_cast<double>(logits[c]) - top);

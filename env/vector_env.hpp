@@ -49,18 +49,22 @@ struct VectorOutputs {
 
 /// The action of one step (spans of num_envs rows).
 struct VectorAction {
-  /// 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up), each step_px pixels.
-  std::span<const std::int32_t> move;
+  /// 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up), each step_px pixels; a move past
+  /// the floor's edge ends on the border pixel (where the wall would stop it).
+  std::span<const std::int32_t> move = {};
   /// N x D logits of each robot's prediction, or empty.
-  std::span<const float> prediction;
+  std::span<const float> prediction = {};
   /// N x 2 goals of the layered protocol, or empty. With goals, a move never passes its robot's
   /// goal on its axis (it is cut short, as in the paper's protocol), so a robot on the goal's
   /// row or column stays put there: what scout.Agent needs to replay `scout run` exactly.
-  std::span<const std::int32_t> goal;
+  std::span<const std::int32_t> goal = {};
 };
 
 class VectorEnv {
  public:
+  /// The most robots one environment holds (the camera's batch).
+  static constexpr int kMaxEnvs = 4096;
+
   /// Loads the world and its floors. Throws InputError (one line) for a bad world, split or data.
   explicit VectorEnv(const VectorEnvConfig& config);
   ~VectorEnv();
@@ -86,7 +90,7 @@ class VectorEnv {
   void step(const VectorAction& action, const VectorOutputs& out);
 
  private:
-  void check(const VectorAction& action) const;
+  void take(const VectorAction& action);
   void plan(std::span<const int> robots);
   void write(const VectorOutputs& out) const;
 
@@ -100,10 +104,14 @@ class VectorEnv {
   std::uint64_t seed_;
   std::unique_ptr<RunSequence> sequence_;
   std::unique_ptr<BatchEnv> env_;
-  std::vector<std::uint64_t> run_;   // each robot's current run k
-  std::vector<PlannedRun> planned_;  // and what it is
-  std::vector<std::uint8_t> done_;   // its episode ended on the last step
-  std::vector<int> time_step_;       // moves made in its episode
+  std::vector<std::uint64_t> run_;       // each robot's current run k
+  std::vector<PlannedRun> planned_;      // and what it is
+  std::vector<std::uint8_t> done_;       // its episode ended on the last step
+  std::vector<int> time_step_;           // moves made in its episode
+  std::vector<std::uint8_t> reset_now_;  // started its next run on this step
+  std::vector<std::int32_t> move_;       // the step's action, copied before it is checked
+  std::vector<float> prediction_;
+  std::vector<std::int32_t> goal_;
   std::vector<grid::Cell> commands_;
   std::vector<int> finished_;
   std::vector<std::uint8_t> floor_bytes_;

@@ -131,6 +131,7 @@ def score(world, net, learned_moves, num_envs, seed, runs=1000):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=120, help="training time of the learned agent")
+    parser.add_argument("--batches", type=int, help="train this many batches instead (the same on any machine)")
     parser.add_argument("--num-envs", type=int, default=128)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--threads", type=int, default=2, help="PyTorch threads")
@@ -139,7 +140,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="scout-corner-") as folder:
         world = make_world(folder, args.seed)
         start = time.perf_counter()
-        learned, batches = train(world, True, None, args.seconds, args.num_envs, args.seed)
+        learned, batches = train(world, True, args.batches, args.seconds, args.num_envs, args.seed)
         trained_s = time.perf_counter() - start
         iid, _ = train(world, False, batches, None, args.num_envs, args.seed)
         learned_accuracy = score(world, learned, True, args.num_envs, args.seed)

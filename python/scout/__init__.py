@@ -18,6 +18,8 @@ import numpy as np
 
 from . import _scout
 from ._scout import __version__
+
+_MAX_ENVS = 4096  # the camera's batch
 from .spaces import Box, Dict, MultiDiscrete, Discrete
 
 __all__ = ["make_vec", "VectorEnv", "Agent", "Box", "Dict", "Discrete", "MultiDiscrete", "__version__"]
@@ -54,6 +56,8 @@ class VectorEnv:
     def __init__(self, world, num_envs, seed=None, split=None, data=None, reward="dense"):
         if isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, numbers.Integral):
             raise TypeError(f"num_envs: expected a positive integer, got {num_envs!r}")
+        if not 1 <= int(num_envs) <= _MAX_ENVS:
+            raise ValueError(f"num_envs: expected an integer in 1..{_MAX_ENVS} (the camera's batch), got {num_envs}")
         if not isinstance(world, (str, os.PathLike)):
             raise TypeError(f"world: expected a path to a world file, got {world!r}")
         if split is not None and split not in ("train", "validation", "test"):
@@ -93,6 +97,8 @@ class VectorEnv:
     def reset(self, seed=None, options=None):
         """Starts every robot on a new run: with a seed, runs 0 .. num_envs - 1 of that seed (as
         `scout run --seed SEED --count num_envs`); without, each robot's next run."""
+        if self._core is None:
+            raise ValueError("reset: the environment is closed")
         if options:
             raise ValueError(f"options: expected None, got {options!r}")
         return self._core.reset(_seed(seed))
@@ -107,6 +113,8 @@ class VectorEnv:
             raise ValueError(f"action: unknown key(s) {sorted(unknown)}; expected 'move', 'prediction', 'goal'")
         if "move" not in action:
             raise ValueError("action: expected a 'move' entry")
+        if self._core is None:
+            raise ValueError("step: the environment is closed")
         n = self.num_envs
         move = _array(action, "move", "iu", (n,), np.int32)
         bad = np.flatnonzero((move < 0) | (move >= _MOVES))
@@ -119,9 +127,19 @@ class VectorEnv:
             if self.num_classes == 0:
                 raise ValueError("action['prediction']: the floors have no labels to predict")
             prediction = _array(action, "prediction", "f", (n, self.num_classes), np.float32)
+            too_big = np.flatnonzero(np.isfinite(prediction) & (np.abs(prediction) > np.finfo(np.float32).max))
+            if too_big.size:
+                i, j = divmod(int(too_big[0]), self.num_classes)
+                raise ValueError(f"action['prediction'][{i}][{j}]: expected a logit within float32's range, "
+                                 f"got {prediction[i, j]}")
             prediction = np.ascontiguousarray(prediction, dtype=np.float32)
         if action.get("goal") is not None:
-            goal = np.ascontiguousarray(_array(action, "goal", "iu", (n, 2), np.int32), dtype=np.int32)
+            goal = _array(action, "goal", "iu", (n, 2), np.int32)
+            bad = np.flatnonzero(((goal < 0) | (goal > np.iinfo(np.int32).max)).any(axis=1))
+            if bad.size:
+                i = int(bad[0])
+                raise ValueError(f"action['goal'][{i}]: expected a cell of the floor, got {tuple(goal[i])}")
+            goal = np.ascontiguousarray(goal, dtype=np.int32)
         return self._core.step(move, prediction, goal)
 
     def close(self):
@@ -161,35 +179,55 @@ class Agent:
             if terminated.all():
                 break
         logits = agent.classify(obs)       # (num_envs, D) log-probabilities
-    """
+
+    LibTorch is loaded only when an Agent is made (the scout._scout_agent module)."""
 
     def __init__(self, model, greedy=False, threads=0):
         if not isinstance(model, (str, os.PathLike)):
             raise TypeError(f"model: expected a path to a model file or run folder, got {model!r}")
-        self._core = _scout.AgentCore(os.fspath(model), bool(greedy), int(threads))
+        if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) or not 0 <= threads <= 256:
+            raise ValueError(f"threads: expected an integer in 0..256 (0: one per core), got {threads!r}")
+        from . import _scout_agent  # LibTorch comes with it
+        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads))
         self.num_classes = self._core.classes
 
     @staticmethod
-    def _obs(obs, key, dtype, ndim):
-        value = np.asarray(obs[key])
-        if value.ndim != ndim:
-            raise ValueError(f"obs[{key!r}]: expected {ndim} dimensions, got shape {value.shape}")
-        return np.ascontiguousarray(value, dtype=dtype)
+    def _robots(obs, info=None):
+        """The arrays the agent reads, checked to describe the same robots and floor."""
+        def get(source, where, key, dtype, shape):
+            if key not in source:
+                raise ValueError(f"{where}[{key!r}]: missing")
+            value = np.asarray(source[key])
+            if value.shape != shape:
+                raise ValueError(f"{where}[{key!r}]: expected shape {shape}, got {value.shape}")
+            return np.ascontiguousarray(value, dtype=dtype)
+        seen = np.asarray(obs["seen"]) if "seen" in obs else None
+        if seen is None or seen.ndim != 3 or seen.shape[0] < 1:
+            raise ValueError("obs['seen']: expected shape (num_envs, H, W) with num_envs >= 1")
+        n, h, w = seen.shape
+        patch = np.asarray(obs.get("patch", np.empty(0)))
+        if patch.ndim != 3 or patch.shape[0] != n or patch.shape[1] != patch.shape[2]:
+            raise ValueError(f"obs['patch']: expected shape ({n}, m, m), got {patch.shape}")
+        arrays = {"pose": get(obs, "obs", "pose", np.int32, (n, 2)),
+                  "seen": get(obs, "obs", "seen", np.uint8, (n, h, w)),
+                  "revealed": get(obs, "obs", "revealed", np.float32, (n, h, w)),
+                  "patch_px": int(patch.shape[1])}
+        if info is not None:
+            arrays.update(time_step=get(obs, "obs", "time_step", np.int32, (n,)),
+                          policy_seed=get(info, "info", "policy_seed", np.uint64, (n,)),
+                          episode=get(info, "info", "episode", np.int32, (n,)),
+                          episode_start=get(info, "info", "episode_start", bool, (n,)))
+        return arrays
 
     def act(self, obs, info):
         """The action dict for the next move: the planners' moves and the episode's goals (the goal
         keeps each move from passing it, as the paper's protocol does)."""
-        pose = self._obs(obs, "pose", np.int32, 2)
-        moves, goals = self._core.act(pose, self._obs(obs, "seen", np.uint8, 3),
-                                      self._obs(obs, "revealed", np.float32, 3),
-                                      self._obs(obs, "time_step", np.int32, 1),
-                                      np.ascontiguousarray(info["policy_seed"], dtype=np.uint64),
-                                      np.ascontiguousarray(info["episode"], dtype=np.int32),
-                                      np.ascontiguousarray(info["episode_start"], dtype=bool),
-                                      int(np.asarray(obs["patch"]).shape[1]))
+        a = self._robots(obs, info)
+        moves, goals = self._core.act(a["pose"], a["seen"], a["revealed"], a["time_step"], a["policy_seed"],
+                                      a["episode"], a["episode_start"], a["patch_px"])
         return {"move": moves, "goal": goals}
 
     def classify(self, obs):
         """log pi_c: the classifier's log-probabilities (num_envs, D) on what each robot revealed."""
-        return self._core.classify(self._obs(obs, "pose", np.int32, 2), self._obs(obs, "seen", np.uint8, 3),
-                                   self._obs(obs, "revealed", np.float32, 3), int(np.asarray(obs["patch"]).shape[1]))
+        a = self._robots(obs)
+        return self._core.classify(a["pose"], a["seen"], a["revealed"], a["patch_px"])

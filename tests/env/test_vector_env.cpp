@@ -170,6 +170,23 @@ TEST_F(VectorEnvTest, AGoalCutsMovesShortAndHoldsARobotOnIt) {
   EXPECT_EQ(b.time_step[0], 2);
 }
 
+TEST_F(VectorEnvTest, AMovePastTheEdgeEndsOnTheBorderPixelWithoutPushingTheWall) {
+  VectorEnv env(config(1));
+  Buffers b(1, 3, 12, 12);
+  env.reset(11, b.outputs());
+  const std::vector<std::int32_t> right(1, 0);
+  // Right until the border, with a move of the episode left (a finished episode restarts).
+  for (int t = 0; t < 30 && !(b.pose[0] == 11 && b.time_step[0] < 6); ++t) env.step({.move = right}, b.outputs());
+  ASSERT_EQ(b.pose[0], 11);
+  ASSERT_LT(b.time_step[0], 6);
+  const int y = b.pose[1];
+  env.step({.move = right}, b.outputs());  // nowhere to go: it stays, no tick spent on the wall
+  EXPECT_EQ(b.pose[0], 11);
+  EXPECT_EQ(b.pose[1], y);
+  EXPECT_EQ(env.batch().last_results()[0].ticks, 0);
+  EXPECT_FALSE(env.batch().last_results()[0].touched_wall);
+}
+
 std::string refusal(VectorEnv& env, const VectorAction& action, Buffers& b) {
   try {
     env.step(action, b.outputs());
@@ -184,20 +201,22 @@ TEST_F(VectorEnvTest, BadActionsAreOneLineAndMoveNothing) {
   Buffers b(2, 3, 12, 12);
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0, 0}}, b), "step: call reset first");
   env.reset(1, b.outputs());
-  const std::vector<std::int32_t> pose = b.pose;
+  const std::vector<grid::Cell> poses(env.batch().poses().begin(), env.batch().poses().end());
+  const std::vector<int> moves(env.batch().moves().begin(), env.batch().moves().end());
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0}}, b),
-            "action[\"move\"]: expected 2 moves (one per robot), got 1");
+            "action['move']: expected 2 moves (one per robot), got 1");
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0, 4}}, b),
-            "action[\"move\"][1]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got 4");
+            "action['move'][1]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got 4");
   const std::vector<float> nan_logits = {0.0f, 1.0f, NAN, 0.0f};
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0, 0}, .prediction = nan_logits}, b),
-            "action[\"prediction\"][1][0]: expected a finite logit, got nan");
+            "action['prediction'][1][0]: expected a finite logit, got nan");
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0, 0}, .prediction = std::vector<float>{0.0f}}, b),
-            "action[\"prediction\"]: expected 2 x 2 logits, got 1 values");
+            "action['prediction']: expected 2 x 2 logits, got 1 values");
   EXPECT_EQ(refusal(env, {.move = std::vector<std::int32_t>{0, 0}, .goal = std::vector<std::int32_t>{0, 0, 12, 0}}, b),
-            "action[\"goal\"][1]: expected a cell of the 12 x 12 floor, got (12, 0)");
-  env.reset(1, b.outputs());
-  EXPECT_EQ(b.pose, pose) << "a refused step moved a robot";
+            "action['goal'][1]: expected a cell of the 12 x 12 floor, got (12, 0)");
+  EXPECT_EQ(std::vector<grid::Cell>(env.batch().poses().begin(), env.batch().poses().end()), poses)
+      << "a refused step moved a robot";
+  EXPECT_EQ(std::vector<int>(env.batch().moves().begin(), env.batch().moves().end()), moves);
   VectorEnvConfig zero = config(0);
   EXPECT_THROW(VectorEnv bad(zero), InputError);
 }

@@ -1,0 +1,198 @@
+// scout._scout_agent: scout.Agent's C++ side. AgentCore wraps learn::TrainedAgent, the
+// checkpoint's policy and classifier, driven from observations; LibTorch comes with it (through
+// learn/'s torch-free facade), so `import scout` alone does not load it.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "env/protocol.hpp"
+#include "learn/rollout.hpp"
+#include "learn/trained_agent.hpp"
+#include "learn/trainer.hpp"
+#include "python/bindings.hpp"
+
+namespace py = pybind11;
+
+namespace scout::python {
+namespace {
+
+// Raw views of one call's observation arrays, taken with the GIL held and checked to describe
+// the same robots and floor (the Python layer checks too; this is the last line before C++).
+struct Observation {
+  int n = 0, height = 0, width = 0, patch_px = 0;
+  const std::int32_t* pose = nullptr;
+  const std::uint8_t* seen = nullptr;
+  const float* revealed = nullptr;
+
+  Observation(const Array<std::int32_t>& pose_a, const Array<std::uint8_t>& seen_a, const Array<float>& revealed_a,
+              int patch) {
+    if (seen_a.ndim() != 3 || seen_a.shape(0) < 1)
+      throw InputError("obs['seen']: expected shape (num_envs, H, W) with num_envs >= 1");
+    n = static_cast<int>(seen_a.shape(0));
+    height = static_cast<int>(seen_a.shape(1));
+    width = static_cast<int>(seen_a.shape(2));
+    if (pose_a.ndim() != 2 || pose_a.shape(0) != n || pose_a.shape(1) != 2)
+      throw InputError("obs['pose']: expected shape (" + std::to_string(n) + ", 2)");
+    if (revealed_a.ndim() != 3 || revealed_a.shape(0) != n || revealed_a.shape(1) != height ||
+        revealed_a.shape(2) != width)
+      throw InputError("obs['revealed']: expected the shape of obs['seen']");
+    if (patch < 1 || patch > std::min(height, width) * 2 + 1)
+      throw InputError("obs['patch']: expected m x m patches, got m = " + std::to_string(patch));
+    patch_px = patch;
+    pose = pose_a.data();
+    seen = seen_a.data();
+    revealed = revealed_a.data();
+  }
+};
+
+template <class T, class A>
+const T* per_robot(const A& a, int n, const char* name) {
+  if (a.ndim() != 1 || a.shape(0) != n)
+    throw InputError(std::string(name) + ": expected shape (" + std::to_string(n) + ",)");
+  return a.data();
+}
+
+// The trained agent from observations: the state it reads (y, h, the pose, its goals) rebuilt
+// from them exactly (revealed * 255 restores the bytes), so that it chooses what `scout run
+// --checkpoint` chooses for the same runs.
+class AgentCore {
+ public:
+  AgentCore(const std::string& model, bool greedy, int threads) : greedy_(greedy) {
+    py::gil_scoped_release release;
+    learn::set_torch_threads(threads);
+    agent_ = learn::TrainedAgent::load(model);
+  }
+
+  int classes() const { return agent_->classes(); }
+
+  // Returns (moves (N,), goals (N, 2)).
+  py::tuple act(const Array<std::int32_t>& pose, const Array<std::uint8_t>& seen, const Array<float>& revealed,
+                const Array<std::int32_t>& time_step, const Array<std::uint64_t>& policy_seed,
+                const Array<std::int32_t>& episode, const py::array_t<bool, py::array::c_style>& episode_start,
+                int patch_px) {
+    const Observation obs(pose, seen, revealed, patch_px);
+    const int n = obs.n;
+    const std::int32_t* t = per_robot<std::int32_t>(time_step, n, "obs['time_step']");
+    const std::uint64_t* seeds = per_robot<std::uint64_t>(policy_seed, n, "info['policy_seed']");
+    const std::int32_t* episodes = per_robot<std::int32_t>(episode, n, "info['episode']");
+    const bool* starts = per_robot<bool>(episode_start, n, "info['episode_start']");
+    Array<std::int32_t> moves(n);
+    Array<std::int32_t> goals({static_cast<py::ssize_t>(n), py::ssize_t{2}});
+    std::int32_t* move_out = moves.mutable_data();
+    std::int32_t* goal_out = goals.mutable_data();
+    {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> one_at_a_time(mutex_);
+      for (int i = 1; i < n; ++i)
+        if (t[i] != t[0])
+          throw InputError("scout.Agent: every robot must be at the same move of its episode (time_step " +
+                           std::to_string(t[0]) + " and " + std::to_string(t[i]) + "), as make_vec keeps them");
+      load_state(obs);
+      if (t[0] == 0) {  // new runs: the policy draws from each run's own seed
+        agent_->begin(state_.frame, obs.patch_px, std::span(seeds, static_cast<std::size_t>(n)), greedy_, false);
+        std::fill(goals_.begin(), goals_.end(), grid::Cell::Zero());
+        begun_ = true;
+      }
+      if (!begun_) throw InputError("scout.Agent: act() must first see the robots at time_step 0 (after reset)");
+      if (starts[0]) agent_->policy().choose_goals(state_, episodes[0], goals_);
+      env::forced_axes(state_.pose, state_.goal, need_, axes_);
+      agent_->policy().choose_axes(state_, need_, axes_);
+      for (int i = 0; i < n; ++i) {
+        const grid::Cell p = state_.pose[i], g = goals_[i];
+        move_out[i] = axes_[i] == grid::Axis::Horizontal ? (g.x() > p.x() ? 0 : 1)
+                      : axes_[i] == grid::Axis::Vertical ? (g.y() > p.y() ? 2 : 3)
+                                                         : 0;  // at the goal: the goal keeps it there
+        goal_out[2 * i] = g.x();
+        goal_out[2 * i + 1] = g.y();
+      }
+    }
+    return py::make_tuple(moves, goals);
+  }
+
+  // log pi_c of every robot (N, D): the classifier on what each has revealed.
+  Array<float> classify(const Array<std::int32_t>& pose, const Array<std::uint8_t>& seen, const Array<float>& revealed,
+                        int patch_px) {
+    const Observation obs(pose, seen, revealed, patch_px);
+    const int d = agent_->classes();
+    Array<float> logits({static_cast<py::ssize_t>(obs.n), static_cast<py::ssize_t>(d)});
+    float* out = logits.mutable_data();
+    {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> one_at_a_time(mutex_);
+      load_state(obs);
+      const std::vector<float> p = agent_->classify(state_, obs.n);
+      for (std::size_t k = 0; k < p.size(); ++k) out[k] = std::log(std::max(p[k], 1e-30f));
+    }
+    return logits;
+  }
+
+ private:
+  void load_state(const Observation& obs) {
+    const int n = obs.n;
+    const grid::FloorFrame frame{
+        .width_px = obs.width, .height_px = obs.height, .pixel_size_m = agent_->config().world.floor.pixel_size_m};
+    const std::size_t area = static_cast<std::size_t>(obs.width) * obs.height;
+    if (frame.width_px != state_.frame.width_px || frame.height_px != state_.frame.height_px ||
+        static_cast<int>(poses_.size()) != n) {
+      masks_.assign(n, grid::RevealMask(frame));
+      poses_.resize(n);
+      goals_.assign(n, grid::Cell::Zero());
+      need_.resize(n);
+      axes_.resize(n);
+      observed_.resize(area * n);
+      begun_ = false;
+    }
+    for (int i = 0; i < n; ++i) {
+      poses_[i] = {obs.pose[2 * i], obs.pose[2 * i + 1]};
+      if (!frame.contains(poses_[i]))
+        throw InputError("obs['pose'][" + std::to_string(i) + "]: expected a cell of the floor");
+      masks_[i].assign(std::span(obs.seen + area * i, area));
+    }
+    for (std::size_t k = 0; k < area * n; ++k)
+      observed_[k] = static_cast<std::uint8_t>(std::lround(std::clamp(obs.revealed[k], 0.0f, 1.0f) * 255.0f));
+    state_.frame = frame;
+    state_.patch_px = obs.patch_px;
+    state_.count = n;
+    state_.pose = poses_;
+    state_.goal = goals_;
+    state_.seen = masks_;
+    state_.observed = observed_;
+  }
+
+  std::unique_ptr<learn::TrainedAgent> agent_;
+  bool greedy_;
+  bool begun_ = false;
+  std::mutex mutex_;
+  learn::BatchState state_;
+  std::vector<grid::Cell> poses_, goals_;
+  std::vector<grid::RevealMask> masks_;
+  std::vector<std::uint8_t> observed_;
+  std::vector<std::uint8_t> need_;
+  std::vector<grid::Axis> axes_;
+};
+
+}  // namespace
+}  // namespace scout::python
+
+PYBIND11_MODULE(_scout_agent, m) {
+  using namespace scout::python;
+  m.doc() = "Scout's trained agent (use scout.Agent)";
+  register_errors();
+  py::class_<AgentCore>(m, "AgentCore")
+      .def(py::init<const std::string&, bool, int>(), py::arg("model"), py::arg("greedy"), py::arg("threads"))
+      .def_property_readonly("classes", &AgentCore::classes)
+      .def("act", &AgentCore::act, py::arg("pose"), py::arg("seen"), py::arg("revealed"), py::arg("time_step"),
+           py::arg("policy_seed"), py::arg("episode"), py::arg("episode_start"), py::arg("patch_px"))
+      .def("classify", &AgentCore::classify, py::arg("pose"), py::arg("seen"), py::arg("revealed"),
+           py::arg("patch_px"));
+}
