@@ -1,11 +1,10 @@
 #include "grid/grid.hpp"
 
-#include <stdexcept>
-#include <string>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <stdexcept>
+#include <string>
 
 namespace scout::grid {
 

@@ -15,12 +15,12 @@
 
 #include "core/error.hpp"
 #include "core/random.hpp"
+#include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
-#include "core/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/floors.hpp"

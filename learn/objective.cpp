@@ -5,9 +5,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "learn/internal/precision.hpp"
 #include "core/seed_streams.hpp"
 #include "env/runs.hpp"
+#include "learn/internal/precision.hpp"
 
 namespace scout::learn {
 

@@ -15,13 +15,13 @@
 #include "core/error.hpp"
 #include "core/files.hpp"
 #include "core/random.hpp"
+#include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
-#include "core/seed_streams.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::learn {

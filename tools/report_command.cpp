@@ -17,12 +17,12 @@
 
 #include "core/process.hpp"
 #include "core/random.hpp"
+#include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/evaluation.hpp"
 #include "learn/rollout.hpp"
-#include "core/seed_streams.hpp"
 #include "learn/trained_agent.hpp"
 #include "tools/commands.hpp"
 #include "tools/output.hpp"

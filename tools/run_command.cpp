@@ -12,8 +12,8 @@
 #include <span>
 
 #include "core/random.hpp"
-#include "env/runs.hpp"
 #include "core/timing.hpp"
+#include "env/runs.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
