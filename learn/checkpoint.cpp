@@ -6,6 +6,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 
 #include "core/error.hpp"
 #include "core/files.hpp"
@@ -83,8 +84,10 @@ fs::path resolve_checkpoint(const fs::path& path) {
   return fs::is_directory(path, ec) ? path / kCheckpointFile : path;
 }
 
-void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
-                     const CheckpointState& state) {
+namespace {
+
+torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
+                                                   const CheckpointState& state) {
   torch::serialize::OutputArchive archive;
   archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat)));
   archive.write("config", c10::IValue(state.config.to_json()));
@@ -100,7 +103,8 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
                      {"robots", p.robots},
                      {"images", p.images},
                      {"batches", p.batches}}},
-                   {"history", history_json(state.history)}};
+                   {"history", history_json(state.history)},
+                   {"world_size", state.world_size}};
   archive.write("progress", c10::IValue(progress.dump()));
   torch::serialize::OutputArchive weights;
   agent.save(weights);
@@ -113,6 +117,21 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
   // Sampling uses Scout's own counter-based streams (seed, stage, epoch, batch, robot); LibTorch's
   // generator only initialises weights. Both are kept so that nothing random is lost.
   archive.write("torch_rng_state", at::detail::getDefaultCPUGenerator().get_state());
+  return archive;
+}
+
+}  // namespace
+
+std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
+                             const CheckpointState& state) {
+  std::ostringstream out;
+  checkpoint_archive(agent, optimizer, state).save_to(out);
+  return std::move(out).str();
+}
+
+void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
+                     const CheckpointState& state) {
+  torch::serialize::OutputArchive archive = checkpoint_archive(agent, optimizer, state);
   const fs::path tmp = core::temporary_path_beside(file);
   try {
     archive.save_to(tmp.string());
@@ -140,11 +159,46 @@ torch::serialize::InputArchive open_archive(const fs::path& given) {
   return archive;
 }
 
+torch::serialize::InputArchive open_archive_bytes(const std::string& bytes, const std::string& origin) {
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(bytes.data(), bytes.size());
+  } catch (const std::exception&) {
+    throw InputError(origin + ": not a Scout checkpoint");
+  }
+  return archive;
+}
+
+CheckpointState read_state(torch::serialize::InputArchive& archive, const std::string& name);
+void load_weights(torch::serialize::InputArchive& archive, const std::string& name, agent::AgentImpl& agent,
+                  torch::optim::Optimizer* optimizer);
+
 }  // namespace
 
 CheckpointState read_checkpoint_state(const fs::path& file) {
   torch::serialize::InputArchive archive = open_archive(file);
-  const std::string name = file.string();
+  return read_state(archive, file.string());
+}
+
+CheckpointState read_checkpoint_state_bytes(const std::string& bytes, const std::string& origin) {
+  torch::serialize::InputArchive archive = open_archive_bytes(bytes, origin);
+  return read_state(archive, origin);
+}
+
+void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) {
+  torch::serialize::InputArchive archive = open_archive(file);
+  load_weights(archive, file.string(), agent, optimizer);
+}
+
+void load_checkpoint_weights_bytes(const std::string& bytes, const std::string& origin, agent::AgentImpl& agent,
+                                   torch::optim::Optimizer* optimizer) {
+  torch::serialize::InputArchive archive = open_archive_bytes(bytes, origin);
+  load_weights(archive, origin, agent, optimizer);
+}
+
+namespace {
+
+CheckpointState read_state(torch::serialize::InputArchive& archive, const std::string& name) {
   c10::IValue version, config, progress;
   if (!archive.try_read("scout_checkpoint_format", version) || !version.isInt())
     throw InputError(name + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
@@ -165,6 +219,7 @@ CheckpointState read_checkpoint_state(const fs::path& file) {
                      q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
                      q.at("batches").get<long>()};
     state.history = history_from(p.at("history"), state.config.learning_rate);
+    state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
   } catch (const std::exception& e) {
     throw InputError(name + ": progress: unreadable (" + one_line(e.what()) + ")");
   }
@@ -173,8 +228,8 @@ CheckpointState read_checkpoint_state(const fs::path& file) {
   return state;
 }
 
-void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) {
-  torch::serialize::InputArchive archive = open_archive(file);
+void load_weights(torch::serialize::InputArchive& archive, const std::string& origin, agent::AgentImpl& agent,
+                  torch::optim::Optimizer* optimizer) {
   // LibTorch's load replaces each tensor with the file's whatever its shape: compare afterwards.
   std::vector<std::pair<std::string, std::vector<std::int64_t>>> shapes;
   for (const auto& p : agent.named_parameters()) shapes.emplace_back(p.key(), p.value().sizes().vec());
@@ -185,7 +240,7 @@ void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torc
     archive.read("agent", weights);
     agent.load(weights);
   } catch (const std::exception& e) {
-    throw InputError(file.string() + mismatch + first_line(e.what()) + ")");
+    throw InputError(origin + mismatch + first_line(e.what()) + ")");
   }
   const auto parameters = agent.named_parameters();
   const auto buffers = agent.named_buffers();
@@ -193,7 +248,7 @@ void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torc
     const torch::Tensor* t = parameters.find(name);
     if (!t) t = buffers.find(name);
     if (!t || t->sizes().vec() != shape)
-      throw InputError(file.string() + mismatch + name + " is " + (t ? c10::str(t->sizes()) : std::string("missing")) +
+      throw InputError(origin + mismatch + name + " is " + (t ? c10::str(t->sizes()) : std::string("missing")) +
                        ", the config gives " + c10::str(c10::IntArrayRef(shape)) + ")");
   }
   if (optimizer) {
@@ -202,11 +257,13 @@ void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torc
       archive.read("optimizer", optimizer_archive);
       optimizer->load(optimizer_archive);
     } catch (const std::exception& e) {
-      throw InputError(file.string() + ": optimizer: missing or unreadable (a model file cannot be resumed; " +
+      throw InputError(origin + ": optimizer: missing or unreadable (a model file cannot be resumed; " +
                        first_line(e.what()) + ")");
     }
   }
 }
+
+}  // namespace
 
 agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
   CheckpointState read = read_checkpoint_state(file);
@@ -221,7 +278,7 @@ CheckpointInfo export_model(const fs::path& checkpoint, const fs::path& model_fi
   CheckpointState state;
   agent::Agent agent = load_agent(resolve_checkpoint(checkpoint), &state);
   save_checkpoint(model_file, *agent, nullptr, state);
-  return {kCheckpointFormat, std::move(state.config), state.cursor, std::move(state.history)};
+  return {kCheckpointFormat, std::move(state.config), state.cursor, std::move(state.history), state.world_size};
 }
 
 CheckpointInfo read_checkpoint_info(const fs::path& file) {
@@ -231,6 +288,7 @@ CheckpointInfo read_checkpoint_info(const fs::path& file) {
   info.config = std::move(state.config);
   info.cursor = state.cursor;
   info.history = std::move(state.history);
+  info.world_size = state.world_size;
   return info;
 }
 

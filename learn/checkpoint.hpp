@@ -15,6 +15,7 @@ struct CheckpointInfo {
   TrainConfig config;
   ScheduleCursor cursor;
   std::vector<EpochMetrics> history;
+  int world_size = 1;  ///< processes the run trained with
 };
 /// Reads a checkpoint's header; throws InputError with one line naming the file for anything
 /// that is not a Scout checkpoint of this format version.

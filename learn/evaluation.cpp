@@ -17,6 +17,7 @@
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
+#include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
@@ -122,10 +123,11 @@ struct Pass {
 
 class Evaluator {
  public:
-  Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots,
+  // `images`: the most images this process evaluates (its share).
+  Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots, int images,
             agent::Precision precision, core::StopToken stop)
       : agent_(agent), world_(world), data_(data), precision_(precision), stop_(std::move(stop)) {
-    const int robots = std::min(batch_robots, data.set.images.count);
+    const int robots = std::max(1, std::min(batch_robots, images));
     try {
       engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
     } catch (const std::runtime_error& e) {
@@ -135,15 +137,15 @@ class Evaluator {
     batch_ = robots;
   }
 
-  // One rollout per image. Image i's start and choices derive from (stream_seed, i) alone, so a
-  // run's figures do not depend on how the images are split into batches.
-  Pass run(const Sampling& sampling, std::uint64_t stream_seed) {
-    const int n = data_.set.images.count;
+  // One rollout per image of [begin, end). Image i's start and choices derive from
+  // (stream_seed, i) alone, so a run's figures do not depend on how the images are split into
+  // batches or over processes.
+  Pass run(const Sampling& sampling, std::uint64_t stream_seed, int begin, int end) {
     Pass pass;
     std::vector<torch::Tensor> parts;
-    for (int first = 0; first < n; first += batch_) {
+    for (int first = begin; first < end; first += batch_) {
       stop_.throw_if_requested();
-      const int k = std::min(batch_, n - first);
+      const int k = std::min(batch_, end - first);
       RolloutBatch batch;
       for (int image = first; image < first + k; ++image) {
         const RolloutBatch one = make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
@@ -161,18 +163,17 @@ class Evaluator {
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);
     }
-    pass.log_probs = torch::cat(parts, 0);
+    pass.log_probs = parts.empty() ? torch::zeros({0, agent_.config().classes}) : torch::cat(parts, 0);
     return pass;
   }
 
-  // The classifier on full images (u_c = x).
-  int full_image_correct() {
-    const int n = data_.set.images.count;
+  // The classifier on the full images of [begin, end) (u_c = x).
+  int full_image_correct(int begin, int end) {
     const auto area = static_cast<std::size_t>(data_.frame.area_px());
     int correct = 0;
-    for (int first = 0; first < n; first += batch_) {
+    for (int first = begin; first < end; first += batch_) {
       stop_.throw_if_requested();
-      const int k = std::min(batch_, n - first);
+      const int k = std::min(batch_, end - first);
       torch::Tensor x = full_images(std::span(data_.set.images.image(first), area * k), k, data_.frame);
       const std::vector<std::int64_t> labels(data_.set.labels.begin() + first, data_.set.labels.begin() + first + k);
       correct += count_correct(classifier_log_probs(agent_, x, precision_), labels, 1);
@@ -232,7 +233,7 @@ Interval mean_ci95(std::span<const double> values) {
   return out;
 }
 
-EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
+EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, ProcessGroup* group) {
   const auto t0 = core::Clock::now();
   if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
   if (config.batch_robots < 1)
@@ -248,7 +249,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
                               : config.world_file ? worlds::load_world(*config.world_file)
                                                   : state.config.world;
   const Data data = read_data(config, world, network.classes);
-  set_torch_threads(0);
+  set_torch_threads(config.threads);
   torch::NoGradGuard no_grad;
   agent->eval();
 
@@ -281,40 +282,67 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   report.labels.assign(data.set.labels.begin(), data.set.labels.end());
   report.confusion.assign(classes, std::vector<double>(classes, 0.0));
 
-  Evaluator evaluator(*agent, world, data, config.batch_robots, precision, stop);
+  // In a group each process evaluates a contiguous share of the images; every figure is a sum of
+  // per-image counts, gathered in one tally and summed over the processes once at the end.
+  const int ranks = group ? group->size() : 1, rank = group ? group->rank() : 0;
+  const int begin = static_cast<int>(static_cast<long>(n) * rank / ranks);
+  const int end = static_cast<int>(static_cast<long>(n) * (rank + 1) / ranks);
+  Evaluator evaluator(*agent, world, data, config.batch_robots, end - begin, precision, stop);
+  // Per run: correct, top-2, revealed pixels, i.i.d. correct, goals-only correct; then per run the
+  // confusion counts (D x D), per image the probabilities summed over the runs, and the
+  // full-image and greedy counts.
+  constexpr std::size_t kPerRun = 5;
+  const std::size_t cells = static_cast<std::size_t>(classes) * classes;
+  std::vector<double> tally(kPerRun * runs + runs * cells + static_cast<std::size_t>(n) * classes + 2, 0.0);
+  double* const confusion_counts = tally.data() + kPerRun * runs;
+  double* const probability_sums = confusion_counts + runs * cells;
+  double* const final_counts = probability_sums + static_cast<std::size_t>(n) * classes;
+  torch::Tensor probability_sum = torch::zeros({end - begin, classes}, torch::kDouble);
+  for (int k = 0; k < runs; ++k) {
+    double* const figures = tally.data() + kPerRun * k;
+    const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
+    const Pass pass = evaluator.run(sampling, seed_k, begin, end);
+    figures[0] = pass.correct;
+    figures[1] = pass.top2;
+    figures[2] = static_cast<double>(pass.revealed_px);
+    probability_sum += pass.log_probs.to(torch::kDouble).exp();
+    const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
+    const std::int64_t* p = predicted.data_ptr<std::int64_t>();
+    for (int i = begin; i < end; ++i) confusion_counts[k * cells + report.labels[i] * classes + p[i - begin]] += 1;
+    if (config.agent_only) continue;
+    figures[3] = evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid), begin, end).correct;
+    // Without a learned goal layer the baseline would only measure an untrained planner.
+    if (learned.goals)
+      figures[4] = evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly), begin, end).correct;
+  }
+  const torch::Tensor mine = probability_sum.contiguous();
+  std::copy_n(mine.data_ptr<double>(), mine.numel(), probability_sums + static_cast<std::size_t>(begin) * classes);
+  if (!config.agent_only) {
+    final_counts[0] = evaluator.full_image_correct(begin, end);
+    final_counts[1] = evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy), begin, end).correct;
+  }
+  if (group) group->all_reduce_sum(std::span<double>(tally));
+
   std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
-  long revealed_px = 0;
-  torch::Tensor probability_sum = torch::zeros({n, classes}, torch::kDouble);
+  double revealed_px = 0;
   std::vector<long> row_counts(classes, 0);
   for (int label : report.labels) ++row_counts[label];
   for (int k = 0; k < runs; ++k) {
-    const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
-    const Pass pass = evaluator.run(sampling, seed_k);
-    accuracy[k] = static_cast<double>(pass.correct) / n;
-    top2[k] = static_cast<double>(pass.top2) / n;
-    revealed_px += pass.revealed_px;
-    probability_sum += pass.log_probs.to(torch::kDouble).exp();
+    const double* const figures = tally.data() + kPerRun * k;
+    accuracy[k] = figures[0] / n;
+    top2[k] = figures[1] / n;
+    revealed_px += figures[2];
+    iid_accuracy[k] = figures[3] / n;
+    goals_only_accuracy[k] = learned.goals ? figures[4] / n : std::numeric_limits<double>::quiet_NaN();
     // This run's confusion counts, row-normalised; rows of absent labels stay 0.
-    const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
-    const std::int64_t* p = predicted.data_ptr<std::int64_t>();
-    std::vector<std::vector<long>> counts(classes, std::vector<long>(classes, 0));
-    for (int i = 0; i < n; ++i) ++counts[report.labels[i]][p[i]];
     for (int row = 0; row < classes; ++row)
       for (int col = 0; col < classes; ++col)
         if (row_counts[row] > 0)
-          report.confusion[row][col] += static_cast<double>(counts[row][col]) / row_counts[row] / runs;
-    if (config.agent_only) continue;
-    iid_accuracy[k] = static_cast<double>(evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid)).correct) / n;
-    // Without a learned goal layer the baseline would only measure an untrained planner.
-    goals_only_accuracy[k] =
-        learned.goals ? static_cast<double>(
-                            evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly)).correct) /
-                            n
-                      : std::numeric_limits<double>::quiet_NaN();
+          report.confusion[row][col] += confusion_counts[k * cells + row * classes + col] / row_counts[row] / runs;
   }
   report.accuracy = mean_ci95(accuracy);
   report.top2 = mean_ci95(top2);
-  report.revealed_fraction = static_cast<double>(revealed_px) / (static_cast<double>(n) * runs * data.frame.area_px());
+  report.revealed_fraction = revealed_px / (static_cast<double>(n) * runs * data.frame.area_px());
   if (config.agent_only) {
     constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
     report.iid_accuracy = report.goals_only_accuracy = report.full_image_accuracy = report.greedy_accuracy =
@@ -322,17 +350,15 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop) {
   } else {
     report.iid_accuracy = mean_of(iid_accuracy);
     report.goals_only_accuracy = mean_of(goals_only_accuracy);
-    report.full_image_accuracy = static_cast<double>(evaluator.full_image_correct()) / n;
-    report.greedy_accuracy =
-        static_cast<double>(evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy)).correct) / n;
+    report.full_image_accuracy = final_counts[0] / n;
+    report.greedy_accuracy = final_counts[1] / n;
   }
-
-  const torch::Tensor mean_probabilities = (probability_sum / runs).contiguous();
-  const double* m = mean_probabilities.data_ptr<double>();
   report.probabilities.resize(n);
-  for (int i = 0; i < n; ++i)
-    report.probabilities[i].assign(m + static_cast<std::size_t>(i) * classes,
-                                   m + static_cast<std::size_t>(i + 1) * classes);
+  for (int i = 0; i < n; ++i) {
+    report.probabilities[i].resize(classes);
+    for (int c = 0; c < classes; ++c)
+      report.probabilities[i][c] = probability_sums[static_cast<std::size_t>(i) * classes + c] / runs;
+  }
   report.seconds = core::seconds_since(t0);
   return report;
 }

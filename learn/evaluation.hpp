@@ -28,6 +28,7 @@ struct EvalConfig {
   std::optional<worlds::World> world;
   int image_limit = 0;      ///< the first K images only (0: all)
   bool agent_only = false;  ///< only the R stochastic runs: no baselines, full images or greedy run
+  int threads = 0;          ///< LibTorch threads (0: one per core)
 };
 
 /// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).
@@ -58,10 +59,14 @@ struct EvalReport {
   agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic in this evaluation
 };
 
+class ProcessGroup;  // learn/distributed.hpp
+
 /// Runs the evaluation. `stop` is polled between batches (Ctrl-C): a stop throws core::Stopped
 /// and nothing of the evaluation is kept. Throws InputError for bad files or a mismatch between
-/// the data and the checkpoint.
-EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop = {});
+/// the data and the checkpoint. With a `group`, every rank calls this with the same config and
+/// evaluates a share of the images; every rank returns the whole report, the same figures as one
+/// process gives (each image's rollouts depend on its index alone).
+EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop = {}, ProcessGroup* group = nullptr);
 
 /// The report as JSON text (fractions in [0, 1], intervals as half-widths).
 std::string report_json(const EvalReport& report);

@@ -18,6 +18,7 @@
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "learn/checkpoint.hpp"
+#include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/objective.hpp"
@@ -97,6 +98,22 @@ struct Trainer::Impl {
   std::vector<EpochMetrics> history;
   EpochSums sums;  // of the epoch in progress (non-empty after an interrupt)
   std::vector<fs::path> data_files;
+  // Data-parallel training: this process's group (null: one process). Every rank drives its
+  // share of each batch's images; rank 0 alone writes files.
+  ProcessGroup* group = nullptr;
+
+  int rank() const { return group ? group->rank() : 0; }
+  int ranks() const { return group ? group->size() : 1; }
+  // This rank's contiguous share [first, end) of `count` items (shares differ by at most one).
+  std::pair<int, int> share(int count) const {
+    const auto part = [&](int r) { return static_cast<int>(static_cast<long>(count) * r / ranks()); };
+    return {part(rank()), part(rank() + 1)};
+  }
+  // Sums a few figures over the ranks (each rank's own when alone).
+  template <std::size_t N>
+  void sum_over_ranks(std::array<double, N>& values) {
+    if (group) group->all_reduce_sum(std::span<double>(values));
+  }
 
   // new_run: D (network.classes) comes from the training labels; a resumed run keeps its own.
   void setup(int thread_request, bool new_run) {
@@ -138,7 +155,14 @@ struct Trainer::Impl {
     agent = agent::Agent(config.network);
     optimizer =
         std::make_unique<torch::optim::Adam>(agent->parameters(), torch::optim::AdamOptions(config.learning_rate));
-    const int robots = config.batch_images * config.rollouts;
+    build_engine();
+  }
+
+  // Robots for this rank's share of a batch: B x N alone, ceil(B / ranks) x N in a group.
+  void build_engine() {
+    const int robots = (config.batch_images + ranks() - 1) / ranks() * config.rollouts;
+    policy.reset();
+    engine.reset();
     engine = std::make_unique<RolloutEngine>(config.world, frame, robots);
     policy = std::make_unique<AgentPolicy>(*agent, frame, config.world.camera.patch_px, robots);
   }
@@ -189,6 +213,12 @@ struct Trainer::Impl {
 
   // One optimisation step in three parts: (1) forward and backward, (2) the gradient hook,
   // (3) Adam's step. Returns the loss; when it is not finite nothing has changed.
+  //
+  // In a group each rank rolls out its share of the batch's images (an image's N rollouts stay
+  // together, for the leave-one-out baseline) from the same per-robot seeds as one process would,
+  // weights its mean loss by its share of the images, and the flattened gradients are summed over
+  // the ranks: the batch's mean, so every rank takes the same Adam step as one process would (up
+  // to the order of the sums).
   double train_batch(std::span<const int> indices, int batch_index, const TrainHooks& hooks) {
     const Stage s = stage();
     agent->train();
@@ -197,64 +227,97 @@ struct Trainer::Impl {
       for (int l = 0; l < 3; ++l)
         if (config.frozen[l]) layer(*agent, static_cast<Layer>(l)).eval();
     clear_gradients(*agent);
+    const auto [first, end] = share(static_cast<int>(indices.size()));
+    const std::span<const int> mine = indices.subspan(first, end - first);
     torch::Tensor loss;
-    if (s == Stage::Pretrain) {
-      std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * indices.size());
-      std::vector<std::int64_t> labels(indices.size());
-      for (std::size_t i = 0; i < indices.size(); ++i) {
-        std::copy_n(train.images.image(indices[i]), frame.area_px(), floors.data() + i * frame.area_px());
-        labels[i] = train.labels[indices[i]];
+    // This rank's reward sum, rollouts classified right, and rollouts.
+    std::array<double, 3> figures{};
+    if (mine.empty()) {
+      // More ranks than images in the last batch: nothing to roll out; zeros join the sums.
+    } else if (s == Stage::Pretrain) {
+      std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * mine.size());
+      std::vector<std::int64_t> labels(mine.size());
+      for (std::size_t i = 0; i < mine.size(); ++i) {
+        std::copy_n(train.images.image(mine[i]), frame.area_px(), floors.data() + i * frame.area_px());
+        labels[i] = train.labels[mine[i]];
       }
-      torch::Tensor x = full_images(floors, static_cast<int>(indices.size()), frame);
+      torch::Tensor x = full_images(floors, static_cast<int>(mine.size()), frame);
       torch::Tensor log_probs = classifier_log_probs(*agent, x, config.precision);
       torch::Tensor target = torch::from_blob(labels.data(), {static_cast<long>(labels.size())}, torch::kLong).clone();
       loss = torch::nll_loss(log_probs, target);
       const torch::Tensor reward = -torch::nll_loss(log_probs.detach(), target, {}, at::Reduction::None);
-      sums.reward += reward.sum().item<double>();
-      sums.correct += count_correct(log_probs.detach(), labels);
-      sums.robots += static_cast<long>(labels.size());
+      figures = {reward.sum().item<double>(), static_cast<double>(count_correct(log_probs.detach(), labels)),
+                 static_cast<double>(labels.size())};
     } else {
       const std::uint64_t stream = core::derive_seed(
           stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
-      const RolloutBatch batch = make_batch(train, indices, config.rollouts, config.world, frame, stream);
+      const RolloutBatch batch = make_batch(train, mine, config.rollouts, config.world, frame, stream,
+                                            static_cast<std::uint64_t>(first) * config.rollouts);
       const EstimatorOptions est{.rollouts_per_image = config.rollouts,
                                  .leave_one_out = config.leave_one_out,
                                  .entropy_bonus = config.entropy_bonus};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
-      sums.reward += out.reward.sum().item<double>();
-      sums.correct += count_correct(out.log_probs, batch.labels);
-      sums.robots += batch.count;
+      figures = {out.reward.sum().item<double>(), static_cast<double>(count_correct(out.log_probs, batch.labels)),
+                 static_cast<double>(batch.count)};
     }
-    const double value = backward_if_finite(loss);
-    if (!std::isfinite(value)) return value;
-    if (hooks.on_gradients) apply_gradient_hook(*agent, hooks.on_gradients);
+    double value = 0;
+    if (!group) {
+      add_figures(figures);
+      value = backward_if_finite(loss);
+      if (!std::isfinite(value)) return value;
+      if (hooks.on_gradients) apply_gradient_hook(*agent, hooks.on_gradients);
+    } else {
+      // The batch's loss and figures over the ranks first: a non-finite loss anywhere stops every
+      // rank before any of them steps.
+      const double weight = static_cast<double>(mine.size()) / static_cast<double>(indices.size());
+      std::array<double, 4> summed = {figures[0], figures[1], figures[2],
+                                      mine.empty() ? 0.0 : loss.item<double>() * weight};
+      sum_over_ranks(summed);
+      add_figures({summed[0], summed[1], summed[2]});
+      value = summed[3];
+      if (!std::isfinite(value)) return value;
+      if (loss.defined() && loss.requires_grad()) (loss * weight).backward();
+      apply_gradient_hook(*agent, [&](std::span<float> gradients) {
+        group->all_reduce_sum(gradients);
+        if (hooks.on_gradients) hooks.on_gradients(gradients);
+      });
+    }
     // Adam skips parameters without a gradient: frozen layers, an unconsulted action planner, and
     // everything in a stage whose layers are all frozen.
     optimizer->step();
     return value;
   }
 
-  // The classifier on the full validation images.
+  void add_figures(const std::array<double, 3>& figures) {
+    sums.reward += figures[0];
+    sums.correct += std::lround(figures[1]);
+    sums.robots += std::lround(figures[2]);
+  }
+
+  // The classifier on the full validation images (in a group, each rank classifies its share).
   double validation_full_image_accuracy() {
     torch::NoGradGuard no_grad;
     agent->eval();
     const int n = validation.images.count;
     if (n == 0) return 0;
-    const int chunk = config.batch_images * config.rollouts;
+    const auto [begin, end] = share(n);
+    const int chunk = engine->max_robots();
     const auto area = static_cast<std::size_t>(frame.area_px());
-    long correct = 0;
-    for (int first = 0; first < n; first += chunk) {
-      const int k = std::min(chunk, n - first);
+    std::array<double, 1> correct{};
+    for (int first = begin; first < end; first += chunk) {
+      const int k = std::min(chunk, end - first);
       torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
       std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
-      correct += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
+      correct[0] += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
     }
-    return static_cast<double>(correct) / n;
+    sum_over_ranks(correct);
+    return correct[0] / n;
   }
 
-  // One stochastic pass of `sampling` over the validation digits; image i drives with
-  // derive_seed(derive_seed(seed, stream), i)'s chunk stream, the same every epoch.
+  // One stochastic pass of `sampling` over the validation digits: image i drives with robot
+  // seed derive_seed(derive_seed(seed, stream), i), the same every epoch and however the images
+  // are split into batches and over ranks.
   double validation_rollout_accuracy(Sampling sampling, std::uint64_t stream) {
     torch::NoGradGuard no_grad;
     agent->eval();
@@ -262,19 +325,21 @@ struct Trainer::Impl {
     if (n == 0) return 0;
     sampling.with_grad = false;
     sampling.precision = config.precision;
-    const int chunk = config.batch_images * config.rollouts;
-    long correct = 0;
-    for (int first = 0; first < n; first += chunk) {
-      const int k = std::min(chunk, n - first);
+    const auto [begin, end] = share(n);
+    const int chunk = engine->max_robots();
+    std::array<double, 1> correct{};
+    for (int first = begin; first < end; first += chunk) {
+      const int k = std::min(chunk, end - first);
       std::vector<int> indices(k);
       for (int i = 0; i < k; ++i) indices[i] = first + i;
       const RolloutBatch batch = make_batch(validation, indices, 1, config.world, frame,
-                                            core::derive_seed(core::derive_seed(config.seed, stream), first));
+                                            core::derive_seed(config.seed, stream), static_cast<std::uint64_t>(first));
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
-      correct += count_correct(out.log_probs, batch.labels);
+      correct[0] += count_correct(out.log_probs, batch.labels);
     }
-    return static_cast<double>(correct) / n;
+    sum_over_ranks(correct);
+    return correct[0] / n;
   }
 
   // The epoch's validation figures: this stage's policy (full images in pretraining), the two
@@ -301,18 +366,32 @@ struct Trainer::Impl {
   }
 
   void write_metrics() const {
+    if (rank() != 0) return;
     std::string text = metrics_csv_header();
     for (const EpochMetrics& m : history) text += metrics_csv_row(m);
     core::write_file_atomic(run_dir / kMetricsFile, text);
   }
 
   void save() {
+    if (rank() != 0) return;
+    save_checkpoint(run_dir / kCheckpointFile, *agent, optimizer.get(), state());
+  }
+
+  CheckpointState state() const {
     CheckpointState state;
     state.config = config;
     state.cursor = cursor;
     state.history = history;
     state.partial = sums;
-    save_checkpoint(run_dir / kCheckpointFile, *agent, optimizer.get(), state);
+    state.world_size = ranks();
+    return state;
+  }
+
+  // True when a stop was asked for on any rank: all ranks stop after the same batch.
+  bool stop_requested(const core::StopToken& stop) {
+    std::array<double, 1> asked = {stop.requested() ? 1.0 : 0.0};
+    sum_over_ranks(asked);
+    return asked[0] > 0;
   }
 
   double remaining_images_after_epoch() const {
@@ -337,7 +416,7 @@ struct Trainer::Impl {
       const auto epoch_start = Clock::now();
       const double seconds_before = sums.train_seconds;
       for (int b = cursor.batch; b < batches; ++b) {
-        if (hooks.stop.requested()) {
+        if (stop_requested(hooks.stop)) {
           save();
           throw core::Stopped(fmt::format("interrupted in mode {} epoch {} after batch {}/{}; checkpoint saved: {}",
                                           to_string(s), cursor.epoch + 1, cursor.batch, batches,
@@ -346,7 +425,7 @@ struct Trainer::Impl {
         const auto t0 = Clock::now();
         const int first = b * per_batch;
         const int k = std::min(per_batch, train.images.count - first);
-        const double loss = train_batch(std::span(order.data() + first, k), b, hooks);
+        const double loss = train_batch(std::span<const int>(order.data() + first, k), b, hooks);
         if (!std::isfinite(loss)) {
           return {TrainOutcome::NonFinite,
                   fmt::format("the loss is {} in mode {} epoch {} batch {}; training stopped, the last good checkpoint "
@@ -449,6 +528,101 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
 }
 
+namespace {
+
+// What every rank of a data-parallel run must agree on, as JSON text in four parts: the world,
+// the networks (and their arithmetic), the training settings, and the data's SHA-256s. Paths are
+// left out: machines may keep the data in different folders.
+std::string agreement_text(const TrainConfig& config, const std::vector<fs::path>& data_files) {
+  json c = json::parse(config.to_json());
+  json parts;
+  parts["world"] = c["world_yaml"];
+  // The classes and image channels come from the data, compared below.
+  c["network"].erase("classes");
+  c["network"].erase("image_channels");
+  parts["networks"] = {{"network", c["network"]}, {"precision", c["precision"]}};
+  c.erase("world_yaml");
+  c.erase("world_file");
+  c.erase("data_folder");
+  c.erase("network");
+  c.erase("precision");
+  parts["training"] = c;
+  json data = json::array();
+  for (const fs::path& f : data_files) data.push_back(worlds::sha256_file(f));
+  parts["data"] = data;
+  return parts.dump();
+}
+
+// Pads to a common length for all_gather (JSON text never holds a NUL).
+std::vector<json> gather_agreements(ProcessGroup& group, const std::string& text) {
+  std::array<double, 1> longest = {0};
+  std::vector<double> lengths(group.size(), 0.0);
+  lengths[group.rank()] = static_cast<double>(text.size());
+  group.all_reduce_sum(std::span<double>(lengths));
+  for (double l : lengths) longest[0] = std::max(longest[0], l);
+  std::string padded = text;
+  padded.resize(static_cast<std::size_t>(longest[0]), '\0');
+  std::vector<json> all;
+  for (std::string& t : group.all_gather(padded)) all.push_back(json::parse(t.substr(0, t.find('\0'))));
+  return all;
+}
+
+}  // namespace
+
+std::unique_ptr<Trainer> Trainer::distribute(ProcessGroup& group, int threads,
+                                             const std::function<std::unique_ptr<Trainer>()>& make_leader,
+                                             const std::optional<TrainConfig>& own_config,
+                                             const std::optional<fs::path>& data_folder) {
+  std::unique_ptr<Trainer> trainer;
+  // 'S' and the checkpoint's bytes, or 'E' when rank 0 could not start.
+  std::string payload;
+  const std::string origin = "rank 0's training state";
+  if (group.rank() == 0) {
+    try {
+      trainer = make_leader();
+      Impl& leader = *trainer->impl_;
+      leader.group = &group;
+      payload = "S" + checkpoint_bytes(*leader.agent, leader.optimizer.get(), leader.state());
+    } catch (const std::exception&) {
+      payload = "E";
+      group.broadcast(payload);
+      throw;
+    }
+    group.broadcast(payload);
+    trainer->impl_->build_engine();
+  } else {
+    group.broadcast(payload);
+    if (payload.empty() || payload[0] != 'S') throw LeaderFailed("rank 0 could not start the run (its error says why)");
+    payload.erase(0, 1);
+    CheckpointState state = read_checkpoint_state_bytes(payload, origin);
+    if (data_folder) state.config.data_folder = fs::absolute(*data_folder);
+    auto impl = std::make_unique<Impl>();
+    impl->config = state.config;
+    impl->group = &group;
+    impl->setup(threads, /*new_run=*/false);
+    load_checkpoint_weights_bytes(payload, origin, *impl->agent, impl->optimizer.get());
+    for (torch::optim::OptimizerParamGroup& g : impl->optimizer->param_groups())
+      static_cast<torch::optim::AdamOptions&>(g.options()).lr(impl->config.learning_rate);
+    impl->cursor = state.cursor;
+    impl->history = std::move(state.history);
+    impl->sums = state.partial;
+    trainer.reset(new Trainer(std::move(impl)));
+  }
+  // Every rank compares every rank with rank 0, so that all of them stop with the same line.
+  const Impl& impl = *trainer->impl_;
+  const std::vector<json> all =
+      gather_agreements(group, agreement_text(own_config.value_or(impl.config), impl.data_files));
+  const std::pair<const char*, const char*> parts[] = {
+      {"world", "world"}, {"networks", "networks"}, {"training", "training settings"}, {"data", "data (SHA-256)"}};
+  for (int r = 1; r < group.size(); ++r)
+    for (const auto& [key, what] : parts)
+      if (all[r][key] != all[0][key])
+        throw InputError(fmt::format("rank {} asks for other {} than rank 0 (every process must run the same command "
+                                     "on the same data)",
+                                     r, what));
+  return trainer;
+}
+
 Trainer::~Trainer() = default;
 
 TrainResult Trainer::run(const TrainHooks& hooks) { return impl_->run(hooks); }
@@ -457,6 +631,8 @@ const ScheduleCursor& Trainer::cursor() const { return impl_->cursor; }
 bool Trainer::finished() const { return impl_->schedule_done(); }
 const std::vector<EpochMetrics>& Trainer::history() const { return impl_->history; }
 int Trainer::threads() const { return impl_->threads; }
+int Trainer::world_size() const { return impl_->ranks(); }
+int Trainer::rank() const { return impl_->rank(); }
 fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointFile; }
 const std::vector<fs::path>& Trainer::data_files() const { return impl_->data_files; }
 

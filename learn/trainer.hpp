@@ -16,6 +16,8 @@
 
 namespace scout::learn {
 
+class ProcessGroup;  // learn/distributed.hpp
+
 /// One row of metrics.csv.
 struct EpochMetrics {
   Stage stage = Stage::ModeI;
@@ -89,6 +91,7 @@ struct ResumeOptions {
 };
 
 /// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.
+/// Run by one process, or by a group of them (distribute) that split each batch's images.
 class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
@@ -97,6 +100,18 @@ class Trainer {
   /// foreign checkpoint, or an option that contradicts the run.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
                                          const ResumeOptions& options = {});
+  /// Data-parallel training over `group` (learn/distributed.hpp); every rank calls this. Rank 0
+  /// builds its trainer with `make_leader` (a new run or a resume, as above) and broadcasts its
+  /// whole state (weights, Adam, config, schedule position, history); the other ranks load their
+  /// data from `data_folder` (default: the path in rank 0's config). `own_config` is what this
+  /// rank's command line asks for (nullopt: take rank 0's, as on a resume). Every rank's world,
+  /// networks, training settings and data (SHA-256) must agree with rank 0's, else every rank
+  /// throws InputError naming what differs. Rank 0 alone writes the run's files; the others need
+  /// no run folder. An error in `make_leader` reaches the others as a GroupError.
+  static std::unique_ptr<Trainer> distribute(ProcessGroup& group, int threads,
+                                             const std::function<std::unique_ptr<Trainer>()>& make_leader,
+                                             const std::optional<TrainConfig>& own_config,
+                                             const std::optional<std::filesystem::path>& data_folder);
   ~Trainer();
   Trainer(const Trainer&) = delete;
   Trainer& operator=(const Trainer&) = delete;
@@ -112,6 +127,9 @@ class Trainer {
   bool finished() const;
   const std::vector<EpochMetrics>& history() const;
   int threads() const;
+  /// Processes training together (1 alone) and this one's rank.
+  int world_size() const;
+  int rank() const;
   std::filesystem::path checkpoint_file() const;
   /// The data files read (for manifests).
   const std::vector<std::filesystem::path>& data_files() const;

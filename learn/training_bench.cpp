@@ -7,9 +7,12 @@
 #include <cmath>
 #include <stdexcept>
 
+#include <fmt/format.h>
+
 #include "core/error.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/objective.hpp"
 
@@ -28,7 +31,7 @@ double median(std::vector<double> v) {
 
 }  // namespace
 
-TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop) {
+TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop, ProcessGroup* group) {
   const TrainConfig& c = config.train;
   c.validate();
   if (config.batches < 1) throw InputError("--batches: expected a positive integer");
@@ -48,8 +51,14 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
   network.image_channels = train.images.channels;
   const agent::Precision precision = agent::resolve_precision(c.precision);
-  const int robots = c.batch_images * c.rollouts;
-  report.robots = robots;
+  const int ranks = group ? group->size() : 1, rank = group ? group->rank() : 0;
+  if (c.batch_images % ranks != 0)
+    throw InputError(fmt::format("--batch: B = {} images do not divide evenly over {} processes", c.batch_images, ranks));
+  // This rank's share of every batch's images.
+  const int first = c.batch_images / ranks * rank, share = c.batch_images / ranks;
+  const int robots = share * c.rollouts;
+  report.robots = c.batch_images * c.rollouts;
+  report.world_size = ranks;
   report.data_files = train.files;
   RolloutEngine engine(c.world, frame, robots);
   const EstimatorOptions estimator{
@@ -73,7 +82,9 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
       std::vector<int> indices(c.batch_images);
       for (int& i : indices)
         i = static_cast<int>(core::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
-      const RolloutBatch batch = make_batch(train, indices, c.rollouts, c.world, frame, core::derive_seed(c.seed, b));
+      const RolloutBatch batch = make_batch(train, std::span<const int>(indices).subspan(first, share), c.rollouts,
+                                            c.world, frame, core::derive_seed(c.seed, b),
+                                            static_cast<std::uint64_t>(first) * c.rollouts);
       engine.reset_timing();
       policy.reset_timing();
       StepTimes t;
@@ -82,13 +93,23 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
       const auto t_run = Clock::now();
       const BatchOutcome out = run_batch(*agent, engine, policy, batch, sampling, estimator);
       const double run_s = seconds_since(t_run);
-      // The step's other two parts as Trainer runs them without a gradient hook.
+      // The step's other parts as Trainer runs them: backward (of this rank's share, weighted),
+      // the gradients summed over the ranks, Adam.
       const auto t_backward = Clock::now();
-      if (!std::isfinite(backward_if_finite(-out.objective)))
+      const torch::Tensor loss = ranks > 1 ? -out.objective * (static_cast<double>(share) / c.batch_images)
+                                           : -out.objective;
+      if (!std::isfinite(backward_if_finite(loss)))
         throw std::runtime_error("bench train: the loss is not finite in mode " + std::string(to_string(mode)));
+      const auto t_reduce = Clock::now();
+      if (group)
+        apply_gradient_hook(*agent, [&](std::span<float> gradients) {
+          group->all_reduce_sum(gradients);
+          report.all_reduce_bytes = static_cast<double>(gradients.size_bytes());
+        });
+      t.all_reduce_s = seconds_since(t_reduce);
       const auto t_step = Clock::now();
       optimizer.step();
-      t.backward_s = std::chrono::duration<double>(t_step - t_backward).count();
+      t.backward_s = std::chrono::duration<double>(t_reduce - t_backward).count();
       t.optimizer_s = seconds_since(t_step);
       t.total_s = seconds_since(t0);
 
@@ -110,6 +131,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
       bench.sum.forward_s += t.forward_s;
       bench.sum.backward_s += t.backward_s;
       bench.sum.optimizer_s += t.optimizer_s;
+      bench.sum.all_reduce_s += t.all_reduce_s;
       bench.sum.total_s += t.total_s;
       bench.action_decisions += static_cast<double>(policy.action_decisions());
       ++bench.batches;

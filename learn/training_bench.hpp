@@ -27,6 +27,7 @@ struct StepTimes {
   double forward_s = 0;    ///< planners and classifier forward, sampling, log pi, J-hat
   double backward_s = 0;   ///< autograd through every decision and the classifier
   double optimizer_s = 0;  ///< Adam's step
+  double all_reduce_s = 0; ///< data-parallel: flattening, summing over the processes and writing back the gradients
   double total_s = 0;      ///< the whole step (the parts plus what falls between them)
 };
 
@@ -45,14 +46,20 @@ struct ModeBench {
 
 struct TrainBenchReport {
   std::vector<ModeBench> modes;
-  int threads = 0;
-  int robots = 0;                                 ///< B x N per batch
+  int threads = 0;                                ///< per process
+  int world_size = 1;                             ///< processes sharing each batch
+  double all_reduce_bytes = 0;                    ///< gradient bytes summed per step (fp32)
+  int robots = 0;                                 ///< B x N per batch, over all processes
   std::vector<std::filesystem::path> data_files;  ///< the IDX files read (for manifests)
 };
 
+class ProcessGroup;  // learn/distributed.hpp
+
 /// Times training steps exactly as Trainer runs them (fresh weights from the config's seed, Adam,
 /// the same batches and estimator), nothing written. `stop` is polled between batches; a stop
-/// throws core::Stopped.
-TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop = {});
+/// throws core::Stopped. With a `group` every rank calls this: each drives its share of every
+/// batch and the gradients are summed over the ranks, as in data-parallel training.
+TrainBenchReport bench_training(const TrainBenchConfig& config, const core::StopToken& stop = {},
+                                ProcessGroup* group = nullptr);
 
 }  // namespace scout::learn

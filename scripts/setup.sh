@@ -12,6 +12,7 @@ packages=(
   libopencv-dev           # trajectory images, PNG floors, MP4 videos
   libgif-dev              # GIF videos (scout run --video)
   libtorch-dev            # networks (agent/, learn/)
+  libgloo-dev             # Gloo's headers for c10d (data-parallel training, learn/distributed.cpp)
   libopenblas0-pthread    # fast BLAS for LibTorch (else the reference BLAS)
   libeigen3-dev           # geometry
   libyaml-cpp-dev         # world files

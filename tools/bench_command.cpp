@@ -16,7 +16,9 @@
 #include "core/timing.hpp"
 #include "env/runs.hpp"
 #include "learn/rollout.hpp"
+#include "learn/distributed.hpp"
 #include "learn/training_bench.hpp"
+#include "tools/group.hpp"
 #include "render/camera.hpp"
 #include "tools/commands.hpp"
 #include "tools/network_options.hpp"
@@ -50,6 +52,7 @@ struct TrainBenchOptions {
   int rollouts = learn::TrainConfig{}.rollouts;
   bool baseline = learn::TrainConfig{}.leave_one_out;
   int batches = 5, warmup = 1, threads = 0;
+  GroupFlags group;
 };
 
 double median(std::vector<double> v) {
@@ -244,14 +247,24 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   config.warmup = opt.warmup;
   config.threads = opt.threads;
 
-  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token());
+  // Data-parallel: every process drives its share of each batch; rank 0 prints.
+  std::unique_ptr<learn::ProcessGroup> group;
+  if (const std::optional<learn::GroupOptions> options = group_from_flags(opt.group)) {
+    set_rank(options->rank);
+    group = learn::ProcessGroup::connect(*options);
+    config.threads = threads_per_process(opt.threads);
+  }
+  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token(), group.get());
+  if (group && group->rank() != 0) return;
   opt.net.announce_precision();
   const agent::NetworkConfig& n = c.network;
   fmt::print(
-      "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {} LibTorch threads, "
+      "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {}{} LibTorch threads, "
       "median of {} batches after {} warm-up\n",
       opt.world, c.world.task.episodes, c.world.task.steps, c.world.camera.patch_px, c.rollouts, c.batch_images,
-      report.robots, agent::to_string(c.precision), report.threads, opt.batches, opt.warmup);
+      report.robots, agent::to_string(c.precision),
+      report.world_size > 1 ? fmt::format("{} processes x ", report.world_size) : "", report.threads, opt.batches,
+      opt.warmup);
   fmt::print("  widths: planners {} x {} (width x depth), classifier {} {} x {}\n", n.planner_width, n.planner_depth,
              agent::to_string(n.classifier), n.classifier_width, n.classifier_depth);
   fmt::print("  {:<5} {:>9} {:>9}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12}\n", "mode", "images/s", "s/step",
@@ -264,6 +277,12 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
                share(m.sum.state_s), share(m.sum.forward_s), share(m.sum.backward_s), share(m.sum.optimizer_s),
                m.action_decisions);
   }
+  if (report.world_size > 1)
+    for (const learn::ModeBench& m : report.modes)
+      fmt::print("  mode {:<3}: all-reduce of {:.0f} KiB of gradients over {} processes: {:.1f} ms per step ({:.1f}%)\n",
+                 learn::to_string(m.mode), report.all_reduce_bytes / 1024, report.world_size,
+                 1000 * m.sum.all_reduce_s / std::max(1, m.batches),
+                 m.sum.total_s > 0 ? 100 * m.sum.all_reduce_s / m.sum.total_s : 0.0);
   // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
   constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
   const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3;
@@ -282,6 +301,8 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
     j["rollouts"] = c.rollouts;
     j["batch_images"] = c.batch_images;
     j["threads"] = report.threads;
+    j["world_size"] = report.world_size;
+    j["all_reduce_bytes"] = report.all_reduce_bytes;
     j["precision"] = agent::to_string(c.precision);
     j["batches"] = opt.batches;
     j["warmup"] = opt.warmup;
@@ -303,7 +324,9 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
                          {"state", share(m.sum.state_s)},
                          {"forward", share(m.sum.forward_s)},
                          {"backward", share(m.sum.backward_s)},
-                         {"optimizer", share(m.sum.optimizer_s)}}},
+                         {"optimizer", share(m.sum.optimizer_s)},
+                         {"all_reduce", share(m.sum.all_reduce_s)}}},
+                       {"all_reduce_s_per_step", m.batches ? m.sum.all_reduce_s / m.batches : 0.0},
                        {"simulation_share", m.simulation_share()},
                        {"action_decisions_per_batch", m.action_decisions}});
     }
@@ -360,12 +383,14 @@ void add_bench_command(CLI::App& app, const Context& context) {
   train_cmd->add_option("--warmup", topt->warmup, "Untimed batches per mode first")
       ->capture_default_str()
       ->check(decimal_in(0, 1000));
-  train_cmd->add_option("--threads", topt->threads, "LibTorch threads (0: one per core)")
+  train_cmd->add_option("--threads", topt->threads, "LibTorch threads per process (0: the cores divided among them)")
       ->capture_default_str()
       ->check(decimal_in(0, 256));
   train_cmd->add_option("--json", topt->json_out, "Also write the figures to this JSON file");
+  add_group_options(*train_cmd, topt->group);
   train_cmd->callback([topt, &context] {
     install_interrupt_handler();
+    if (const std::optional<int> status = launch_local_group(topt->group, context)) throw ExitStatus{*status};
     bench_train(*topt, context);
   });
 }

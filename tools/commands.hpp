@@ -21,6 +21,12 @@ struct Context {
   std::vector<std::string> argv;  ///< the command line, for manifests
 };
 
+/// Thrown by a command that ran other processes (the --nproc launcher): main() exits with their
+/// status and prints nothing more (they printed their own errors).
+struct ExitStatus {
+  int code = 0;
+};
+
 /// Installs the SIGINT / SIGTERM handler (main does, before any command runs): commands poll
 /// interrupt_token() between units of work; a command that never polls runs to its end.
 void install_interrupt_handler();

@@ -17,7 +17,9 @@
 #include "learn/checkpoint.hpp"
 #include "learn/evaluation.hpp"
 #include "learn/trainer.hpp"
+#include "learn/distributed.hpp"
 #include "tools/commands.hpp"
+#include "tools/group.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -35,6 +37,7 @@ struct EvalOptions {
   int limit = 0;  // the first K images only (0: all)
   std::string json_out, predictions_out;
   std::string precision;  // empty: the checkpoint's
+  GroupFlags group;
 };
 
 std::string predictions_csv(const learn::EvalReport& report) {
@@ -88,10 +91,18 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
   // Checked by the option; auto is resolved here and announced once the evaluation has run.
   if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
+  // Data-parallel: every process evaluates a share of the images; rank 0 prints and writes.
+  std::unique_ptr<learn::ProcessGroup> group;
+  if (const std::optional<learn::GroupOptions> options = group_from_flags(opt.group)) {
+    set_rank(options->rank);
+    group = learn::ProcessGroup::connect(*options);
+    config.threads = threads_per_process(0);
+  }
+  const bool leader = !group || group->rank() == 0;
   learn::EvalReport report;
   // One line on stderr once the inputs are read and the first batch is about to run (what a
   // caller can wait for before signalling).
-  bool started = false;
+  bool started = !leader;
   const core::StopToken stop([&started, runs = opt.runs] {
     if (!started) {
       started = true;
@@ -99,9 +110,10 @@ void eval_command(const EvalOptions& opt, const Context& context) {
     }
     return interrupt_token().requested();
   });
-  report = learn::evaluate(config, stop);
+  report = learn::evaluate(config, stop, group.get());
   // Nothing is written when a signal arrives before here; after it the files are complete.
   interrupt_token().throw_if_requested();
+  if (!leader) return;
   if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
@@ -109,6 +121,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
     std::vector<fs::path> data_files = {opt.images, opt.labels};
     j["manifest"] = make_manifest(context.argv, "", data_files, "");
     j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint));
+    j["manifest"]["world_size"] = group ? group->size() : 1;
     write_file_atomic(opt.json_out, j.dump(2) + "\n");
     fmt::print("report:      {}\n", opt.json_out);
   }
@@ -151,8 +164,10 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--json", opt->json_out, "Also write the report (and a manifest) to this JSON file");
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");
+  add_group_options(*cmd, opt->group);
   cmd->callback([opt, &context] {
     install_interrupt_handler();
+    if (const std::optional<int> status = launch_local_group(opt->group, context)) throw ExitStatus{*status};
     eval_command(*opt, context);
   });
 }

@@ -9,6 +9,7 @@
 
 #include "core/error.hpp"
 #include "tools/commands.hpp"
+#include "tools/group.hpp"
 #include "tools/output.hpp"
 #include "tools/parsing.hpp"
 
@@ -43,20 +44,30 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", unknown.c_str());
     return 2;
   }
+  // A member of a data-parallel group names its rank in every message.
+  auto who = [] {
+    const auto rank = scout::tools::current_rank();
+    return rank ? fmt::format("rank {}: ", *rank) : std::string();
+  };
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  } catch (const scout::tools::ExitStatus& e) {
+    return e.code;
   } catch (const scout::core::Stopped& e) {
-    std::fprintf(stderr, "scout: %s\n", scout::one_line(e.what()).c_str());
+    // Rank 0 says where the run stopped for all of them.
+    if (scout::tools::current_rank().value_or(0) == 0)
+      std::fprintf(stderr, "scout: %s\n", scout::one_line(e.what()).c_str());
     return 130;
   } catch (const scout::InputError& e) {
-    std::fprintf(stderr, "scout: error: %s\n", scout::one_line(e.what()).c_str());
+    std::fprintf(stderr, "scout: %serror: %s\n", who().c_str(), scout::one_line(e.what()).c_str());
     return 1;
   } catch (const std::exception& e) {
     // The first line only: LibTorch appends a backtrace of dozens of lines.
     const std::string what = e.what();
-    std::fprintf(stderr, "scout: internal error: %s\n", scout::one_line(what.substr(0, what.find('\n'))).c_str());
+    std::fprintf(stderr, "scout: %sinternal error: %s\n", who().c_str(),
+                 scout::one_line(what.substr(0, what.find('\n'))).c_str());
     return 3;
   }
   return 0;

@@ -15,7 +15,9 @@
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/trainer.hpp"
+#include "learn/distributed.hpp"
 #include "tools/commands.hpp"
+#include "tools/group.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -55,6 +57,8 @@ struct TrainOptions {
   int train_limit = defaults().train_limit;
   int validation_limit = defaults().validation_limit;
   int threads = 0;
+  GroupFlags group;
+  bool allow_nproc_change = false;
 };
 
 std::array<int, 3> parse_epochs(const std::string& text) {
@@ -223,6 +227,7 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
                                   {"git_commit", manifest["git_commit"]},
                                   {"created_utc", manifest["created_utc"]},
                                   {"torch_threads", trainer.threads()},
+                                  {"world_size", trainer.world_size()},
                                   {"epochs", trainer.config().epochs},
                                   {"learning_rate", trainer.config().learning_rate}});
       write_file_atomic(file, first.dump(2) + "\n");
@@ -232,9 +237,89 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
     }
   }
   manifest["torch_threads"] = trainer.threads();
+  manifest["world_size"] = trainer.world_size();
   manifest["config"] = json::parse(trainer.config().to_json());
   manifest["outputs"] = {{"checkpoint", learn::kCheckpointFile}, {"metrics", learn::kMetricsFile}};
   write_file_atomic(file, manifest.dump(2) + "\n");
+}
+
+// The config a new run's command line asks for (every rank of a group builds it, to compare).
+learn::TrainConfig new_run_config(const TrainOptions& o, const std::array<int, 3>& epochs) {
+  learn::TrainConfig config;
+  config.world = worlds::load_world(o.world);
+  if (!o.seed.empty()) config.world.seed = parse_seed(o.seed);
+  config.seed = config.world.seed;
+  if (config.world.floor.dataset.empty())
+    throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
+  const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
+  config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
+  config.network = o.net.network();
+  config.pretrain_epochs = o.pretrain_epochs;
+  config.epochs = epochs;
+  config.rollouts = o.rollouts;
+  config.batch_images = o.batch;
+  config.learning_rate = o.lr;
+  config.leave_one_out = o.baseline;
+  config.entropy_bonus = o.entropy_bonus;
+  config.precision = o.net.arithmetic();
+  config.frozen = parse_freeze(o.freeze);
+  config.train_limit = o.train_limit;
+  config.validation_limit = o.validation_limit;
+  config.validate();
+  if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)
+    throw InputError("--epochs: nothing to train (every stage has 0 epochs); expected at least one epoch");
+  return config;
+}
+
+// A run's processes split each batch's images evenly, an image's N rollouts in one process.
+void check_batch_split(int batch_images, int world_size) {
+  if (batch_images % world_size != 0)
+    throw InputError(fmt::format("--batch: B = {} images do not divide evenly over {} processes (each drives B / "
+                                 "{} images and their N rollouts); choose B a multiple of {}",
+                                 batch_images, world_size, world_size, world_size));
+}
+
+// Rank 0's (or a lone process's) trainer: a new run in a new folder, or the run resumed.
+std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOptions& o, const fs::path& run,
+                                             int threads, int world_size) {
+  const std::array<int, 3> epochs = parse_epochs(o.epochs);
+  const bool epochs_given = cmd.get_option("--epochs")->count() > 0;
+  if (!o.resume.empty()) {
+    if (!fs::is_regular_file(run / learn::kCheckpointFile))
+      throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
+    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / learn::kCheckpointFile);
+    check_resume_options(cmd, o, info.config, o.resume);
+    if (info.world_size != world_size && !o.allow_nproc_change)
+      throw InputError(fmt::format(
+          "--nproc: the run at {} trained with {} process(es), this resume has {}; resume with --nproc {} to continue "
+          "it exactly, or add --allow-nproc-change (the gradient sums change order: weights then agree to about 1e-5, "
+          "not bit for bit)",
+          o.resume, info.world_size, world_size, info.world_size));
+    check_batch_split(info.config.batch_images, world_size);
+    const fs::path data_folder = resume_data_folder(o, info.config, run);
+    // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
+    const bool lr_given = cmd.get_option("--lr")->count() > 0;
+    learn::ResumeOptions resume;
+    if (epochs_given) resume.epochs = epochs;
+    resume.data_folder = data_folder;
+    if (lr_given) resume.learning_rate = o.lr;
+    auto trainer = learn::Trainer::resume(run, threads, resume);
+    if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
+      fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
+    return trainer;
+  }
+  const learn::TrainConfig config = new_run_config(o, epochs);
+  check_batch_split(config.batch_images, world_size);
+  std::error_code ec;
+  if (fs::exists(run, ec))
+    throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
+  fs::create_directories(run);
+  try {
+    return std::make_unique<learn::Trainer>(config, run, threads);
+  } catch (...) {
+    fs::remove_all(run, ec);
+    throw;
+  }
 }
 
 void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& context) {
@@ -243,102 +328,86 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     throw InputError("--out: a resumed run writes into its own folder (" + o.resume + "); leave --out out");
   if (!resuming && o.world.empty()) throw InputError("WORLD: a world file is required (or --resume RUN)");
   if (!resuming && o.out.empty()) throw InputError("--out: a run folder is required (or --resume RUN)");
-  const std::array<int, 3> epochs = parse_epochs(o.epochs);
-  const bool epochs_given = cmd.get_option("--epochs")->count() > 0;
+  const fs::path run = resuming ? fs::path(o.resume) : fs::path(o.out);
+  const std::optional<learn::GroupOptions> group_options = group_from_flags(o.group);
 
+  std::unique_ptr<learn::ProcessGroup> group;
   std::unique_ptr<learn::Trainer> trainer;
-  fs::path run;
-  if (resuming) {
-    run = o.resume;
-    if (!fs::is_regular_file(run / learn::kCheckpointFile))
-      throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
-    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / learn::kCheckpointFile);
-    check_resume_options(cmd, o, info.config, o.resume);
-    const fs::path data_folder = resume_data_folder(o, info.config, run);
-    // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
-    const bool lr_given = cmd.get_option("--lr")->count() > 0;
-    learn::ResumeOptions resume;
-    if (epochs_given) resume.epochs = epochs;
-    resume.data_folder = data_folder;
-    if (lr_given) resume.learning_rate = o.lr;
-    trainer = learn::Trainer::resume(run, o.threads, resume);
-    if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
-      fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
+  if (!group_options) {
+    trainer = open_trainer(cmd, o, run, o.threads, 1);
   } else {
-    learn::TrainConfig config;
-    config.world = worlds::load_world(o.world);
-    if (!o.seed.empty()) config.world.seed = parse_seed(o.seed);
-    config.seed = config.world.seed;
-    if (config.world.floor.dataset.empty())
-      throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
-    const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
-    config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
-    config.network = o.net.network();
-    config.pretrain_epochs = o.pretrain_epochs;
-    config.epochs = epochs;
-    config.rollouts = o.rollouts;
-    config.batch_images = o.batch;
-    config.learning_rate = o.lr;
-    config.leave_one_out = o.baseline;
-    config.entropy_bonus = o.entropy_bonus;
-    config.precision = o.net.arithmetic();
-    config.frozen = parse_freeze(o.freeze);
-    config.train_limit = o.train_limit;
-    config.validation_limit = o.validation_limit;
-    config.validate();
-    if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)
-      throw InputError("--epochs: nothing to train (every stage has 0 epochs); expected at least one epoch");
-    run = o.out;
-    std::error_code ec;
-    if (fs::exists(run, ec))
-      throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
-    fs::create_directories(run);
+    set_rank(group_options->rank);
+    group = learn::ProcessGroup::connect(*group_options);
+    const int threads = threads_per_process(o.threads);
+    // The others compare what their own command line asks for with rank 0's run; on a resume
+    // they take rank 0's config, and read the data from --data or the run's own data path.
+    std::optional<learn::TrainConfig> own;
+    std::optional<fs::path> data_folder;
+    if (group->rank() != 0 && !resuming) {
+      own = new_run_config(o, parse_epochs(o.epochs));
+      data_folder = own->data_folder;
+    } else if (group->rank() != 0 && !o.data_root.empty()) {
+      data_folder = fs::path(o.data_root);
+    }
+    const bool created = group->rank() == 0 && !resuming;
     try {
-      trainer = std::make_unique<learn::Trainer>(config, run, o.threads);
+      trainer = learn::Trainer::distribute(
+          *group, threads, [&] { return open_trainer(cmd, o, run, threads, group->size()); }, own, data_folder);
+    } catch (const learn::LeaderFailed&) {
+      throw ExitStatus{1};  // rank 0 said why
     } catch (...) {
-      fs::remove_all(run, ec);
+      // A new run that never started leaves no folder behind (rank 0 had created it).
+      std::error_code ec;
+      if (created && !fs::exists(run / learn::kCheckpointFile, ec)) fs::remove_all(run, ec);
       throw;
     }
   }
+  const bool leader = trainer->rank() == 0;
   if (resuming && trainer->finished()) {
-    fmt::print("the run's schedule is complete after {} epoch(s); nothing to do (a longer --epochs continues it)\n",
-               trainer->history().size());
+    if (leader)
+      fmt::print("the run's schedule is complete after {} epoch(s); nothing to do (a longer --epochs continues it)\n",
+                 trainer->history().size());
     return;
   }
-  if (!resuming) o.net.announce_precision();
-  write_manifest(run, context, *trainer, resuming);
-  const learn::TrainConfig& c = trainer->config();
-  fmt::print("training {} -> {} ({} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
-             c.world.file.string(), run.string(), trainer->threads(), agent::to_string(c.precision),
-             c.network.planner_width, c.network.planner_depth, agent::to_string(c.network.classifier),
-             c.network.classifier_width, c.network.classifier_depth, c.rollouts, c.batch_images, c.learning_rate);
-  if (resuming) {
-    const learn::ScheduleCursor& k = trainer->cursor();
-    fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
-               k.epoch, k.batch);
-  }
-  std::fflush(stdout);
-
   ProgressPrinter progress;
   learn::TrainHooks hooks;
   hooks.stop = interrupt_token();
-  hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
-  hooks.on_epoch = [&](const learn::EpochMetrics& m) {
-    progress.end_line();
+  if (leader) {
+    if (!resuming) o.net.announce_precision();
+    write_manifest(run, context, *trainer, resuming);
+    const learn::TrainConfig& c = trainer->config();
     fmt::print(
-        "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {:.4f}, goals "
-        "only {:.4f}, full images {:.4f})  {:.1f} images/s  {:.1f} s\n",
-        learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
-        m.validation_iid.value_or(0), m.validation_goals_only.value_or(0), m.validation_full_image.value_or(0),
-        m.images_per_s, m.seconds);
+        "training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
+        c.world.file.string(), run.string(),
+        trainer->world_size() > 1 ? fmt::format("{} processes x ", trainer->world_size()) : "", trainer->threads(),
+        agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
+        agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth, c.rollouts,
+        c.batch_images, c.learning_rate);
+    if (resuming) {
+      const learn::ScheduleCursor& k = trainer->cursor();
+      fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
+                 k.epoch, k.batch);
+    }
     std::fflush(stdout);
-  };
+    hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
+    hooks.on_epoch = [&](const learn::EpochMetrics& m) {
+      progress.end_line();
+      fmt::print(
+          "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {:.4f}, "
+          "goals only {:.4f}, full images {:.4f})  {:.1f} images/s  {:.1f} s\n",
+          learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
+          m.validation_iid.value_or(0), m.validation_goals_only.value_or(0), m.validation_full_image.value_or(0),
+          m.images_per_s, m.seconds);
+      std::fflush(stdout);
+    };
+  }
   const learn::TrainResult result = trainer->run(hooks);
   progress.end_line();
   switch (result.outcome) {
     case learn::TrainOutcome::Finished:
-      fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / learn::kCheckpointFile).string(),
-                 (run / learn::kMetricsFile).string());
+      if (leader)
+        fmt::print("checkpoint: {}\nmetrics:    {}\n", (run / learn::kCheckpointFile).string(),
+                   (run / learn::kMetricsFile).string());
       return;
     case learn::TrainOutcome::NonFinite:
       throw InputError(result.message);
@@ -382,11 +451,15 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("--validation-limit", o->validation_limit, "Validate on the first K validation digits (0: all)")
       ->capture_default_str()
       ->check(decimal_in(0, 100000000));
-  cmd->add_option("--threads", o->threads, "LibTorch threads (0: one per core)")
+  cmd->add_option("--threads", o->threads, "LibTorch threads per process (0: the cores divided among the processes)")
       ->capture_default_str()
       ->check(decimal_in(0, 256));
+  add_group_options(*cmd, o->group);
+  cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
+                "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");
   cmd->callback([cmd, o, &context] {
     install_interrupt_handler();
+    if (const std::optional<int> status = launch_local_group(o->group, context)) throw ExitStatus{*status};
     train_command(*cmd, *o, context);
   });
 }

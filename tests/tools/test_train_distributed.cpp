@@ -1,0 +1,281 @@
+// Data-parallel `scout train` and `scout eval` end to end: real processes on 127.0.0.1 over
+// c10d/Gloo with free ports, the real physics, camera and networks (tiny ones, fp32).
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <chrono>
+#include <thread>
+
+#include "tests/support/train_cli_fixture.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using scout::testing::train_cli_support::json;
+using scout::testing::train_cli_support::lines_of;
+using scout::testing::train_cli_support::read_text;
+using scout::testing::train_cli_support::Result;
+using scout::testing::train_cli_support::TrainCli;
+using Clock = std::chrono::steady_clock;
+
+// fp32, so that two runs differ only in the order of sums; BatchNorm-free networks (GroupNorm).
+const std::string kExact = " --precision fp32";
+
+// The suite's tiny options with one of them changed.
+std::string tiny_with(const std::string& option, const std::string& value) {
+  std::string tiny = scout::testing::train_cli_support::kTiny;
+  const auto at = tiny.find(option + " ");
+  const auto end = tiny.find(' ', at + option.size() + 1);
+  return tiny.substr(0, at) + option + " " + value + (end == std::string::npos ? "" : tiny.substr(end));
+}
+
+struct Weights {
+  double relative = -1;        // |A - B| / |A| over all weights as one vector (L2)
+  double max_difference = -1;  // largest elementwise |A - B|
+  bool identical = false;
+  std::string worst;  // the tensor that differs most
+};
+
+Weights compare_weights(const std::string& a, const std::string& b) {
+  const scout::testing::CliResult r =
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + a + "/checkpoint.pt' '" + b + "/checkpoint.pt'");
+  Weights w;
+  int identical = 0;
+  char worst[256] = {};
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(std::sscanf(r.output.c_str(), "%lf %lf %d %255s", &w.relative, &w.max_difference, &identical, worst), 4)
+      << r.output;
+  w.identical = identical == 1;
+  w.worst = worst;
+  return w;
+}
+
+// Exit status 1, nothing on stdout, and one line on stderr: "scout: rank R: error: ..." holding
+// every one of `names`.
+void expect_rank_error(const Result& r, int rank, const std::vector<std::string>& names) {
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err.rfind("scout: rank " + std::to_string(rank) + ": error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  for (const std::string& name : names) EXPECT_NE(r.err.find(name), std::string::npos) << name << " in " << r.err;
+}
+
+// A port nothing listens on now.
+int free_port() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t length = sizeof(address);
+  bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address));
+  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+  close(fd);
+  return ntohs(address.sin_port);
+}
+
+// One rank of a group started by hand, as a launcher on another machine would start it.
+struct Rank {
+  pid_t pid = -1;
+  fs::path out, err;
+};
+
+Rank start_rank(int rank, int world_size, int port, const std::string& args, const fs::path& dir) {
+  Rank r;
+  r.out = dir / ("rank" + std::to_string(rank) + ".out");
+  r.err = dir / ("rank" + std::to_string(rank) + ".err");
+  std::vector<std::string> argv = {"/usr/bin/env",
+                                   "RANK=" + std::to_string(rank),
+                                   "WORLD_SIZE=" + std::to_string(world_size),
+                                   "MASTER_ADDR=127.0.0.1",
+                                   "MASTER_PORT=" + std::to_string(port),
+                                   SCOUT_BINARY};
+  std::istringstream words(args);
+  for (std::string w; words >> w;) argv.push_back(w);
+  r.pid = scout::testing::spawn(argv, r.out, r.err);
+  return r;
+}
+
+// Waits for a rank to exit (a generous bound against hanging forever); returns its exit status
+// (-1: killed or still running) and the seconds it took.
+std::pair<int, double> wait_rank(const Rank& r, double limit_s = 300) {
+  const auto t0 = Clock::now();
+  int raw = 0;
+  while (std::chrono::duration<double>(Clock::now() - t0).count() < limit_s) {
+    if (waitpid(r.pid, &raw, WNOHANG) == r.pid)
+      return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, std::chrono::duration<double>(Clock::now() - t0).count()};
+    usleep(20 * 1000);
+  }
+  kill(r.pid, SIGKILL);
+  waitpid(r.pid, &raw, 0);
+  return {-1, limit_s};
+}
+
+TEST_F(TrainCli, TwoProcessesTrainTheSameWeightsAsOne) {
+  // One batch in each of modes (i), (ii), (iii) with the leave-one-out baseline: every layer
+  // learns, and a batch's 10 images split 5 + 5 over the two processes, their rollouts together.
+  // Only the order of the sums differs, so the weights agree to 1e-5 (relative, L2). Over more
+  // steps they drift further apart: Adam divides each gradient by its own running scale, so a
+  // component that is nearly zero (REINFORCE's advantages sum to zero over an image's rollouts)
+  // moves by up to the learning rate in a direction its rounding decides (docs/DISTRIBUTED.md).
+  const std::string schedule =
+      " --epochs 1,1,1 --train-limit 10 --baseline" + kExact + scout::testing::train_cli_support::kTiny;
+  const Result one = run("train " + world() + " --out " + path("one") + schedule);
+  ASSERT_EQ(one.status, 0) << one.out << one.err;
+  const Result two = run("train " + world() + " --out " + path("two") + schedule + " --nproc 2");
+  ASSERT_EQ(two.status, 0) << two.out << two.err;
+  EXPECT_NE(two.out.find("2 processes x 1 LibTorch threads"), std::string::npos) << two.out;
+  // Only rank 0 prints, and nothing goes to stderr but progress lines.
+  EXPECT_EQ(two.err.find("rank 1"), std::string::npos) << two.err;
+  EXPECT_EQ(std::count(two.out.begin(), two.out.end(), '\n'), std::count(one.out.begin(), one.out.end(), '\n'))
+      << one.out << two.out;
+
+  const Weights w = compare_weights(path("one"), path("two"));
+  EXPECT_LE(w.relative, 1e-5) << w.worst << " differs by up to " << w.max_difference;
+  EXPECT_FALSE(w.identical);  // the sums' order did change
+  // Both did train: a run of mode (i) alone has other weights.
+  EXPECT_GT(compare_weights(path("one"), base()).relative, 1e-3);
+
+  // The same validation figures (each validation digit's rollout depends on its index alone),
+  // and a manifest that records the process count.
+  const std::vector<std::string> a = lines_of(read_text(path("one") + "/metrics.csv"));
+  const std::vector<std::string> b = lines_of(read_text(path("two") + "/metrics.csv"));
+  ASSERT_EQ(a.size(), 4u);
+  ASSERT_EQ(b.size(), a.size());
+  auto validation_columns = [](const std::string& row) {
+    // mode,epoch,...,validation_accuracy (6th), then validation_iid, goals_only, full_image (10th-12th).
+    std::vector<std::string> cells;
+    std::istringstream in(row);
+    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    return std::vector<std::string>{cells.at(0), cells.at(1), cells.at(5), cells.at(9), cells.at(10), cells.at(11)};
+  };
+  for (std::size_t i = 1; i < a.size(); ++i) EXPECT_EQ(validation_columns(a[i]), validation_columns(b[i])) << a[i] << "\n" << b[i];
+  std::ifstream in(path("two") + "/manifest.json");
+  EXPECT_EQ(json::parse(in)["world_size"], 2);
+}
+
+TEST_F(TrainCli, TheSameProcessCountTwiceGivesBitIdenticalWeights) {
+  const std::string schedule = " --epochs 1,1,1" + std::string(kExact) + scout::testing::train_cli_support::kTiny;
+  for (const char* name : {"a", "b"}) {
+    const Result r = run("train " + world() + " --out " + path(name) + schedule + " --nproc 2");
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+  }
+  const Weights w = compare_weights(path("a"), path("b"));
+  EXPECT_TRUE(w.identical) << w.worst << " differs by up to " << w.max_difference;
+  EXPECT_EQ(w.relative, 0);
+}
+
+TEST_F(TrainCli, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
+  const int port = free_port();
+  const std::string run_dir = path("run");
+  const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 10" +
+                           scout::testing::train_cli_support::kTiny;
+  const Rank r0 = start_rank(0, 2, port, args, local_.path());
+  const Rank r1 = start_rank(1, 2, port, args, local_.path());
+  // Kill rank 1 once the first epoch is done (a generous bound, never asserted on).
+  ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
+  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.pt");
+  kill(r1.pid, SIGKILL);
+  const auto [status, seconds] = wait_rank(r0);
+  wait_rank(r1, 5);
+  const std::string said = read_text(r0.err);
+  EXPECT_EQ(status, 1) << said;
+  // Stopped within the timeout (10 s) plus the time to notice and finish a batch.
+  EXPECT_LT(seconds, 10 + 20) << said;
+  const std::vector<std::string> error_lines = [&] {
+    std::vector<std::string> out;
+    for (const std::string& line : lines_of(said))
+      if (line.rfind("scout: ", 0) == 0) out.push_back(line);
+    return out;
+  }();
+  ASSERT_EQ(error_lines.size(), 1u) << said;
+  EXPECT_NE(error_lines[0].find("rank 0: error: rank 1 was lost"), std::string::npos) << said;
+  // The last checkpoint is intact: resuming with two processes finishes the schedule.
+  ASSERT_TRUE(fs::is_regular_file(run_dir + "/checkpoint.pt"));
+  EXPECT_FALSE(checkpoint_before.empty());
+  const Result resumed = run("train --resume " + run_dir + " --nproc 2");
+  ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
+  EXPECT_NE(resumed.out.find("resuming after"), std::string::npos) << resumed.out;
+  const std::vector<std::string> rows = lines_of(read_text(run_dir + "/metrics.csv"));
+  ASSERT_EQ(rows.size(), 1u + 40u) << read_text(run_dir + "/metrics.csv");
+  EXPECT_EQ(rows.back().rfind("iii,40,", 0), 0u) << rows.back();
+}
+
+TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
+  const Rank r0 = start_rank(0, 2, free_port(), "train " + world() + " --out " + path("never") + " --timeout 3" +
+                                                    scout::testing::train_cli_support::kTiny,
+                             local_.path());
+  const auto [status, seconds] = wait_rank(r0);
+  const Result r{status, read_text(r0.out), read_text(r0.err)};
+  expect_rank_error(r, 0, {"the 2 processes did not all arrive at 127.0.0.1:", "within 3 s"});
+  EXPECT_LT(seconds, 3 + 20);
+  EXPECT_FALSE(fs::exists(path("never")));  // nothing left behind
+}
+
+TEST_F(TrainCli, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
+  const std::string args = "train " + world() + " --out " + path("wrong") + " --timeout 3" +
+                           scout::testing::train_cli_support::kTiny;
+  const int port = free_port();
+  int other = free_port();
+  while (other == port) other = free_port();
+  const Rank r0 = start_rank(0, 2, port, args, local_.path());
+  const Rank r1 = start_rank(1, 2, other, args, local_.path());
+  const auto [status0, seconds0] = wait_rank(r0);
+  const auto [status1, seconds1] = wait_rank(r1);
+  EXPECT_LT(seconds0, 3 + 20);
+  EXPECT_LT(seconds1, 3 + 20);
+  expect_rank_error({status0, read_text(r0.out), read_text(r0.err)}, 0, {"the 2 processes did not all arrive"});
+  const std::string said1 = read_text(r1.err);
+  EXPECT_EQ(status1, 1);
+  EXPECT_EQ(std::count(said1.begin(), said1.end(), '\n'), 1) << said1;
+  EXPECT_EQ(said1.rfind("scout: rank 1: error: cannot reach rank 0's store at 127.0.0.1:" + std::to_string(other), 0),
+            0u)
+      << said1;
+}
+
+TEST_F(TrainCli, RanksThatDisagreeAreRefusedWithOneLineNamingWhat) {
+  const std::string common = "train " + world() + " --out " + path("differ") + " --timeout 20 --epochs 1,0,0";
+  const int port = free_port();
+  const Rank r0 = start_rank(0, 2, port, common + scout::testing::train_cli_support::kTiny, local_.path());
+  const Rank r1 = start_rank(1, 2, port,
+                             common + tiny_with("--classifier-width", "6"),
+                             local_.path());
+  const auto [status0, seconds0] = wait_rank(r0);
+  const auto [status1, seconds1] = wait_rank(r1);
+  expect_rank_error({status0, read_text(r0.out), read_text(r0.err)}, 0, {"rank 1 asks for other networks"});
+  EXPECT_EQ(status1, 1);
+  EXPECT_NE(read_text(r1.err).find("rank 1: error: rank 1 asks for other networks"), std::string::npos)
+      << read_text(r1.err);
+  EXPECT_FALSE(fs::exists(path("differ")));  // the new run never started: no folder left
+}
+
+TEST_F(TrainCli, ResumingWithAnotherProcessCountIsRefusedUnlessAllowed) {
+  const std::string run_dir = copy_of_base("base_copy");
+  const Result refused = run("train --resume " + run_dir + " --epochs 1,1,0 --nproc 2 --timeout 20");
+  expect_rank_error(refused, 0, {"--nproc", "trained with 1 process(es), this resume has 2", "--allow-nproc-change"});
+  const Result allowed =
+      run("train --resume " + run_dir + " --epochs 1,1,0 --nproc 2 --timeout 20 --allow-nproc-change");
+  ASSERT_EQ(allowed.status, 0) << allowed.out << allowed.err;
+  EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), 3u);
+  // An odd batch does not split over two processes.
+  const Result odd = run("train " + world() + " --out " + path("odd") + tiny_with("--batch", "7") +
+                         " --nproc 2 --timeout 20");
+  expect_rank_error(odd, 0, {"--batch: B = 7 images do not divide evenly over 2 processes"});
+}
+
+TEST_F(TrainCli, EvalOverTwoProcessesGivesTheSameReport) {
+  const std::string data = (temp_->path() / "data").string();
+  const std::string common = "eval --checkpoint " + base() + " --images " + data +
+                             "/train-images-idx3-ubyte --labels " + data + "/train-labels-idx1-ubyte --runs 3";
+  const Result one = run(common + " --json " + path("one.json"));
+  ASSERT_EQ(one.status, 0) << one.out << one.err;
+  const Result two = run(common + " --json " + path("two.json") + " --nproc 2");
+  ASSERT_EQ(two.status, 0) << two.out << two.err;
+  json a = json::parse(read_text(path("one.json"))), b = json::parse(read_text(path("two.json")));
+  EXPECT_EQ(b["manifest"]["world_size"], 2);
+  for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "greedy_accuracy",
+                          "revealed_fraction", "images", "runs"})
+    EXPECT_EQ(a[key], b[key]) << key;
+}
+
+}  // namespace

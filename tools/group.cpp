@@ -1,0 +1,162 @@
+// The local launcher of data-parallel commands: N copies of this very command, started with
+// PyTorch's launcher variables, as `torchrun --nproc-per-node N` would start them.
+#include "tools/group.hpp"
+
+#include <arpa/inet.h>
+#include <fmt/format.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
+#include <thread>
+#include <vector>
+
+#include "tools/commands.hpp"
+#include "tools/parsing.hpp"
+
+namespace scout::tools {
+
+namespace {
+
+std::optional<int> rank_of_this_process;
+
+// A port nobody listens on now (the kernel's choice); rank 0 binds it moments later.
+int free_port() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t length = sizeof(address);
+  const bool ok = fd >= 0 && bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+                  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0;
+  if (fd >= 0) close(fd);
+  if (!ok) throw InputError(std::string("--nproc: cannot find a free port on 127.0.0.1: ") + std::strerror(errno));
+  return ntohs(address.sin_port);
+}
+
+// The command line without --nproc (the ranks must not launch again).
+std::vector<std::string> rank_command(const std::vector<std::string>& argv) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == "--nproc") {
+      ++i;
+      continue;
+    }
+    if (argv[i].rfind("--nproc=", 0) == 0) continue;
+    out.push_back(argv[i]);
+  }
+  return out;
+}
+
+}  // namespace
+
+void add_group_options(CLI::App& cmd, GroupFlags& flags) {
+  cmd.add_option("--nproc", flags.nproc,
+                 "Processes on this machine, each driving its share of every batch (data-parallel over c10d/Gloo); "
+                 "on several machines start each process with RANK, WORLD_SIZE, MASTER_ADDR, MASTER_PORT instead")
+      ->capture_default_str()
+      ->check(decimal_in(1, 256));
+  cmd.add_option("--timeout", flags.timeout_s,
+                 "Seconds a process waits for the others (connecting, every all-reduce) before it stops with an error")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 86400.0));
+  cmd.add_option("--interface", flags.interface,
+                 "Network interface for the processes' traffic, e.g. eth0 (default: $GLOO_SOCKET_IFNAME, else the "
+                 "one that reaches MASTER_ADDR)");
+}
+
+std::optional<learn::GroupOptions> group_from_flags(const GroupFlags& flags) {
+  std::optional<learn::GroupOptions> group = learn::group_from_environment();
+  if (!group) return std::nullopt;
+  if (flags.nproc > 1)
+    throw InputError(fmt::format("--nproc: this process is already rank {} of {} (RANK and WORLD_SIZE are set); "
+                                 "leave --nproc out when a launcher starts the processes",
+                                 group->rank, group->world_size));
+  if (group->world_size == 1) return std::nullopt;
+  group->timeout = std::chrono::milliseconds(static_cast<long>(flags.timeout_s * 1000));
+  if (!flags.interface.empty()) group->interface = flags.interface;
+  return group;
+}
+
+int threads_per_process(int requested) {
+  if (requested > 0) return requested;
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  int local = 1;
+  if (const char* v = std::getenv("LOCAL_WORLD_SIZE")) local = std::max(1, std::atoi(v));
+  return std::max(1, cores / local);
+}
+
+void set_rank(int rank) { rank_of_this_process = rank; }
+std::optional<int> current_rank() { return rank_of_this_process; }
+
+std::optional<int> launch_local_group(const GroupFlags& flags, const Context& context) {
+  if (flags.nproc <= 1) return std::nullopt;
+  if (learn::group_from_environment())
+    throw InputError("--nproc: RANK and WORLD_SIZE are set (a launcher started this process); leave --nproc out");
+  const int port = free_port();
+  const std::vector<std::string> command = rank_command(context.argv);
+  // The children inherit a blocked SIGINT/SIGTERM mask only until exec: they restore it, and the
+  // parent takes the signals synchronously to forward them.
+  sigset_t forwarded, previous;
+  sigemptyset(&forwarded);
+  sigaddset(&forwarded, SIGINT);
+  sigaddset(&forwarded, SIGTERM);
+  sigprocmask(SIG_BLOCK, &forwarded, &previous);
+  std::vector<pid_t> children;
+  for (int rank = 0; rank < flags.nproc; ++rank) {
+    const pid_t pid = fork();
+    if (pid < 0) {
+      for (pid_t c : children) kill(c, SIGTERM);
+      sigprocmask(SIG_SETMASK, &previous, nullptr);
+      throw InputError(std::string("--nproc: cannot start a process: ") + std::strerror(errno));
+    }
+    if (pid == 0) {
+      sigprocmask(SIG_SETMASK, &previous, nullptr);
+      setenv("RANK", std::to_string(rank).c_str(), 1);
+      setenv("WORLD_SIZE", std::to_string(flags.nproc).c_str(), 1);
+      setenv("LOCAL_RANK", std::to_string(rank).c_str(), 1);
+      setenv("LOCAL_WORLD_SIZE", std::to_string(flags.nproc).c_str(), 1);
+      setenv("MASTER_ADDR", "127.0.0.1", 1);
+      setenv("MASTER_PORT", std::to_string(port).c_str(), 1);
+      std::vector<char*> args;
+      for (const std::string& a : command) args.push_back(const_cast<char*>(a.c_str()));
+      args.push_back(nullptr);
+      execv("/proc/self/exe", args.data());
+      std::fprintf(stderr, "scout: rank %d: error: cannot start: %s\n", rank, std::strerror(errno));
+      _exit(1);
+    }
+    children.push_back(pid);
+  }
+  std::vector<std::optional<int>> status(children.size());
+  std::size_t running = children.size();
+  const timespec tick{0, 100'000'000};
+  while (running > 0) {
+    siginfo_t info;
+    if (sigtimedwait(&forwarded, &info, &tick) > 0)
+      for (std::size_t r = 0; r < children.size(); ++r)
+        if (!status[r]) kill(children[r], info.si_signo);
+    int raw = 0;
+    pid_t done;
+    while ((done = waitpid(-1, &raw, WNOHANG)) > 0)
+      for (std::size_t r = 0; r < children.size(); ++r)
+        if (children[r] == done) {
+          status[r] = WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw);
+          --running;
+          if (!WIFEXITED(raw))
+            std::fprintf(stderr, "scout: rank %zu was killed by signal %d\n", r, WTERMSIG(raw));
+        }
+  }
+  sigprocmask(SIG_SETMASK, &previous, nullptr);
+  if (*status[0] != 0) return *status[0];
+  for (const std::optional<int>& s : status)
+    if (*s != 0) return *s;
+  return 0;
+}
+
+}  // namespace scout::tools
