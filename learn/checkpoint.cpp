@@ -104,7 +104,8 @@ torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torc
                      {"images", p.images},
                      {"batches", p.batches}}},
                    {"history", history_json(state.history)},
-                   {"world_size", state.world_size}};
+                   {"world_size", state.world_size},
+                   {"threads", state.threads}};
   archive.write("progress", c10::IValue(progress.dump()));
   torch::serialize::OutputArchive weights;
   agent.save(weights);
@@ -131,16 +132,9 @@ std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* o
 
 void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
                      const CheckpointState& state) {
-  torch::serialize::OutputArchive archive = checkpoint_archive(agent, optimizer, state);
-  const fs::path tmp = core::temporary_path_beside(file);
-  try {
-    archive.save_to(tmp.string());
-    fs::rename(tmp, file);
-  } catch (const std::exception& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw InputError(file.string() + ": cannot write the checkpoint: " + first_line(e.what()));
-  }
+  // Serialised in memory, then written by Scout's own durable writer (which reports errno: a full
+  // disk or a file-size limit is one line, and the previous checkpoint stays).
+  core::write_file_atomic(file, checkpoint_bytes(agent, optimizer, state));
 }
 
 namespace {
@@ -220,6 +214,7 @@ CheckpointState read_state(torch::serialize::InputArchive& archive, const std::s
                      q.at("batches").get<long>()};
     state.history = history_from(p.at("history"), state.config.learning_rate);
     state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
+    state.threads = p.contains("threads") ? p.at("threads").get<int>() : 0;
   } catch (const std::exception& e) {
     throw InputError(name + ": progress: unreadable (" + one_line(e.what()) + ")");
   }

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/fault_injection.hpp"
 #include "core/files.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
@@ -283,6 +284,7 @@ struct Trainer::Impl {
         if (hooks.on_gradients) hooks.on_gradients(gradients);
       });
     }
+    core::fault_point("batch");
     // Adam skips parameters without a gradient: frozen layers, an unconsulted action planner, and
     // everything in a stage whose layers are all frozen.
     optimizer->step();
@@ -337,6 +339,7 @@ struct Trainer::Impl {
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
       correct[0] += count_correct(out.log_probs, batch.labels);
+      core::fault_point("validation");
     }
     sum_over_ranks(correct);
     return correct[0] / n;
@@ -384,6 +387,7 @@ struct Trainer::Impl {
     state.history = history;
     state.partial = sums;
     state.world_size = ranks();
+    state.threads = threads;
     return state;
   }
 
@@ -415,6 +419,7 @@ struct Trainer::Impl {
       const std::vector<int> order = epoch_order();
       const auto epoch_start = Clock::now();
       const double seconds_before = sums.train_seconds;
+      auto last_checkpoint = Clock::now();
       for (int b = cursor.batch; b < batches; ++b) {
         if (stop_requested(hooks.stop)) {
           save();
@@ -438,6 +443,11 @@ struct Trainer::Impl {
         sums.images += k;
         sums.train_seconds += seconds_since(t0);
         cursor.batch = b + 1;
+        if (hooks.checkpoint_every.count() > 0 && b + 1 < batches &&
+            Clock::now() - last_checkpoint >= hooks.checkpoint_every) {
+          save();  // rank 0 alone; the others need not know
+          last_checkpoint = Clock::now();
+        }
         if (hooks.on_progress) {
           Progress p;
           p.stage = s;
@@ -497,7 +507,9 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;
-  impl->setup(threads, /*new_run=*/false);
+  // The run's own thread count unless another is asked for: LibTorch's sums depend on it, so
+  // only the same count continues the run bit for bit.
+  impl->setup(threads > 0 ? threads : state.threads, /*new_run=*/false);
   load_checkpoint_weights(file, *impl->agent, impl->optimizer.get());
   // Adam's stored state carries the rate it ran with; the config's (possibly new) rate wins.
   for (torch::optim::OptimizerParamGroup& group : impl->optimizer->param_groups())
@@ -525,6 +537,9 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
     impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};
   }
   impl->sums = state.partial;
+  // metrics.csv follows the checkpoint: a run killed between writing the one and the other gets
+  // the rows its checkpoint holds.
+  impl->write_metrics();
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
 }
 

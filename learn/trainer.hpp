@@ -3,6 +3,7 @@
 /// (full images) -> (i) -> (ii) -> (iii) over rollouts with the physics and the camera in the
 /// loop, checkpointed every epoch. Torch-free: the CLI includes this header.
 #include <array>
+#include <chrono>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -59,6 +60,9 @@ struct TrainHooks {
   /// parameter without a gradient contributes zeros). Changes are written back: a non-zero slice
   /// gives its parameter a gradient, so Adam moves it. Unset: nothing is flattened.
   std::function<void(std::span<float> gradients)> on_gradients;
+  /// Also checkpoint inside an epoch, after the first batch that ends this long after the last
+  /// checkpoint, so that a hard kill loses minutes, not an epoch (0: at epoch ends only).
+  std::chrono::milliseconds checkpoint_every{0};
 };
 
 enum class TrainOutcome { Finished, NonFinite };
@@ -96,8 +100,10 @@ class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
   Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads);
-  /// Continues RUN/checkpoint.pt with what `options` changes. Throws InputError for a bad or
-  /// foreign checkpoint, or an option that contradicts the run.
+  /// Continues RUN/checkpoint.pt with what `options` changes. `threads` 0: the run's own count
+  /// (LibTorch's sums depend on it: only the same count continues bit for bit), else one per
+  /// core for checkpoints that do not record it. Throws InputError for a bad or foreign
+  /// checkpoint, or an option that contradicts the run.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
                                          const ResumeOptions& options = {});
   /// Data-parallel training over `group` (learn/distributed.hpp); every rank calls this. Rank 0

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/files.hpp"
 
 namespace scout::render {
 
@@ -248,8 +249,7 @@ void VideoWriter::finish() {
   }
   const auto size = fs::file_size(v.temporary, ec);
   if (ec || size == 0) throw InputError(fmt::format("{}: the encoder wrote nothing", v.file.string()));
-  fs::rename(v.temporary, v.file, ec);
-  if (ec) throw InputError(fmt::format("{}: cannot move the video into place: {}", v.file.string(), ec.message()));
+  core::commit_file(v.temporary, v.file);
   v.finished = true;
 }
 

@@ -117,11 +117,8 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
-    nlohmann::ordered_json j = nlohmann::ordered_json::parse(learn::report_json(report));
-    std::vector<fs::path> data_files = {opt.images, opt.labels};
-    j["manifest"] = make_manifest(context.argv, "", data_files, "");
-    j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint));
-    j["manifest"]["world_size"] = group ? group->size() : 1;
+    const nlohmann::ordered_json j = eval_document(learn::report_json(report), context.argv, opt.checkpoint,
+                                                   opt.images, opt.labels, group ? group->size() : 1);
     write_file_atomic(opt.json_out, j.dump(2) + "\n");
     fmt::print("report:      {}\n", opt.json_out);
   }

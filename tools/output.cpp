@@ -11,6 +11,7 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "learn/checkpoint.hpp"
 #include "tools/commands.hpp"
 #include "worlds/dataset.hpp"
 
@@ -82,10 +83,14 @@ OutputDir::~OutputDir() {
 
 void OutputDir::commit() {
   std::error_code ec;
+  // The staging folder's entries reach the disk before it is renamed into place, and the rename
+  // after (the files themselves were synced as they were written).
+  core::sync_directory(staging_);
   if (!fs::exists(target_, ec)) {
     fs::rename(staging_, target_, ec);
     if (ec) throw InputError("--out: cannot move the results to " + display_ + ": " + ec.message());
     committed_ = true;
+    core::sync_directory(target_.parent_path().empty() ? fs::path(".") : target_.parent_path());
     return;
   }
   if (!overwrite_) throw InputError("--out: " + display_ + " appeared while running; not replaced");
@@ -102,6 +107,7 @@ void OutputDir::commit() {
     throw InputError("--out: cannot move the results to " + display_ + ": " + ec.message());
   }
   committed_ = true;
+  core::sync_directory(target_.parent_path().empty() ? fs::path(".") : target_.parent_path());
   fs::remove_all(old, ec);
 }
 
@@ -159,6 +165,16 @@ void check_output_file(const char* option, const std::string& file, const std::v
   const bool writable = static_cast<bool>(std::ofstream(probe));
   fs::remove(probe, ec);
   if (!writable) throw InputError(fmt::format("{}: cannot write {}", option, file));
+}
+
+nlohmann::ordered_json eval_document(const std::string& report_json, const std::vector<std::string>& argv,
+                                     const fs::path& checkpoint, const fs::path& images, const fs::path& labels,
+                                     int world_size) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(report_json);
+  j["manifest"] = make_manifest(argv, "", {images, labels}, "");
+  j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(learn::resolve_checkpoint(checkpoint));
+  j["manifest"]["world_size"] = world_size;
+  return j;
 }
 
 }  // namespace scout::tools

@@ -52,6 +52,13 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
                                      const std::vector<std::filesystem::path>& data_files,
                                      const std::string& gl_description);
 
+/// An evaluation's JSON file (what `scout eval --json` and `scout report` write): the report
+/// (learn::report_json) with a manifest naming the digits, the checkpoint's SHA-256 (so a report
+/// never pairs it with another model) and the processes that evaluated it.
+nlohmann::ordered_json eval_document(const std::string& report_json, const std::vector<std::string>& argv,
+                                     const std::filesystem::path& checkpoint, const std::filesystem::path& images,
+                                     const std::filesystem::path& labels, int world_size);
+
 /// The command line as one string, for manifests.
 std::vector<std::string> command_line(int argc, char** argv);
 

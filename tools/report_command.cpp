@@ -431,8 +431,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
     config.runs = opt.runs;
     config.seed = seed;
     const learn::EvalReport r = learn::evaluate(config, interrupt_token());
-    eval = json::parse(learn::report_json(r));
-    eval["manifest"] = make_manifest(context.argv, "", {images, labels}, "");
+    eval = eval_document(learn::report_json(r), context.argv, checkpoint, images, labels, 1);
     write_file_atomic(out.path() / "eval.json", eval.dump(2) + "\n");
     eval_source = "eval.json (evaluated by this report)";
   } else {

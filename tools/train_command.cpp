@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -59,6 +60,7 @@ struct TrainOptions {
   int threads = 0;
   GroupFlags group;
   bool allow_nproc_change = false;
+  double checkpoint_every_min = 5;
 };
 
 std::array<int, 3> parse_epochs(const std::string& text) {
@@ -372,6 +374,7 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   ProgressPrinter progress;
   learn::TrainHooks hooks;
   hooks.stop = interrupt_token();
+  hooks.checkpoint_every = std::chrono::milliseconds(std::llround(o.checkpoint_every_min * 60000));
   if (leader) {
     if (!resuming) o.net.announce_precision();
     write_manifest(run, context, *trainer, resuming);
@@ -451,9 +454,16 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("--validation-limit", o->validation_limit, "Validate on the first K validation digits (0: all)")
       ->capture_default_str()
       ->check(decimal_in(0, 100000000));
-  cmd->add_option("--threads", o->threads, "LibTorch threads per process (0: the cores divided among the processes)")
+  cmd->add_option("--threads", o->threads,
+                  "LibTorch threads per process (0: the cores divided among the processes; on --resume, the run's own, "
+                  "which continues it bit for bit)")
       ->capture_default_str()
       ->check(decimal_in(0, 256));
+  cmd->add_option("--checkpoint-every", o->checkpoint_every_min,
+                  "Also checkpoint inside an epoch every this many minutes, so that a kill loses minutes, not an "
+                  "epoch (0: at epoch ends only)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
   add_group_options(*cmd, o->group);
   cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
                 "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");

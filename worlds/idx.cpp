@@ -15,6 +15,8 @@
 #include <string>
 #include <system_error>
 
+#include "core/files.hpp"
+
 namespace scout::worlds {
 namespace {
 
@@ -186,12 +188,7 @@ void write_atomically(const fs::path& file, const std::uint8_t* header, std::siz
       fail(file, fmt::format("write failed for {}", tmp.string()));
     }
   }
-  fs::rename(tmp, file, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    fail(file, fmt::format("cannot rename {} into place: {}", tmp.string(), ec.message()));
-  }
+  core::commit_file(tmp, file);  // synced, renamed, the folder synced: a power cut keeps one whole file
 }
 
 }  // namespace

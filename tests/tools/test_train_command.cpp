@@ -335,4 +335,37 @@ TEST_F(TrainCli, ANonFiniteLossExitsWithStatusOneAndKeepsTheCheckpoint) {
   EXPECT_EQ(read_text(copy + "/metrics.csv"), metrics);
 }
 
+TEST_F(TrainCli, CheckpointsInsideAnEpochSoThatAKillLosesMinutesNotAnEpoch) {
+  const std::string run_dir = path("run");
+  const fs::path out = local_.path() / "kill.out", err = local_.path() / "kill.err";
+  // Epochs of 44 batches of one image, a checkpoint after every batch (--checkpoint-every below
+  // a batch's time): killed with SIGKILL, the run resumes inside an epoch.
+  std::vector<std::string> argv = {SCOUT_BINARY, "train", world(), "--out", run_dir, "--epochs", "100000,0,0",
+                                   "--checkpoint-every", "0.00002"};
+  std::istringstream tiny(kTiny);
+  for (std::string w; tiny >> w;) argv.push_back(argv.back() == "--batch" ? "1" : w);
+  // The kill may land just after an epoch's last checkpoint (its cursor then starts the next
+  // epoch): try again then, a few times at most.
+  int batch = 0;
+  for (int attempt = 0; attempt < 5 && batch == 0; ++attempt) {
+    const pid_t child = scout::testing::spawn(argv, out, err);
+    ASSERT_TRUE(scout::testing::wait_for_text(child, out, "mode i   epoch", 300)) << read_text(err);
+    usleep(150 * 1000);
+    kill(child, SIGKILL);
+    int status = 0;
+    waitpid(child, &status, 0);
+    // Finish the epoch in progress: "resuming after E epoch(s) (stage 1, epoch E, batch B)".
+    const std::size_t rows = lines_of(read_text(run_dir + "/metrics.csv")).size();
+    const Result resumed = run("train --resume " + run_dir + " --epochs " + std::to_string(rows) + ",0,0");
+    ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
+    const auto at = resumed.out.find(", batch ");
+    ASSERT_NE(at, std::string::npos) << resumed.out;
+    batch = std::stoi(resumed.out.substr(at + 8));
+    // Such a checkpoint is a whole one: the epoch it was in is finished from it.
+    EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), rows + 1);
+    argv = {SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "100000,0,0", "--checkpoint-every", "0.00002"};
+  }
+  EXPECT_GT(batch, 0);
+}
+
 }  // namespace scout::testing::train_command_train_cli_tests

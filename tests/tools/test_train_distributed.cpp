@@ -74,6 +74,17 @@ int free_port() {
   return ntohs(address.sin_port);
 }
 
+// Processes whose command line holds `text` (from /proc).
+int processes_naming(const std::string& text) {
+  int count = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator("/proc")) {
+    std::string cmdline = read_text(e.path() / "cmdline");
+    std::replace(cmdline.begin(), cmdline.end(), '\0', ' ');
+    if (cmdline.find(text) != std::string::npos) ++count;
+  }
+  return count;
+}
+
 // One rank of a group started by hand, as a launcher on another machine would start it.
 struct Rank {
   pid_t pid = -1;
@@ -131,6 +142,8 @@ TEST_F(TrainCli, TwoProcessesTrainTheSameWeightsAsOne) {
       << one.out << two.out;
 
   const Weights w = compare_weights(path("one"), path("two"));
+  std::printf("[ measured ] 2 processes vs 1: relative L2 difference %.3g, largest %.3g (%s)\n", w.relative,
+              w.max_difference, w.worst.c_str());
   EXPECT_LE(w.relative, 1e-5) << w.worst << " differs by up to " << w.max_difference;
   EXPECT_FALSE(w.identical);  // the sums' order did change
   // Both did train: a run of mode (i) alone has other weights.
@@ -178,6 +191,7 @@ TEST_F(TrainCli, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
   kill(r1.pid, SIGKILL);
   const auto [status, seconds] = wait_rank(r0);
   wait_rank(r1, 5);
+  std::printf("[ measured ] rank 0 stopped %.1f s after rank 1 was killed\n", seconds);
   const std::string said = read_text(r0.err);
   EXPECT_EQ(status, 1) << said;
   // Stopped within the timeout (10 s) plus the time to notice and finish a batch.
@@ -201,11 +215,66 @@ TEST_F(TrainCli, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
   EXPECT_EQ(rows.back().rfind("iii,40,", 0), 0u) << rows.back();
 }
 
+TEST_F(TrainCli, LosingRankZeroStopsTheOthersWithOneLine) {
+  const int port = free_port();
+  const std::string args = "train " + world() + " --out " + path("run0") + " --epochs 0,0,40 --timeout 10" +
+                           scout::testing::train_cli_support::kTiny;
+  const Rank r0 = start_rank(0, 2, port, args, local_.path());
+  const Rank r1 = start_rank(1, 2, port, args, local_.path());
+  ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
+  kill(r0.pid, SIGKILL);
+  const auto [status, seconds] = wait_rank(r1);
+  wait_rank(r0, 5);
+  std::printf("[ measured ] rank 1 stopped %.1f s after rank 0 was killed\n", seconds);
+  const std::string said = read_text(r1.err);
+  EXPECT_EQ(status, 1) << said;
+  EXPECT_LT(seconds, 10 + 20) << said;
+  EXPECT_EQ(std::count(said.begin(), said.end(), '\n'), 1) << said;
+  EXPECT_EQ(said.rfind("scout: rank 1: error: rank 0 was lost", 0), 0u) << said;
+  EXPECT_EQ(read_text(r1.out), "");  // rank 1 never prints progress
+}
+
+TEST_F(TrainCli, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
+  const std::string run_dir = path("run");
+  const fs::path out = local_.path() / "launcher.out", err = local_.path() / "launcher.err";
+  std::vector<std::string> argv = {SCOUT_BINARY, "train", world(), "--out", run_dir, "--epochs", "1,1,100000",
+                                   "--nproc", "2", "--timeout", "20"};
+  std::istringstream tiny(scout::testing::train_cli_support::kTiny);
+  for (std::string w; tiny >> w;) argv.push_back(w);
+  const pid_t launcher = scout::testing::spawn(argv, out, err);
+  ASSERT_TRUE(scout::testing::wait_for_text(launcher, out, "mode iii epoch   1:", 300)) << read_text(err);
+  // Ctrl-C reaches the launcher, which passes it on to both ranks.
+  kill(launcher, SIGINT);
+  const auto [status, seconds] = wait_rank({launcher, out, err});
+  const std::string said = read_text(err);
+  EXPECT_EQ(status, 130) << said;
+  EXPECT_LT(seconds, 60) << said;
+  // One line, from rank 0, naming the checkpoint it saved; rank 1 stops quietly.
+  std::vector<std::string> lines;
+  for (const std::string& line : lines_of(said))
+    if (line.rfind("scout: ", 0) == 0) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 1u) << said;
+  EXPECT_NE(lines[0].find("checkpoint saved: " + run_dir + "/checkpoint.pt"), std::string::npos) << said;
+  // No rank outlives the launcher: nothing is left holding the run's port or files.
+  EXPECT_EQ(processes_naming(run_dir), 0);
+  const std::vector<std::string> rows = lines_of(read_text(run_dir + "/metrics.csv"));
+  ASSERT_GE(rows.size(), 4u);
+  const int done = static_cast<int>(rows.size()) - 1;
+  // The run continues from where it stopped, with two processes again.
+  const Result resumed = run("train --resume " + run_dir + " --epochs 1,1," + std::to_string(done - 2 + 1) +
+                             " --nproc 2 --timeout 20");
+  ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
+  EXPECT_NE(resumed.out.find("resuming after " + std::to_string(done) + " epoch(s)"), std::string::npos)
+      << resumed.out;
+  EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), rows.size() + 1);
+}
+
 TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
   const Rank r0 = start_rank(0, 2, free_port(), "train " + world() + " --out " + path("never") + " --timeout 3" +
                                                     scout::testing::train_cli_support::kTiny,
                              local_.path());
   const auto [status, seconds] = wait_rank(r0);
+  std::printf("[ measured ] a rank that never arrived: rank 0 stopped after %.1f s (--timeout 3)\n", seconds);
   const Result r{status, read_text(r0.out), read_text(r0.err)};
   expect_rank_error(r, 0, {"the 2 processes did not all arrive at 127.0.0.1:", "within 3 s"});
   EXPECT_LT(seconds, 3 + 20);
@@ -222,6 +291,8 @@ TEST_F(TrainCli, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
   const Rank r1 = start_rank(1, 2, other, args, local_.path());
   const auto [status0, seconds0] = wait_rank(r0);
   const auto [status1, seconds1] = wait_rank(r1);
+  std::printf("[ measured ] wrong port: rank 0 stopped after %.1f s, rank 1 after %.1f s (--timeout 3)\n", seconds0,
+              seconds1);
   EXPECT_LT(seconds0, 3 + 20);
   EXPECT_LT(seconds1, 3 + 20);
   expect_rank_error({status0, read_text(r0.out), read_text(r0.err)}, 0, {"the 2 processes did not all arrive"});
@@ -269,13 +340,20 @@ TEST_F(TrainCli, EvalOverTwoProcessesGivesTheSameReport) {
                              "/train-images-idx3-ubyte --labels " + data + "/train-labels-idx1-ubyte --runs 3";
   const Result one = run(common + " --json " + path("one.json"));
   ASSERT_EQ(one.status, 0) << one.out << one.err;
-  const Result two = run(common + " --json " + path("two.json") + " --nproc 2");
+  // Over the loopback interface by name (what GLOO_SOCKET_IFNAME or --interface choose).
+  const Result two = run(common + " --json " + path("two.json") + " --nproc 2 --interface lo");
   ASSERT_EQ(two.status, 0) << two.out << two.err;
   json a = json::parse(read_text(path("one.json"))), b = json::parse(read_text(path("two.json")));
   EXPECT_EQ(b["manifest"]["world_size"], 2);
   for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "greedy_accuracy",
                           "revealed_fraction", "images", "runs"})
     EXPECT_EQ(a[key], b[key]) << key;
+  // An interface this machine does not have: one line from each rank, naming it.
+  const Result bad = run(common + " --nproc 2 --timeout 5 --interface nosuch0");
+  EXPECT_EQ(bad.status, 1) << bad.out << bad.err;
+  EXPECT_NE(bad.err.find("scout: rank 0: error: "), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("nosuch0"), std::string::npos) << bad.err;
+  for (const std::string& line : lines_of(bad.err)) EXPECT_EQ(line.rfind("scout: rank ", 0), 0u) << bad.err;
 }
 
 }  // namespace

@@ -1,0 +1,100 @@
+// Hard kills: `scout train` killed with SIGKILL at random moments and at named points (inside a
+// batch, in the middle of a checkpoint write, during validation), resumed each time, ends with
+// the weights and metrics of an uninterrupted run.
+#include <random>
+
+#include "tests/support/train_cli_fixture.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using scout::testing::train_cli_support::kTiny;
+using scout::testing::train_cli_support::lines_of;
+using scout::testing::train_cli_support::read_text;
+using scout::testing::train_cli_support::Result;
+using scout::testing::train_cli_support::TrainCli;
+
+// metrics.csv without its timing columns (images_per_s, seconds), which differ run to run.
+std::vector<std::string> metrics_without_timing(const std::string& file) {
+  std::vector<std::string> rows;
+  for (const std::string& line : lines_of(read_text(file))) {
+    std::vector<std::string> cells;
+    std::istringstream in(line);
+    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    if (cells.size() > 7) cells.erase(cells.begin() + 6, cells.begin() + 8);
+    std::string row;
+    for (const std::string& c : cells) row += c + ",";
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+// How one attempt ends: a named point ("POINT:N", the process kills itself there) or a kill from
+// outside after `delay_ms`.
+struct Kill {
+  std::string point;
+  int delay_ms = 0;
+};
+
+TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
+  // A checkpoint after every batch (--checkpoint-every below a batch's time), as the default
+  // 5 minutes is on a long run; fp32 so that nothing depends on the CPU's bf16.
+  const std::string options = " --epochs 2,2,2 --baseline --precision fp32" + std::string(kTiny);
+  const std::string every = " --checkpoint-every 0.00002";  // 1 ms
+  const Result reference = run("train " + world() + " --out " + path("reference") + options + every);
+  ASSERT_EQ(reference.status, 0) << reference.out << reference.err;
+
+  std::vector<Kill> schedule = {{"batch:3"},      {"file-write:2"}, {"validation:1"}, {"batch:2"},
+                                {"file-write:5"}, {"validation:2"}, {"file-write:1"}};
+  std::mt19937 random(20261202);  // the random moments, seeded: the same schedule every run
+  std::uniform_int_distribution<int> delay_ms(150, 1200);
+  for (int k = 0; k < 7; ++k) schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", delay_ms(random)});
+
+  const std::string killed = path("killed");
+  int kills = 0, fresh_starts = 0;
+  for (const Kill& kill : schedule) {
+    const bool resume = fs::is_regular_file(killed + "/checkpoint.pt");
+    if (!resume) {
+      // Killed before its first checkpoint: the run starts again (nothing to resume).
+      fs::remove_all(killed);
+      ++fresh_starts;
+    }
+    std::vector<std::string> argv = {"/usr/bin/env", "SCOUT_FAULT_KILL_AT=" + kill.point, SCOUT_BINARY, "train"};
+    const std::string args = (resume ? "--resume " + killed : world() + " --out " + killed + options) + every;
+    std::istringstream words(args);
+    for (std::string w; words >> w;) argv.push_back(w);
+    const pid_t child = scout::testing::spawn(argv, local_.path() / "out.txt", local_.path() / "err.txt");
+    ASSERT_GT(child, 0);
+    if (kill.point.empty()) {
+      usleep(kill.delay_ms * 1000);
+      ::kill(child, SIGKILL);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    if (WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) {
+      ++kills;
+    } else {
+      // A point not reached before the run ended, or a random moment after it: it must have
+      // ended well.
+      ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+          << (kill.point.empty() ? std::to_string(kill.delay_ms) + " ms" : kill.point) << ": "
+          << read_text(local_.path() / "err.txt");
+    }
+  }
+  EXPECT_GE(kills, 10);
+  // Finish: one more resume (a no-op when the last attempt finished).
+  ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.pt"));
+  const Result last = run("train --resume " + killed);
+  ASSERT_EQ(last.status, 0) << last.out << last.err;
+  std::printf("[ measured ] %d SIGKILLs (%d before a first checkpoint), then resumed to the end\n", kills,
+              fresh_starts - 1);
+
+  EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"), metrics_without_timing(path("reference") + "/metrics.csv"));
+  const scout::testing::CliResult same = scout::testing::run_cli(
+      COMPARE_WEIGHTS, "'" + path("reference") + "/checkpoint.pt' '" + killed + "/checkpoint.pt'");
+  ASSERT_EQ(same.status, 0) << same.output;
+  EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
+  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;          // bit for bit
+}
+
+}  // namespace
