@@ -13,15 +13,15 @@
 #include <netdb.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
-#include <torch/csrc/distributed/c10d/PrefixStore.hpp>
-#include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
-#include <torch/csrc/distributed/c10d/TCPStore.hpp>
 #include <torch/torch.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <thread>
+#include <torch/csrc/distributed/c10d/PrefixStore.hpp>
+#include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
+#include <torch/csrc/distributed/c10d/TCPStore.hpp>
 
 #include "core/error.hpp"
 #include "core/timing.hpp"
@@ -182,20 +182,21 @@ std::unique_ptr<ProcessGroup> ProcessGroup::connect(const GroupOptions& options)
     impl->store = c10::make_intrusive<c10d::TCPStore>(options.master_addr, store_options);
   } catch (const std::exception& e) {
     if (options.rank == 0) throw GroupError(not_all + ": " + first_line(e));
-    throw GroupError(fmt::format(
-        "cannot reach rank 0's store at {} within {} (is rank 0 running, with the same MASTER_ADDR and "
-        "MASTER_PORT?): {}",
-        where, seconds_text(options.timeout), first_line(e)));
+    throw GroupError(
+        fmt::format("cannot reach rank 0's store at {} within {} (is rank 0 running, with the same MASTER_ADDR and "
+                    "MASTER_PORT?): {}",
+                    where, seconds_text(options.timeout), first_line(e)));
   }
   try {
     auto gloo_options = c10d::ProcessGroupGloo::Options::create(options.timeout);
-    const std::string local = options.interface.empty() ? address_towards(options.master_addr, options.master_port) : "";
+    const std::string local =
+        options.interface.empty() ? address_towards(options.master_addr, options.master_port) : "";
     gloo_options->devices = {options.interface.empty()
                                  ? c10d::ProcessGroupGloo::createDeviceForHostname(local)
                                  : c10d::ProcessGroupGloo::createDeviceForInterface(options.interface)};
     gloo_options->threads = 1;  // one collective at a time: the training step waits for it
-    impl->group = c10::make_intrusive<c10d::ProcessGroupGloo>(c10::make_intrusive<c10d::PrefixStore>("gloo", impl->store),
-                                                              options.rank, options.world_size, gloo_options);
+    impl->group = c10::make_intrusive<c10d::ProcessGroupGloo>(
+        c10::make_intrusive<c10d::PrefixStore>("gloo", impl->store), options.rank, options.world_size, gloo_options);
   } catch (const GroupError&) {
     throw;
   } catch (const std::exception& e) {

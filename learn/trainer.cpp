@@ -632,9 +632,10 @@ std::unique_ptr<Trainer> Trainer::distribute(ProcessGroup& group, int threads,
   for (int r = 1; r < group.size(); ++r)
     for (const auto& [key, what] : parts)
       if (all[r][key] != all[0][key])
-        throw InputError(fmt::format("rank {} asks for other {} than rank 0 (every process must run the same command "
-                                     "on the same data)",
-                                     r, what));
+        throw InputError(
+            fmt::format("rank {} asks for other {} than rank 0 (every process must run the same command "
+                        "on the same data)",
+                        r, what));
   return trainer;
 }
 

@@ -1,13 +1,12 @@
 #include "learn/training_bench.hpp"
 
+#include <fmt/format.h>
 #include <torch/torch.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
-
-#include <fmt/format.h>
 
 #include "core/error.hpp"
 #include "core/random.hpp"
@@ -53,7 +52,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   const agent::Precision precision = agent::resolve_precision(c.precision);
   const int ranks = group ? group->size() : 1, rank = group ? group->rank() : 0;
   if (c.batch_images % ranks != 0)
-    throw InputError(fmt::format("--batch: B = {} images do not divide evenly over {} processes", c.batch_images, ranks));
+    throw InputError(
+        fmt::format("--batch: B = {} images do not divide evenly over {} processes", c.batch_images, ranks));
   // This rank's share of every batch's images.
   const int first = c.batch_images / ranks * rank, share = c.batch_images / ranks;
   const int robots = share * c.rollouts;
@@ -82,9 +82,9 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
       std::vector<int> indices(c.batch_images);
       for (int& i : indices)
         i = static_cast<int>(core::uniform_below(order, static_cast<std::uint64_t>(train.images.count)));
-      const RolloutBatch batch = make_batch(train, std::span<const int>(indices).subspan(first, share), c.rollouts,
-                                            c.world, frame, core::derive_seed(c.seed, b),
-                                            static_cast<std::uint64_t>(first) * c.rollouts);
+      const RolloutBatch batch =
+          make_batch(train, std::span<const int>(indices).subspan(first, share), c.rollouts, c.world, frame,
+                     core::derive_seed(c.seed, b), static_cast<std::uint64_t>(first) * c.rollouts);
       engine.reset_timing();
       policy.reset_timing();
       StepTimes t;
@@ -96,8 +96,8 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
       // The step's other parts as Trainer runs them: backward (of this rank's share, weighted),
       // the gradients summed over the ranks, Adam.
       const auto t_backward = Clock::now();
-      const torch::Tensor loss = ranks > 1 ? -out.objective * (static_cast<double>(share) / c.batch_images)
-                                           : -out.objective;
+      const torch::Tensor loss =
+          ranks > 1 ? -out.objective * (static_cast<double>(share) / c.batch_images) : -out.objective;
       if (!std::isfinite(backward_if_finite(loss)))
         throw std::runtime_error("bench train: the loss is not finite in mode " + std::string(to_string(mode)));
       const auto t_reduce = Clock::now();

@@ -21,14 +21,14 @@ struct TrainBenchConfig {
 /// Where one training step's time went, seconds (medians over the timed batches for `step_s`,
 /// sums over them for the parts, so that the parts add up to the total).
 struct StepTimes {
-  double physics_s = 0;    ///< Box2D: moves of every robot
-  double render_s = 0;     ///< the OSMesa camera: patches rendered and read back
-  double state_s = 0;      ///< y, l, h, g_l written into tensors, revealed-pixel bookkeeping
-  double forward_s = 0;    ///< planners and classifier forward, sampling, log pi, J-hat
-  double backward_s = 0;   ///< autograd through every decision and the classifier
-  double optimizer_s = 0;  ///< Adam's step
-  double all_reduce_s = 0; ///< data-parallel: flattening, summing over the processes and writing back the gradients
-  double total_s = 0;      ///< the whole step (the parts plus what falls between them)
+  double physics_s = 0;     ///< Box2D: moves of every robot
+  double render_s = 0;      ///< the OSMesa camera: patches rendered and read back
+  double state_s = 0;       ///< y, l, h, g_l written into tensors, revealed-pixel bookkeeping
+  double forward_s = 0;     ///< planners and classifier forward, sampling, log pi, J-hat
+  double backward_s = 0;    ///< autograd through every decision and the classifier
+  double optimizer_s = 0;   ///< Adam's step
+  double all_reduce_s = 0;  ///< data-parallel: flattening, summing over the processes and writing back the gradients
+  double total_s = 0;       ///< the whole step (the parts plus what falls between them)
 };
 
 struct ModeBench {

@@ -15,12 +15,12 @@
 #include "core/random.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
-#include "learn/rollout.hpp"
 #include "learn/distributed.hpp"
+#include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"
-#include "tools/group.hpp"
 #include "render/camera.hpp"
 #include "tools/commands.hpp"
+#include "tools/group.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "worlds/dataset.hpp"
@@ -279,10 +279,11 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   }
   if (report.world_size > 1)
     for (const learn::ModeBench& m : report.modes)
-      fmt::print("  mode {:<3}: all-reduce of {:.0f} KiB of gradients over {} processes: {:.1f} ms per step ({:.1f}%)\n",
-                 learn::to_string(m.mode), report.all_reduce_bytes / 1024, report.world_size,
-                 1000 * m.sum.all_reduce_s / std::max(1, m.batches),
-                 m.sum.total_s > 0 ? 100 * m.sum.all_reduce_s / m.sum.total_s : 0.0);
+      fmt::print(
+          "  mode {:<3}: all-reduce of {:.0f} KiB of gradients over {} processes: {:.1f} ms per step ({:.1f}%)\n",
+          learn::to_string(m.mode), report.all_reduce_bytes / 1024, report.world_size,
+          1000 * m.sum.all_reduce_s / std::max(1, m.batches),
+          m.sum.total_s > 0 ? 100 * m.sum.all_reduce_s / m.sum.total_s : 0.0);
   // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
   constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
   const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3;

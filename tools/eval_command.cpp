@@ -15,9 +15,9 @@
 
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
+#include "learn/distributed.hpp"
 #include "learn/evaluation.hpp"
 #include "learn/trainer.hpp"
-#include "learn/distributed.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
@@ -117,8 +117,8 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
-    const nlohmann::ordered_json j = eval_document(learn::report_json(report), context.argv, opt.checkpoint,
-                                                   opt.images, opt.labels, group ? group->size() : 1);
+    const nlohmann::ordered_json j = eval_document(learn::report_json(report), context.argv, opt.checkpoint, opt.images,
+                                                   opt.labels, group ? group->size() : 1);
     write_file_atomic(opt.json_out, j.dump(2) + "\n");
     fmt::print("report:      {}\n", opt.json_out);
   }

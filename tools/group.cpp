@@ -75,9 +75,10 @@ std::optional<learn::GroupOptions> group_from_flags(const GroupFlags& flags) {
   std::optional<learn::GroupOptions> group = learn::group_from_environment();
   if (!group) return std::nullopt;
   if (flags.nproc > 1)
-    throw InputError(fmt::format("--nproc: this process is already rank {} of {} (RANK and WORLD_SIZE are set); "
-                                 "leave --nproc out when a launcher starts the processes",
-                                 group->rank, group->world_size));
+    throw InputError(
+        fmt::format("--nproc: this process is already rank {} of {} (RANK and WORLD_SIZE are set); "
+                    "leave --nproc out when a launcher starts the processes",
+                    group->rank, group->world_size));
   if (group->world_size == 1) return std::nullopt;
   group->timeout = std::chrono::milliseconds(static_cast<long>(flags.timeout_s * 1000));
   if (!flags.interface.empty()) group->interface = flags.interface;
@@ -148,8 +149,7 @@ std::optional<int> launch_local_group(const GroupFlags& flags, const Context& co
         if (children[r] == done) {
           status[r] = WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw);
           --running;
-          if (!WIFEXITED(raw))
-            std::fprintf(stderr, "scout: rank %zu was killed by signal %d\n", r, WTERMSIG(raw));
+          if (!WIFEXITED(raw)) std::fprintf(stderr, "scout: rank %zu was killed by signal %d\n", r, WTERMSIG(raw));
         }
   }
   sigprocmask(SIG_SETMASK, &previous, nullptr);

@@ -15,8 +15,8 @@
 
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
-#include "learn/trainer.hpp"
 #include "learn/distributed.hpp"
+#include "learn/trainer.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
@@ -276,9 +276,10 @@ learn::TrainConfig new_run_config(const TrainOptions& o, const std::array<int, 3
 // A run's processes split each batch's images evenly, an image's N rollouts in one process.
 void check_batch_split(int batch_images, int world_size) {
   if (batch_images % world_size != 0)
-    throw InputError(fmt::format("--batch: B = {} images do not divide evenly over {} processes (each drives B / "
-                                 "{} images and their N rollouts); choose B a multiple of {}",
-                                 batch_images, world_size, world_size, world_size));
+    throw InputError(
+        fmt::format("--batch: B = {} images do not divide evenly over {} processes (each drives B / "
+                    "{} images and their N rollouts); choose B a multiple of {}",
+                    batch_images, world_size, world_size, world_size));
 }
 
 // Rank 0's (or a lone process's) trainer: a new run in a new folder, or the run resumed.

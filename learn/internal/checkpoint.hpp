@@ -30,7 +30,7 @@ struct CheckpointState {
   TrainConfig config;
   ScheduleCursor cursor;
   std::vector<EpochMetrics> history;
-  EpochSums partial;  ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
+  EpochSums partial;   ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
   int world_size = 1;  ///< processes the run trained with (1 in files written before data-parallel runs)
   int threads = 0;     ///< LibTorch threads per process it trained with (0: not recorded)
 };
@@ -40,8 +40,7 @@ struct CheckpointState {
 void save_checkpoint(const std::filesystem::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
                      const CheckpointState& state);
 /// What save_checkpoint writes, in memory (rank 0 broadcasts it to the other ranks).
-std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
-                             const CheckpointState& state);
+std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer, const CheckpointState& state);
 /// The state and weights of checkpoint_bytes' output; `origin` names the source in errors.
 CheckpointState read_checkpoint_state_bytes(const std::string& bytes, const std::string& origin);
 void load_checkpoint_weights_bytes(const std::string& bytes, const std::string& origin, agent::AgentImpl& agent,

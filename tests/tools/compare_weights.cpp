@@ -49,8 +49,8 @@ int main(int argc, char** argv) {
     };
     for (const auto& p : pa) compare(p.key(), p.value(), pb[p.key()]);
     for (const auto& p : ba) compare(p.key(), p.value(), bb[p.key()]);
-    std::printf("%.9g %.9g %d %s\n", std::sqrt(squared_difference / squared_weight), max_difference,
-                identical ? 1 : 0, worst.c_str());
+    std::printf("%.9g %.9g %d %s\n", std::sqrt(squared_difference / squared_weight), max_difference, identical ? 1 : 0,
+                worst.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;

@@ -62,8 +62,7 @@ TEST_F(TrainCli, AFileSizeLimitStopsTrainingWithOneLineAndKeepsTheCheckpoint) {
   const auto small_files = std::max(fs::file_size(run_dir + "/manifest.json"), fs::file_size(run_dir + "/metrics.csv"));
   const rlim_t limit = small_files * 2 + 4096;
   ASSERT_LT(limit, checkpoint_before.size());
-  const Result r =
-      run_limited({SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "2,0,0"}, limit, local_.path());
+  const Result r = run_limited({SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "2,0,0"}, limit, local_.path());
   expect_write_error(r, run_dir + "/checkpoint.pt", "File too large");
   EXPECT_EQ(read_text(run_dir + "/checkpoint.pt"), checkpoint_before);
   EXPECT_EQ(hidden_files(run_dir), 0);
@@ -85,14 +84,17 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
   const std::string script = fmt::format(
       "set -e; mount -t tmpfs -o size={room} tmpfs '{m}'; cp -r '{base}' '{run}'; "
       "fill=$(( $(stat -f -c '%a*%S' '{m}') - {keep} )); head -c $fill /dev/zero > '{m}/filler' || true; "
-      "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../full.out' 2> '{m}/../full.err' || echo $? > '{m}/../full.status'; "
+      "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../full.out' 2> '{m}/../full.err' || echo $? > "
+      "'{m}/../full.status'; "
       "cmp '{run}/checkpoint.pt' '{ckpt}' && echo intact > '{m}/../full.intact'; "
       "rm '{m}/filler'; mount -o remount,ro '{m}'; "
-      "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../ro.out' 2> '{m}/../ro.err' || echo $? > '{m}/../ro.status'",
+      "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../ro.out' 2> '{m}/../ro.err' || echo $? > "
+      "'{m}/../ro.status'",
       fmt::arg("room", room), fmt::arg("m", mount.string()), fmt::arg("base", base()), fmt::arg("run", run_dir),
       fmt::arg("keep", fs::file_size(checkpoint) / 2), fmt::arg("scout", SCOUT_BINARY), fmt::arg("ckpt", checkpoint));
   std::ofstream(local_.path() / "disk.sh") << script << "\n";
-  const scout::testing::CliResult r = scout::testing::run_cli("unshare", "-m sh '" + (local_.path() / "disk.sh").string() + "'");
+  const scout::testing::CliResult r =
+      scout::testing::run_cli("unshare", "-m sh '" + (local_.path() / "disk.sh").string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
   const fs::path dir = local_.path();
   EXPECT_EQ(read_text(dir / "full.status"), "1\n") << read_text(dir / "full.err");

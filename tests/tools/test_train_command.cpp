@@ -340,7 +340,7 @@ TEST_F(TrainCli, CheckpointsInsideAnEpochSoThatAKillLosesMinutesNotAnEpoch) {
   const fs::path out = local_.path() / "kill.out", err = local_.path() / "kill.err";
   // Epochs of 44 batches of one image, a checkpoint after every batch (--checkpoint-every below
   // a batch's time): killed with SIGKILL, the run resumes inside an epoch.
-  std::vector<std::string> argv = {SCOUT_BINARY, "train", world(), "--out", run_dir, "--epochs", "100000,0,0",
+  std::vector<std::string> argv = {SCOUT_BINARY,         "train",  world(), "--out", run_dir, "--epochs", "100000,0,0",
                                    "--checkpoint-every", "0.00002"};
   std::istringstream tiny(kTiny);
   for (std::string w; tiny >> w;) argv.push_back(argv.back() == "--batch" ? "1" : w);

@@ -95,12 +95,9 @@ Rank start_rank(int rank, int world_size, int port, const std::string& args, con
   Rank r;
   r.out = dir / ("rank" + std::to_string(rank) + ".out");
   r.err = dir / ("rank" + std::to_string(rank) + ".err");
-  std::vector<std::string> argv = {"/usr/bin/env",
-                                   "RANK=" + std::to_string(rank),
-                                   "WORLD_SIZE=" + std::to_string(world_size),
-                                   "MASTER_ADDR=127.0.0.1",
-                                   "MASTER_PORT=" + std::to_string(port),
-                                   SCOUT_BINARY};
+  std::vector<std::string> argv = {
+      "/usr/bin/env",          "RANK=" + std::to_string(rank),        "WORLD_SIZE=" + std::to_string(world_size),
+      "MASTER_ADDR=127.0.0.1", "MASTER_PORT=" + std::to_string(port), SCOUT_BINARY};
   std::istringstream words(args);
   for (std::string w; words >> w;) argv.push_back(w);
   r.pid = scout::testing::spawn(argv, r.out, r.err);
@@ -162,7 +159,8 @@ TEST_F(TrainCli, TwoProcessesTrainTheSameWeightsAsOne) {
     for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
     return std::vector<std::string>{cells.at(0), cells.at(1), cells.at(5), cells.at(9), cells.at(10), cells.at(11)};
   };
-  for (std::size_t i = 1; i < a.size(); ++i) EXPECT_EQ(validation_columns(a[i]), validation_columns(b[i])) << a[i] << "\n" << b[i];
+  for (std::size_t i = 1; i < a.size(); ++i)
+    EXPECT_EQ(validation_columns(a[i]), validation_columns(b[i])) << a[i] << "\n" << b[i];
   std::ifstream in(path("two") + "/manifest.json");
   EXPECT_EQ(json::parse(in)["world_size"], 2);
 }
@@ -237,8 +235,8 @@ TEST_F(TrainCli, LosingRankZeroStopsTheOthersWithOneLine) {
 TEST_F(TrainCli, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
   const std::string run_dir = path("run");
   const fs::path out = local_.path() / "launcher.out", err = local_.path() / "launcher.err";
-  std::vector<std::string> argv = {SCOUT_BINARY, "train", world(), "--out", run_dir, "--epochs", "1,1,100000",
-                                   "--nproc", "2", "--timeout", "20"};
+  std::vector<std::string> argv = {SCOUT_BINARY, "train",   world(), "--out",     run_dir, "--epochs",
+                                   "1,1,100000", "--nproc", "2",     "--timeout", "20"};
   std::istringstream tiny(scout::testing::train_cli_support::kTiny);
   for (std::string w; tiny >> w;) argv.push_back(w);
   const pid_t launcher = scout::testing::spawn(argv, out, err);
@@ -261,18 +259,18 @@ TEST_F(TrainCli, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
   ASSERT_GE(rows.size(), 4u);
   const int done = static_cast<int>(rows.size()) - 1;
   // The run continues from where it stopped, with two processes again.
-  const Result resumed = run("train --resume " + run_dir + " --epochs 1,1," + std::to_string(done - 2 + 1) +
-                             " --nproc 2 --timeout 20");
+  const Result resumed =
+      run("train --resume " + run_dir + " --epochs 1,1," + std::to_string(done - 2 + 1) + " --nproc 2 --timeout 20");
   ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
-  EXPECT_NE(resumed.out.find("resuming after " + std::to_string(done) + " epoch(s)"), std::string::npos)
-      << resumed.out;
+  EXPECT_NE(resumed.out.find("resuming after " + std::to_string(done) + " epoch(s)"), std::string::npos) << resumed.out;
   EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), rows.size() + 1);
 }
 
 TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
-  const Rank r0 = start_rank(0, 2, free_port(), "train " + world() + " --out " + path("never") + " --timeout 3" +
-                                                    scout::testing::train_cli_support::kTiny,
-                             local_.path());
+  const Rank r0 = start_rank(
+      0, 2, free_port(),
+      "train " + world() + " --out " + path("never") + " --timeout 3" + scout::testing::train_cli_support::kTiny,
+      local_.path());
   const auto [status, seconds] = wait_rank(r0);
   std::printf("[ measured ] a rank that never arrived: rank 0 stopped after %.1f s (--timeout 3)\n", seconds);
   const Result r{status, read_text(r0.out), read_text(r0.err)};
@@ -282,8 +280,8 @@ TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
 }
 
 TEST_F(TrainCli, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
-  const std::string args = "train " + world() + " --out " + path("wrong") + " --timeout 3" +
-                           scout::testing::train_cli_support::kTiny;
+  const std::string args =
+      "train " + world() + " --out " + path("wrong") + " --timeout 3" + scout::testing::train_cli_support::kTiny;
   const int port = free_port();
   int other = free_port();
   while (other == port) other = free_port();
@@ -308,9 +306,7 @@ TEST_F(TrainCli, RanksThatDisagreeAreRefusedWithOneLineNamingWhat) {
   const std::string common = "train " + world() + " --out " + path("differ") + " --timeout 20 --epochs 1,0,0";
   const int port = free_port();
   const Rank r0 = start_rank(0, 2, port, common + scout::testing::train_cli_support::kTiny, local_.path());
-  const Rank r1 = start_rank(1, 2, port,
-                             common + tiny_with("--classifier-width", "6"),
-                             local_.path());
+  const Rank r1 = start_rank(1, 2, port, common + tiny_with("--classifier-width", "6"), local_.path());
   const auto [status0, seconds0] = wait_rank(r0);
   const auto [status1, seconds1] = wait_rank(r1);
   expect_rank_error({status0, read_text(r0.out), read_text(r0.err)}, 0, {"rank 1 asks for other networks"});
@@ -329,8 +325,8 @@ TEST_F(TrainCli, ResumingWithAnotherProcessCountIsRefusedUnlessAllowed) {
   ASSERT_EQ(allowed.status, 0) << allowed.out << allowed.err;
   EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), 3u);
   // An odd batch does not split over two processes.
-  const Result odd = run("train " + world() + " --out " + path("odd") + tiny_with("--batch", "7") +
-                         " --nproc 2 --timeout 20");
+  const Result odd =
+      run("train " + world() + " --out " + path("odd") + tiny_with("--batch", "7") + " --nproc 2 --timeout 20");
   expect_rank_error(odd, 0, {"--batch: B = 7 images do not divide evenly over 2 processes"});
 }
 

@@ -89,12 +89,13 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   std::printf("[ measured ] %d SIGKILLs (%d before a first checkpoint), then resumed to the end\n", kills,
               fresh_starts - 1);
 
-  EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"), metrics_without_timing(path("reference") + "/metrics.csv"));
+  EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"),
+            metrics_without_timing(path("reference") + "/metrics.csv"));
   const scout::testing::CliResult same = scout::testing::run_cli(
       COMPARE_WEIGHTS, "'" + path("reference") + "/checkpoint.pt' '" + killed + "/checkpoint.pt'");
   ASSERT_EQ(same.status, 0) << same.output;
   EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
-  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;          // bit for bit
+  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;         // bit for bit
 }
 
 }  // namespace
