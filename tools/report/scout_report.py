@@ -183,9 +183,10 @@ def plot_episodes(episodes, out_dir):
         c.set_xticks(range(len(p)))
         c.tick_params(labelsize=7)
         c.set_title(f"π_c: predicts {ep['prediction']} ({verdict})", fontsize=8)
-    fig.suptitle("Test episodes: revealed floor, path (orange), goals (green), final window (blue); "
+    fig.suptitle("Test episodes: revealed floor, path (orange), goals (green), final window (blue);\n"
                  "goal heat map; prediction (green right, red wrong, blue the true class)", fontsize=8)
-    fig.tight_layout()
+    # Keep the two-line title clear of the first row's titles (tight_layout ignores suptitle).
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))
     return save(fig, out_dir, "episodes.png")
 
 
