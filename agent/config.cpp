@@ -107,4 +107,59 @@ void NetworkConfig::validate() const {
   }
 }
 
+namespace {
+
+std::int64_t conv(std::int64_t in, std::int64_t out, std::int64_t kernel, bool bias) {
+  return in * out * kernel * kernel + (bias ? out : 0);
+}
+
+// A dense stack and its 1x1 head (agent/networks.cpp's planners).
+std::int64_t planner(const NetworkConfig& c, std::int64_t head_channels) {
+  const std::int64_t in = c.image_channels + 3;
+  std::int64_t n = 0;
+  for (int k = 0; k < c.planner_depth; ++k) n += conv(in + std::int64_t{k} * c.planner_width, c.planner_width, 3, true);
+  return n + conv(in + std::int64_t{c.planner_depth} * c.planner_width, head_channels, 1, true);
+}
+
+std::int64_t classifier(const NetworkConfig& c) {
+  const std::int64_t w = c.classifier_width;
+  std::int64_t n = 0;
+  std::int64_t channels = c.image_channels;
+  switch (c.classifier) {
+    case ClassifierKind::Paper:
+      for (int k = 0; k < c.classifier_depth; ++k) {
+        n += conv(channels, w << k, 3, true);
+        channels += w << k;
+      }
+      return n + conv(channels, c.classes, 1, true);
+    case ClassifierKind::Strided:
+      for (int k = 0; k < c.classifier_depth; ++k) {
+        const std::int64_t width = w << k;
+        n += conv(channels, width, 3, false) + conv(width, width, 3, false) + 4 * width;  // two GroupNorms
+        channels = width;
+      }
+      return n + conv(channels, c.classes, 1, true);
+    case ClassifierKind::ResNet18: {
+      n = conv(channels, w, 3, false) + 2 * w;  // stem and its BatchNorm
+      channels = w;
+      for (int stage = 0; stage < 4; ++stage) {
+        const std::int64_t width = w << stage;
+        const bool downsample = stage != 0 || channels != width;
+        n += conv(channels, width, 3, false) + conv(width, width, 3, false) + 4 * width;
+        if (downsample) n += conv(channels, width, 1, false) + 2 * width;
+        n += 2 * conv(width, width, 3, false) + 4 * width;
+        channels = width;
+      }
+      return n + channels * c.classes + c.classes;  // the fully connected head
+    }
+  }
+  throw std::invalid_argument("classifier: unknown kind " + std::to_string(static_cast<int>(c.classifier)));
+}
+
+}  // namespace
+
+std::int64_t parameter_count(const NetworkConfig& config) {
+  return planner(config, 1) + planner(config, 2) + classifier(config);
+}
+
 }  // namespace scout::agent

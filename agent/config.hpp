@@ -1,6 +1,7 @@
 #pragma once
 /// The agent's network configuration (torch-free, so that tools and reports can read it without
 /// pulling in LibTorch). Defaults and why: agent/README.md.
+#include <cstdint>
 #include <string>
 
 namespace scout::agent {
@@ -85,6 +86,11 @@ struct NetworkConfig {
   void validate() const;
   bool operator==(const NetworkConfig&) const = default;
 };
+
+/// The agent's trainable parameters (all three networks) for `config`, counted without building
+/// them: what a checkpoint of this config must hold, and the base of memory estimates. A test
+/// holds it equal to the built networks' count for every classifier variant.
+std::int64_t parameter_count(const NetworkConfig& config);
 
 /// Limits checked by validate(): generous for research, small enough to fail before an
 /// out-of-memory.

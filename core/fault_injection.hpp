@@ -6,7 +6,8 @@
 ///
 /// Points: "batch" (a training step between backward and Adam's step), "file-write" (an atomic
 /// write with half of the temporary file written: checkpoints, metrics, manifests, reports),
-/// "validation" (between two validation batches).
+/// "validation" (between two validation batches), "output-commit" (an output folder replaced by
+/// --overwrite, between moving the old one aside and the new one in).
 namespace scout::core {
 
 void fault_point(const char* point);

@@ -2,8 +2,10 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <random>
@@ -43,9 +45,50 @@ fs::path folder_of(const fs::path& file) {
 
 }  // namespace
 
-fs::path temporary_path_beside(const fs::path& file) {
+fs::path stamped_path_beside(const fs::path& target, const std::string& purpose) {
   std::random_device rd;
-  return file.parent_path() / fmt::format(".{}.tmp-{:08x}", file.filename().string(), rd());
+  return target.parent_path() /
+         fmt::format(".{}.{}-{}-{:08x}", target.filename().string(), purpose, static_cast<long>(::getpid()), rd());
+}
+
+fs::path temporary_path_beside(const fs::path& file) { return stamped_path_beside(file, "tmp"); }
+
+std::vector<fs::path> stale_entries(const fs::path& folder, const std::string& prefix) {
+  const std::string stamp = prefix + "-";
+  std::vector<std::pair<fs::file_time_type, fs::path>> found;
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= stamp.size() || name.compare(0, stamp.size(), stamp) != 0) continue;
+    // The process id that follows, up to the next '-'.
+    const std::size_t dash = name.find('-', stamp.size());
+    const std::string digits =
+        name.substr(stamp.size(), dash == std::string::npos ? std::string::npos : dash - stamp.size());
+    if (digits.empty() || digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const long pid = std::stol(digits);
+    // kill(pid, 0) fails with ESRCH only when no such process exists: anything else (running, or
+    // another user's) keeps the entry.
+    if (pid <= 0 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+    std::error_code time_error;
+    found.emplace_back(fs::last_write_time(it->path(), time_error), it->path());
+  }
+  std::sort(found.begin(), found.end());
+  std::vector<fs::path> out;
+  for (auto& [time, path] : found) out.push_back(std::move(path));
+  return out;
+}
+
+int remove_stale_in(const fs::path& folder, const std::string& prefix) {
+  int removed = 0;
+  for (const fs::path& entry : stale_entries(folder, prefix)) {
+    std::error_code ec;
+    if (fs::remove_all(entry, ec) > 0 && !ec) ++removed;
+  }
+  return removed;
+}
+
+int remove_stale_beside(const fs::path& target, const std::string& purpose) {
+  return remove_stale_in(folder_of(target), fmt::format(".{}.{}", target.filename().string(), purpose));
 }
 
 void sync_directory(const fs::path& folder) { sync_path(folder, O_RDONLY | O_DIRECTORY, folder); }
@@ -65,6 +108,7 @@ void commit_file(const fs::path& temporary, const fs::path& file) {
     fail(file, error);
   }
   sync_directory(folder_of(file));
+  remove_stale_beside(file, "tmp");  // what a killed writer of this file left
 }
 
 void write_file_atomic(const fs::path& file, const std::string& text) {

@@ -4,12 +4,30 @@
 /// synced, so a crash or a power cut leaves the old file or the new one, never half of one.
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace scout::core {
 
-/// A fresh hidden name beside `file` (".NAME.tmp-XXXXXXXX"), for writing before a rename; it never
-/// names a file of the user's.
+/// A fresh hidden name beside `file` (".NAME.tmp-PID-XXXXXXXX"), for writing before a rename; it
+/// never names a file of the user's. The writer's process id in the name lets a later write tell
+/// a temporary that a killed process left behind from one that is still being written.
 std::filesystem::path temporary_path_beside(const std::filesystem::path& file);
+
+/// A hidden name for `purpose` beside `target`: ".NAME.PURPOSE-PID-XXXXXXXX" (e.g. a staging
+/// folder ".out.partial-PID-XXXXXXXX").
+std::filesystem::path stamped_path_beside(const std::filesystem::path& target, const std::string& purpose);
+
+/// Removes what killed processes left beside `target`: the entries of its folder named
+/// ".NAME.PURPOSE-PID-..." (as stamped_path_beside makes them) whose process no longer runs on
+/// this machine. Entries of running processes, and anything else, are never touched. Returns how
+/// many were removed; errors are ignored (a later run tries again).
+int remove_stale_beside(const std::filesystem::path& target, const std::string& purpose);
+
+/// The same for entries of `folder` named "PREFIX-PID-..." (e.g. ".npm-tmp-PID-XXXXXX").
+int remove_stale_in(const std::filesystem::path& folder, const std::string& prefix);
+
+/// The entries of `folder` named "PREFIX-PID-..." whose process no longer runs, oldest first.
+std::vector<std::filesystem::path> stale_entries(const std::filesystem::path& folder, const std::string& prefix);
 
 /// Writes `text` to `file` atomically and durably. Throws InputError ("FILE: cannot write (No
 /// space left on device)") and leaves the previous file and no temporary file behind.

@@ -1,9 +1,12 @@
 // Running another program without a shell: posix_spawnp, output to a log file.
 #include "core/process.hpp"
 
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <netinet/in.h>
 #include <spawn.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,6 +17,8 @@
 #include <string>
 #include <system_error>
 #include <vector>
+
+#include "core/error.hpp"
 
 extern char** environ;
 
@@ -121,6 +126,20 @@ std::string ProgramResult::describe(const std::string& program) const {
   else
     what = exited ? fmt::format("(exit {})", code) : fmt::format("(killed by signal {})", code);
   return last_line.empty() ? what : what + ": " + last_line;
+}
+
+int free_loopback_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t length = sizeof(address);
+  const bool ok = fd >= 0 && ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0;
+  const int error = errno;
+  if (fd >= 0) ::close(fd);
+  if (!ok) throw InputError(std::string("cannot find a free port on 127.0.0.1: ") + std::strerror(error));
+  return ntohs(address.sin_port);
 }
 
 }  // namespace scout::core

@@ -1,6 +1,6 @@
 #pragma once
 // Running another program (npm, tar, the report's plotting script) without a shell, its output
-// kept in a log file and quoted in one-line errors.
+// kept in a log file and quoted in one-line errors; a free local port for the processes of a group.
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -28,5 +28,9 @@ ProgramResult run_program(const std::vector<std::string>& args, const std::files
 /// sequences dropped, other control characters turned into spaces, clipped to 200 bytes (at a
 /// UTF-8 character boundary) with "..." appended. Empty if the file cannot be read.
 std::string last_output_line(const std::filesystem::path& log);
+
+/// A TCP port on 127.0.0.1 that nothing listens on now (the kernel's choice), for a process group
+/// started moments later. Throws InputError naming why none could be found.
+int free_loopback_port();
 
 }  // namespace scout::core

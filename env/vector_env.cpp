@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "core/error.hpp"
+#include "core/memory.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::env {
@@ -31,6 +32,15 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs)
   for (int label : floors_.labels) classes_ = std::max(classes_, label + 1);
   moves_ = world_.task.episodes * world_.task.steps;
   seed_ = config.seed.value_or(world_.seed);
+  // Per robot: its floor twice (the camera's texture and the batch's copy), what it has seen and
+  // revealed (here and in the caller's float arrays), its patch, and its Box2D body.
+  const std::uint64_t area = static_cast<std::uint64_t>(frame_.area_px());
+  const std::uint64_t patch = static_cast<std::uint64_t>(world_.camera.patch_px) * world_.camera.patch_px;
+  const std::uint64_t per_robot = area * (1 + 1 + 1 + 1 + 4 + 1) + patch * 5 + 16 * 1024;
+  core::check_memory(
+      (std::uint64_t{256} << 20) + per_robot * static_cast<std::uint64_t>(num_envs_),
+      fmt::format("num_envs = {} robots on {} x {} floors", num_envs_, frame_.width_px, frame_.height_px), config.force,
+      "pass force=True");
   try {
     env_ = std::make_unique<BatchEnv>(world_, frame_, num_envs_);
   } catch (const std::runtime_error& e) {

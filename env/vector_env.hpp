@@ -28,6 +28,7 @@ struct VectorEnvConfig {
   std::optional<worlds::Split> split;  ///< default: the world file's `floor.split`
   std::filesystem::path data_root;     ///< empty: worlds::default_data_root()
   Reward reward = Reward::Dense;
+  bool force = false;  ///< start even when the memory estimate exceeds what is available
 };
 
 /// Where reset and step write: caller-owned, C-contiguous arrays of num_envs rows each. The

@@ -3,13 +3,20 @@
 #include <ATen/CPUGeneratorImpl.h>
 #include <fmt/format.h>
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <sstream>
 
+#include "agent/config.hpp"
 #include "core/error.hpp"
 #include "core/files.hpp"
+#include "learn/internal/archive.hpp"
 
 namespace scout::learn {
 
@@ -139,28 +146,125 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
 
 namespace {
 
-torch::serialize::InputArchive open_archive(const fs::path& given) {
+// The file's bytes; a checkpoint is read whole (Scout checks it before LibTorch parses it).
+std::string read_checkpoint_file(const fs::path& file) {
   std::error_code ec;
-  const fs::path file = resolve_checkpoint(given);
   if (!fs::is_regular_file(file, ec))
     throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.pt or a model file)");
+  std::ifstream in(file, std::ios::binary);
+  std::string bytes;
+  if (in) {
+    const std::uintmax_t size = fs::file_size(file, ec);
+    if (!ec) bytes.reserve(static_cast<std::size_t>(size));
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  if (!in && !in.eof()) throw InputError(file.string() + ": cannot read it (" + std::strerror(errno) + ")");
+  return bytes;
+}
+
+// Which tensors a Scout archive holds besides the agent's, and what bounds them.
+bool optimizer_tensor_fits(const ArchiveTensor& t, const std::set<std::vector<std::int64_t>>& parameter_shapes) {
+  // Adam's moments have their parameter's shape; its bookkeeping ("param_groups/size") is scalar.
+  return (t.dtype == "Float" && parameter_shapes.count(t.sizes)) ||
+         ((t.dtype == "Long" || t.dtype == "Float") && t.numel() <= 1);
+}
+
+// Holds the archive against what Scout's writer produces before LibTorch parses it: its structure
+// (learn/internal/archive.hpp), then its format number, its config, and each tensor's name,
+// shape and type against the agent that config describes. The agent is built only once the file
+// is known to hold that many weights, so that a crafted config cannot make Scout allocate more
+// than the file's own size.
+void check_archive(const std::string& bytes, const std::string& origin) {
+  ArchiveContents contents;
+  try {
+    contents = inspect_archive(bytes);
+  } catch (const std::runtime_error& e) {
+    throw InputError(origin + ": not a Scout checkpoint (" + e.what() + ")");
+  }
+  const auto format = contents.ints.find("scout_checkpoint_format");
+  if (format == contents.ints.end())
+    throw InputError(origin + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
+  if (format->second != kCheckpointFormat)
+    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", origin,
+                                 kCheckpointFormat, format->second));
+  const auto config_text = contents.strings.find("config");
+  if (config_text == contents.strings.end()) throw InputError(origin + ": config: missing from the checkpoint");
+  const TrainConfig config = TrainConfig::from_json(config_text->second, origin);
+
+  const std::string agent_prefix = "agent.";
+  std::map<std::string, const ArchiveTensor*> agent_tensors;
+  std::int64_t agent_values = 0;
+  for (const ArchiveTensor& t : contents.tensors) {
+    if (t.path.rfind(agent_prefix, 0) != 0) continue;
+    agent_tensors[t.path.substr(agent_prefix.size())] = &t;
+    agent_values += t.numel();
+  }
+  const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
+  const std::int64_t parameters = agent::parameter_count(config.network);
+  if (agent_values < parameters)
+    throw InputError(fmt::format("{}{}it gives {} parameters, the file holds {} values)", origin, mismatch, parameters,
+                                 agent_values));
+
+  // Building the reference agent draws initial weights from LibTorch's generator: put its state
+  // back, so that checking a file never changes what a later construction draws.
+  struct GeneratorRestore {
+    at::Generator generator = at::detail::getDefaultCPUGenerator();
+    at::Tensor state = generator.get_state();
+    ~GeneratorRestore() { generator.set_state(state); }
+  } restore;
+  agent::Agent reference(config.network);
+  std::set<std::vector<std::int64_t>> parameter_shapes;
+  std::size_t expected = 0;
+  const auto expect = [&](const std::string& name, const torch::Tensor& value) {
+    ++expected;
+    const auto it = agent_tensors.find(name);
+    if (it == agent_tensors.end()) throw InputError(origin + mismatch + name + " is missing)");
+    const ArchiveTensor& t = *it->second;
+    if (t.sizes != value.sizes().vec() || t.dtype != c10::toString(value.scalar_type()))
+      throw InputError(origin + mismatch + name + " is " + t.dtype + " " + c10::str(c10::IntArrayRef(t.sizes)) +
+                       ", the config gives " + c10::toString(value.scalar_type()) + " " + c10::str(value.sizes()) +
+                       ")");
+  };
+  for (const auto& p : reference->named_parameters()) {
+    expect(p.key(), p.value());
+    parameter_shapes.insert(p.value().sizes().vec());
+  }
+  for (const auto& b : reference->named_buffers()) expect(b.key(), b.value());
+  if (agent_tensors.size() != expected)
+    throw InputError(origin + mismatch + "the file holds " + std::to_string(agent_tensors.size()) +
+                     " tensors, the config " + std::to_string(expected) + ")");
+
+  std::int64_t optimizer_values = 0;
+  for (const ArchiveTensor& t : contents.tensors) {
+    if (t.path.rfind(agent_prefix, 0) == 0) continue;
+    if (t.path == "torch_rng_state" && t.dtype == "Byte" && t.sizes.size() == 1 && t.numel() <= (1 << 20)) continue;
+    if (t.path.rfind("optimizer.", 0) == 0 && optimizer_tensor_fits(t, parameter_shapes)) {
+      optimizer_values += t.numel();
+      continue;
+    }
+    throw InputError(origin + ": not a Scout checkpoint (tensor " + t.path + ", " + t.dtype + " " +
+                     c10::str(c10::IntArrayRef(t.sizes)) + ", is not one Scout's writer makes)");
+  }
+  // Adam keeps two moments per parameter (three with AMSGrad).
+  if (optimizer_values > 3 * parameters + 1024)
+    throw InputError(fmt::format("{}: optimizer: {} values for {} parameters (Adam keeps at most three per parameter)",
+                                 origin, optimizer_values, parameters));
+}
+
+torch::serialize::InputArchive open_archive_bytes(const std::string& bytes, const std::string& origin) {
+  check_archive(bytes, origin);
   torch::serialize::InputArchive archive;
   try {
-    archive.load_from(file.string());
-  } catch (const std::exception&) {
-    throw InputError(file.string() + ": not a Scout checkpoint (expected a file written by scout train)");
+    archive.load_from(bytes.data(), bytes.size());
+  } catch (const std::exception& e) {
+    throw InputError(origin + ": not a Scout checkpoint (" + first_line(e.what()) + ")");
   }
   return archive;
 }
 
-torch::serialize::InputArchive open_archive_bytes(const std::string& bytes, const std::string& origin) {
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(bytes.data(), bytes.size());
-  } catch (const std::exception&) {
-    throw InputError(origin + ": not a Scout checkpoint");
-  }
-  return archive;
+torch::serialize::InputArchive open_archive(const fs::path& given) {
+  const fs::path file = resolve_checkpoint(given);
+  return open_archive_bytes(read_checkpoint_file(file), file.string());
 }
 
 CheckpointState read_state(torch::serialize::InputArchive& archive, const std::string& name);

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -136,6 +137,58 @@ const char* to_string(Stage stage) {
       return "iii";
   }
   return "?";
+}
+
+std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, int height_px, int world_size) {
+  const agent::NetworkConfig& n = config.network;
+  const double area = static_cast<double>(width_px) * height_px;
+  const double element = config.precision == agent::Precision::Float32 ? 4 : 2;
+  // A dense stack keeps each block's concatenated input and its ReLU output for backward.
+  double planner = 0;
+  const double planner_in = n.image_channels + 3.0;
+  for (int k = 0; k <= n.planner_depth; ++k) planner += planner_in + k * double(n.planner_width);
+  planner += n.planner_depth * double(n.planner_width);
+  planner *= area * element;
+  double classifier = 0;  // activations kept for one image
+  const double w = n.classifier_width;
+  switch (n.classifier) {
+    case agent::ClassifierKind::Paper: {
+      double channels = n.image_channels;
+      for (int k = 0; k < n.classifier_depth; ++k) {
+        const double width = w * double(1 << k);
+        classifier += channels + 2 * width;  // the block's input, its convolution and its ReLU
+        channels += width;
+      }
+      classifier = (classifier + channels + n.classes) * area;
+      break;
+    }
+    case agent::ClassifierKind::Strided: {
+      double pixels = area;
+      for (int k = 0; k < n.classifier_depth; ++k) {
+        pixels /= 4;
+        classifier += 7 * w * double(1 << k) * pixels;  // two convolutions, two norms, two ReLUs, an input
+      }
+      classifier += n.image_channels * area;
+      break;
+    }
+    case agent::ClassifierKind::ResNet18: {
+      double pixels = area;
+      for (int stage = 0; stage < 4; ++stage) {
+        if (stage > 0) pixels /= 4;
+        classifier += 16 * w * double(1 << stage) * pixels;  // two blocks of conv, norm, ReLU, sum
+      }
+      classifier += 3 * w * area;  // the stem
+      break;
+    }
+  }
+  classifier *= element + 4;  // the activations and their fp32 normalisation or gradient copies
+  const double robots = std::ceil(double(config.batch_images) / world_size) * config.rollouts;
+  const double calls = config.world.task.episodes * (1.0 + config.world.task.steps);  // goals, then each move
+  const double state = area * (n.image_channels + 4) * 4 * 2;                 // observations, masks, the camera's floor
+  const double per_robot = calls * planner + classifier + state + 16 * 1024;  // + Box2D's body and contacts
+  const double weights = double(agent::parameter_count(n)) * (4 * 4 + 2);     // fp32 x 4, a bf16 copy
+  constexpr double kBase = 600.0 * 1024 * 1024;  // LibTorch, OpenMP, Mesa's llvmpipe, the data
+  return static_cast<std::uint64_t>(kBase + weights + robots * per_robot);
 }
 
 }  // namespace scout::learn

@@ -46,4 +46,13 @@ struct TrainConfig {
   static TrainConfig from_json(const std::string& text, const std::string& origin);
 };
 
+/// About how much memory training `config` on floors of width x height takes at its peak (mode
+/// (iii), where both planners keep their activations for the backward pass of every robot), with
+/// each of `world_size` processes driving its share of a batch: the weights, their gradients and
+/// Adam's moments, the planners' and the classifier's saved activations per robot, the physics
+/// and camera per robot, and the process's own base (LibTorch, Mesa). An estimate for refusing
+/// requests that cannot fit (`scout train` refuses them unless --force), not an exact figure:
+/// learn/README.md compares it with measured peaks.
+std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, int height_px, int world_size = 1);
+
 }  // namespace scout::learn

@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "core/fault_injection.hpp"
 #include "core/files.hpp"
+#include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
@@ -89,6 +90,7 @@ struct Trainer::Impl {
   TrainConfig config;
   fs::path run_dir;
   int threads = 1;
+  bool force_memory = false;  // a new run's memory estimate is not checked
   worlds::LabeledImages train, validation;
   grid::FloorFrame frame;
   agent::Agent agent{nullptr};
@@ -152,6 +154,11 @@ struct Trainer::Impl {
     worlds::check_against_floor(config.world, train.images.cols, train.images.rows);
     frame = {
         .width_px = train.images.cols, .height_px = train.images.rows, .pixel_size_m = config.world.floor.pixel_size_m};
+    if (new_run)  // before the networks and the robots take it
+      core::check_memory(estimate_training_bytes(config, frame.width_px, frame.height_px),
+                         fmt::format("training B x N = {} x {} robots on {} x {} floors with these networks",
+                                     config.batch_images, config.rollouts, frame.width_px, frame.height_px),
+                         force_memory);
     torch::manual_seed(config.seed);
     agent = agent::Agent(config.network);
     optimizer =
@@ -489,8 +496,10 @@ struct Trainer::Impl {
 
 Trainer::Trainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
-Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads) : impl_(std::make_unique<Impl>()) {
+Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool force_memory)
+    : impl_(std::make_unique<Impl>()) {
   config.validate();
+  impl_->force_memory = force_memory;
   impl_->config = config;
   impl_->run_dir = std::move(run_dir);
   impl_->setup(threads, /*new_run=*/true);

@@ -99,7 +99,9 @@ struct ResumeOptions {
 class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
-  Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads);
+  /// Refuses (InputError) a config whose estimated memory (estimate_training_bytes) exceeds what
+  /// the machine has available, unless `force_memory`.
+  Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads, bool force_memory = false);
   /// Continues RUN/checkpoint.pt with what `options` changes. `threads` 0: the run's own count
   /// (LibTorch's sums depend on it: only the same count continues bit for bit), else one per
   /// core for checkpoints that do not record it. Throws InputError for a bad or foreign

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/error.hpp"
+#include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
 #include "learn/distributed.hpp"
@@ -60,6 +61,14 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
   report.robots = c.batch_images * c.rollouts;
   report.world_size = ranks;
   report.data_files = train.files;
+  TrainConfig estimated = c;
+  estimated.network = network;
+  estimated.precision = precision;
+  report.estimated_bytes = estimate_training_bytes(estimated, frame.width_px, frame.height_px, ranks);
+  core::check_memory(report.estimated_bytes,
+                     fmt::format("benchmarking B x N = {} x {} robots on {} x {} floors with these networks",
+                                 c.batch_images, c.rollouts, frame.width_px, frame.height_px),
+                     config.force_memory);
   RolloutEngine engine(c.world, frame, robots);
   const EstimatorOptions estimator{
       .rollouts_per_image = c.rollouts, .leave_one_out = c.leave_one_out, .entropy_bonus = c.entropy_bonus};
@@ -141,6 +150,7 @@ TrainBenchReport bench_training(const TrainBenchConfig& config, const core::Stop
     bench.action_decisions /= bench.batches;
     report.modes.push_back(bench);
   }
+  report.peak_bytes = core::peak_resident_bytes();
   return report;
 }
 

@@ -11,11 +11,12 @@
 namespace scout::learn {
 
 struct TrainBenchConfig {
-  TrainConfig train;         ///< world, data, networks, N, B, lr, baseline, precision, seed
-  std::vector<Stage> modes;  ///< which stages to time (ModeI..ModeIII, Pretrain)
-  int batches = 5;           ///< timed batches per mode (after the warm-up)
-  int warmup = 1;            ///< untimed batches per mode first (allocator, oneDNN kernels)
-  int threads = 0;           ///< LibTorch threads (0: one per core)
+  TrainConfig train;          ///< world, data, networks, N, B, lr, baseline, precision, seed
+  std::vector<Stage> modes;   ///< which stages to time (ModeI..ModeIII, Pretrain)
+  int batches = 5;            ///< timed batches per mode (after the warm-up)
+  int warmup = 1;             ///< untimed batches per mode first (allocator, oneDNN kernels)
+  int threads = 0;            ///< LibTorch threads (0: one per core)
+  bool force_memory = false;  ///< run even when estimate_training_bytes exceeds the available memory
 };
 
 /// Where one training step's time went, seconds (medians over the timed batches for `step_s`,
@@ -51,6 +52,8 @@ struct TrainBenchReport {
   double all_reduce_bytes = 0;                    ///< gradient bytes summed per step (fp32)
   int robots = 0;                                 ///< B x N per batch, over all processes
   std::vector<std::filesystem::path> data_files;  ///< the IDX files read (for manifests)
+  std::uint64_t estimated_bytes = 0;              ///< estimate_training_bytes for this process's share
+  std::uint64_t peak_bytes = 0;                   ///< this process's peak resident size at the end (VmHWM)
 };
 
 class ProcessGroup;  // learn/distributed.hpp

@@ -112,8 +112,10 @@ struct Outputs {
 class VectorEnvCore {
  public:
   VectorEnvCore(const std::string& world, int num_envs, std::optional<std::uint64_t> seed,
-                std::optional<std::string> split, std::optional<std::string> data, const std::string& reward) {
+                std::optional<std::string> split, std::optional<std::string> data, const std::string& reward,
+                bool force) {
     env::VectorEnvConfig c;
+    c.force = force;
     c.world_file = world;
     c.num_envs = num_envs;
     c.seed = seed;
@@ -192,8 +194,9 @@ PYBIND11_MODULE(_scout, m) {
   register_errors();
   py::class_<VectorEnvCore>(m, "VectorEnvCore")
       .def(py::init<const std::string&, int, std::optional<std::uint64_t>, std::optional<std::string>,
-                    std::optional<std::string>, const std::string&>(),
-           py::arg("world"), py::arg("num_envs"), py::arg("seed"), py::arg("split"), py::arg("data"), py::arg("reward"))
+                    std::optional<std::string>, const std::string&, bool>(),
+           py::arg("world"), py::arg("num_envs"), py::arg("seed"), py::arg("split"), py::arg("data"), py::arg("reward"),
+           py::arg("force") = false)
       .def("reset", &VectorEnvCore::reset, py::arg("seed"))
       .def("step", &VectorEnvCore::step, py::arg("move"), py::arg("prediction"), py::arg("goal"))
       .def("bench", &VectorEnvCore::bench, py::arg("moves"))

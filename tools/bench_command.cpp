@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 
+#include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
@@ -52,6 +53,7 @@ struct TrainBenchOptions {
   int rollouts = learn::TrainConfig{}.rollouts;
   bool baseline = learn::TrainConfig{}.leave_one_out;
   int batches = 5, warmup = 1, threads = 0;
+  bool force = false;
   GroupFlags group;
 };
 
@@ -186,6 +188,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
              kTargetAgentSteps, steps / t_all >= kTargetAgentSteps ? "met" : "NOT met", kTargetPatches,
              steps / t_cam >= kTargetPatches ? "met" : "NOT met");
   fmt::print("  camera: {}\n", engine.camera_description());
+  fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));
 
   if (!opt.json_out.empty()) {
     nlohmann::ordered_json j;
@@ -193,6 +196,7 @@ void bench_sim(const BenchOptions& opt, const Context& context) {
     j["moves_per_rollout"] = moves_per_rollout;
     j["repeats"] = opt.repeats;
     j["threads"] = robots_threads;
+    j["peak_resident_bytes"] = core::peak_resident_bytes();
     j["median_ms"] = {{"physics_and_camera", t_all * 1e3},
                       {"physics", t_phys * 1e3},
                       {"camera", t_cam * 1e3},
@@ -246,6 +250,7 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
   config.batches = opt.batches;
   config.warmup = opt.warmup;
   config.threads = opt.threads;
+  config.force_memory = opt.force;
 
   // Data-parallel: every process drives its share of each batch; rank 0 prints.
   std::unique_ptr<learn::ProcessGroup> group;
@@ -277,6 +282,8 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
                share(m.sum.state_s), share(m.sum.forward_s), share(m.sum.backward_s), share(m.sum.optimizer_s),
                m.action_decisions);
   }
+  fmt::print("  memory: peak resident {} (estimated {}{})\n", core::format_bytes(report.peak_bytes),
+             core::format_bytes(report.estimated_bytes), report.world_size > 1 ? ", rank 0" : "");
   if (report.world_size > 1)
     for (const learn::ModeBench& m : report.modes)
       fmt::print(
@@ -304,6 +311,8 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
     j["threads"] = report.threads;
     j["world_size"] = report.world_size;
     j["all_reduce_bytes"] = report.all_reduce_bytes;
+    j["peak_resident_bytes"] = report.peak_bytes;
+    j["estimated_bytes"] = report.estimated_bytes;
     j["precision"] = agent::to_string(c.precision);
     j["batches"] = opt.batches;
     j["warmup"] = opt.warmup;
@@ -384,6 +393,9 @@ void add_bench_command(CLI::App& app, const Context& context) {
   train_cmd->add_option("--warmup", topt->warmup, "Untimed batches per mode first")
       ->capture_default_str()
       ->check(decimal_in(0, 1000));
+  train_cmd->add_flag("--force", topt->force,
+                      "Run even when the estimated memory exceeds what is available (the smaller of MemAvailable, "
+                      "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   train_cmd->add_option("--threads", topt->threads, "LibTorch threads per process (0: the cores divided among them)")
       ->capture_default_str()
       ->check(decimal_in(0, 256));

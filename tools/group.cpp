@@ -2,10 +2,7 @@
 // PyTorch's launcher variables, as `torchrun --nproc-per-node N` would start them.
 #include "tools/group.hpp"
 
-#include <arpa/inet.h>
 #include <fmt/format.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -17,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/process.hpp"
 #include "tools/commands.hpp"
 #include "tools/parsing.hpp"
 
@@ -25,20 +23,6 @@ namespace scout::tools {
 namespace {
 
 std::optional<int> rank_of_this_process;
-
-// A port nobody listens on now (the kernel's choice); rank 0 binds it moments later.
-int free_port() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t length = sizeof(address);
-  const bool ok = fd >= 0 && bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
-                  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0;
-  if (fd >= 0) close(fd);
-  if (!ok) throw InputError(std::string("--nproc: cannot find a free port on 127.0.0.1: ") + std::strerror(errno));
-  return ntohs(address.sin_port);
-}
 
 // The command line without --nproc (the ranks must not launch again).
 std::vector<std::string> rank_command(const std::vector<std::string>& argv) {
@@ -100,7 +84,12 @@ std::optional<int> launch_local_group(const GroupFlags& flags, const Context& co
   if (flags.nproc <= 1) return std::nullopt;
   if (learn::group_from_environment())
     throw InputError("--nproc: RANK and WORLD_SIZE are set (a launcher started this process); leave --nproc out");
-  const int port = free_port();
+  int port = 0;
+  try {
+    port = core::free_loopback_port();  // rank 0 binds it moments later
+  } catch (const InputError& e) {
+    throw InputError(std::string("--nproc: ") + e.what());
+  }
   const std::vector<std::string> command = rank_command(context.argv);
   // The children inherit a blocked SIGINT/SIGTERM mask only until exec: they restore it, and the
   // parent takes the signals synchronously to forward them.

@@ -11,6 +11,8 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "core/fault_injection.hpp"
+#include "core/files.hpp"
 #include "learn/checkpoint.hpp"
 #include "tools/commands.hpp"
 #include "worlds/dataset.hpp"
@@ -35,11 +37,6 @@ bool is_within(const fs::path& inner, const fs::path& outer) {
   return true;
 }
 
-std::string unique_suffix() {
-  std::random_device rd;
-  return fmt::format("{:08x}", rd());
-}
-
 }  // namespace
 
 OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path>& keep)
@@ -56,6 +53,7 @@ OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path
     if (is_within(g, target_))
       throw InputError("--out: refusing to write the output over " + display_ + ": it contains " + g.string());
 
+  repair_after_kill();
   std::error_code ec;
   if (fs::exists(target_, ec)) {
     if (!fs::is_directory(target_, ec)) throw InputError("--out: " + display_ + " exists and is not a folder");
@@ -69,9 +67,25 @@ OutputDir::OutputDir(fs::path target, bool overwrite, const std::vector<fs::path
   fs::create_directories(parent, ec);
   if (ec) throw InputError("--out: cannot create " + parent.string() + ": " + ec.message());
   // A staging folder beside the target (same file system, so the final rename is atomic).
-  staging_ = parent / fmt::format(".{}.partial-{}", target_.filename().string(), unique_suffix());
+  staging_ = core::stamped_path_beside(target_, "partial");
   fs::create_directory(staging_, ec);
   if (ec) throw InputError("--out: cannot create " + staging_.string() + ": " + ec.message());
+}
+
+// A killed run leaves its staging folder (never mistaken for output: it is hidden and named
+// .partial); a run killed between the two renames of a replacement leaves the previous output
+// aside as .old and none in place. Both are dead processes' entries, told apart by the process
+// id in their names: the staging folders go, and the previous output returns to its place.
+void OutputDir::repair_after_kill() {
+  core::remove_stale_beside(target_, "partial");
+  const std::string old_prefix = fmt::format(".{}.old", target_.filename().string());
+  std::vector<fs::path> aside = core::stale_entries(target_.parent_path(), old_prefix);
+  std::error_code ec;
+  if (!aside.empty() && !fs::exists(target_, ec)) {
+    fs::rename(aside.back(), target_, ec);
+    if (!ec) aside.pop_back();
+  }
+  for (const fs::path& stale : aside) fs::remove_all(stale, ec);
 }
 
 OutputDir::~OutputDir() {
@@ -97,9 +111,10 @@ void OutputDir::commit() {
   if (!fs::is_empty(target_, ec) && !fs::exists(target_ / kManifestFile, ec))
     throw InputError("--out: " + display_ + " changed while running and holds no manifest.json; not replaced");
   // Old output aside, new output in, old output gone: at every moment one complete folder exists.
-  const fs::path old = target_.parent_path() / fmt::format(".{}.old-{}", target_.filename().string(), unique_suffix());
+  const fs::path old = core::stamped_path_beside(target_, "old");
   fs::rename(target_, old, ec);
   if (ec) throw InputError("--out: cannot replace " + display_ + ": " + ec.message());
+  core::fault_point("output-commit");  // the hard-kill tests' moment between the two renames
   fs::rename(staging_, target_, ec);
   if (ec) {
     std::error_code restore;

@@ -31,6 +31,7 @@ class OutputDir {
   void commit();
 
  private:
+  void repair_after_kill();
   std::string display_;
   std::filesystem::path target_;
   std::filesystem::path staging_;

@@ -60,6 +60,7 @@ struct TrainOptions {
   int threads = 0;
   GroupFlags group;
   bool allow_nproc_change = false;
+  bool force = false;
   double checkpoint_every_min = 5;
 };
 
@@ -318,7 +319,7 @@ std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOpt
     throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
   fs::create_directories(run);
   try {
-    return std::make_unique<learn::Trainer>(config, run, threads);
+    return std::make_unique<learn::Trainer>(config, run, threads, o.force);
   } catch (...) {
     fs::remove_all(run, ec);
     throw;
@@ -396,12 +397,15 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
     hooks.on_epoch = [&](const learn::EpochMetrics& m) {
       progress.end_line();
+      // A baseline a mode does not have (learned goals before mode ii) is "-", as metrics.csv
+      // leaves it empty; never a 0 that reads as a measurement.
+      const auto figure = [](const std::optional<double>& v) { return v ? fmt::format("{:.4f}", *v) : "-"; };
       fmt::print(
-          "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {:.4f}, "
-          "goals only {:.4f}, full images {:.4f})  {:.1f} images/s  {:.1f} s\n",
+          "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {}, "
+          "goals only {}, full images {})  {:.1f} images/s  {:.1f} s\n",
           learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
-          m.validation_iid.value_or(0), m.validation_goals_only.value_or(0), m.validation_full_image.value_or(0),
-          m.images_per_s, m.seconds);
+          figure(m.validation_iid), figure(m.validation_goals_only), figure(m.validation_full_image), m.images_per_s,
+          m.seconds);
       std::fflush(stdout);
     };
   }
@@ -466,6 +470,9 @@ void add_train_command(CLI::App& app, const Context& context) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e6));
   add_group_options(*cmd, o->group);
+  cmd->add_flag("--force", o->force,
+                "Start even when the estimated memory exceeds what is available (the smaller of MemAvailable, "
+                "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
                 "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");
   cmd->callback([cmd, o, &context] {

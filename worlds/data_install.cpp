@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 #include <openssl/evp.h>
+#include <unistd.h>
 
 #include <array>
 #include <cerrno>
@@ -42,12 +43,16 @@ constexpr std::array<const char*, 6> kIdxFiles = {"train-images-idx3-ubyte",    
                                                   "validation-images-idx3-ubyte", "validation-labels-idx1-ubyte",
                                                   "t10k-images-idx3-ubyte",       "t10k-labels-idx1-ubyte"};
 
+constexpr const char* kTempPrefix = ".npm-tmp";
+
 // A private folder under data_root (same file system as the output) that is removed on every
 // exit path, failures included.
 class TempDir {
  public:
   explicit TempDir(const fs::path& parent) {
-    std::string pattern = (parent / ".npm-tmp-XXXXXX").string();
+    // The process id in the name lets a later install remove what a killed one left.
+    core::remove_stale_in(parent, kTempPrefix);
+    std::string pattern = (parent / fmt::format("{}-{}-XXXXXX", kTempPrefix, static_cast<long>(::getpid()))).string();
     if (::mkdtemp(pattern.data()) == nullptr)
       throw InputError(fmt::format("{}: cannot create a temporary folder: {}", parent.string(), std::strerror(errno)));
     path_ = pattern;

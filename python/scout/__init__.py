@@ -53,7 +53,7 @@ class VectorEnv:
 
     metadata = {"autoreset_mode": "NextStep"}
 
-    def __init__(self, world, num_envs, seed=None, split=None, data=None, reward="dense"):
+    def __init__(self, world, num_envs, seed=None, split=None, data=None, reward="dense", force=False):
         if isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, numbers.Integral):
             raise TypeError(f"num_envs: expected a positive integer, got {num_envs!r}")
         if not 1 <= int(num_envs) <= _MAX_ENVS:
@@ -65,7 +65,7 @@ class VectorEnv:
         if reward not in ("dense", "sparse"):
             raise ValueError(f"reward: expected 'dense' or 'sparse', got {reward!r}")
         self._core = _scout.VectorEnvCore(os.fspath(world), int(num_envs), _seed(seed), split,
-                                          None if data is None else os.fspath(data), reward)
+                                          None if data is None else os.fspath(data), reward, bool(force))
         core = self._core
         self.num_envs = core.num_envs
         self.num_classes = core.classes
@@ -156,15 +156,17 @@ class VectorEnv:
         return f"scout.VectorEnv(num_envs={self.num_envs}, classes={self.num_classes})"
 
 
-def make_vec(world, num_envs, seed=None, split=None, data=None, reward="dense"):
+def make_vec(world, num_envs, seed=None, split=None, data=None, reward="dense", force=False):
     """A VectorEnv of `num_envs` robots on the world file `world` (e.g. "worlds/mnist.yaml").
 
     seed: the run sequence's seed (default: the world file's); robot i's j-th run is run
     j * num_envs + i of `scout run --seed SEED`. split: "train", "validation" or "test" (default:
     the world's). data: a data folder (default: $SCOUT_DATA, else the source tree's data/).
     reward: "dense" (-cross-entropy of the prediction after every move) or "sparse" (after the
-    last move only); 0 where no prediction is given."""
-    return VectorEnv(world, num_envs, seed=seed, split=split, data=data, reward=reward)
+    last move only); 0 where no prediction is given. force: start even when the memory estimate
+    (num_envs x the floor's size) exceeds what the machine has available (the smallest of
+    MemAvailable, the cgroup limit and $SCOUT_MEMORY_LIMIT), which is otherwise refused."""
+    return VectorEnv(world, num_envs, seed=seed, split=split, data=data, reward=reward, force=force)
 
 
 class Agent:

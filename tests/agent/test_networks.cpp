@@ -163,6 +163,29 @@ TEST(Networks, ResNet18AtWidth64HasResNet18sParameterCount) {
   EXPECT_EQ(parameter(*classifier, "fc.weight").sizes(), (std::vector<std::int64_t>{1000, 512}));
 }
 
+TEST(Networks, ParameterCountWithoutBuildingEqualsTheBuiltAgents) {
+  struct Shape {
+    int channels, classes, planner_width, planner_depth, classifier_width, classifier_depth;
+  };
+  const Shape shapes[] = {{1, 10, 16, 3, 16, 3}, {3, 7, 5, 1, 6, 1}, {2, 10, 8, 5, 9, 4}, {1, 2, 1, 2, 3, 2}};
+  for (ClassifierKind kind : kKinds) {
+    for (const Shape& s : shapes) {
+      NetworkConfig config;
+      config.image_channels = s.channels;
+      config.classes = s.classes;
+      config.planner_width = s.planner_width;
+      config.planner_depth = s.planner_depth;
+      config.classifier = kind;
+      config.classifier_width = s.classifier_width;
+      config.classifier_depth = s.classifier_depth;
+      const Agent agent(config);
+      std::int64_t built = 0;
+      for (const auto& p : agent->parameters()) built += p.numel();
+      EXPECT_EQ(parameter_count(config), built) << to_string(kind) << " width " << s.classifier_width;
+    }
+  }
+}
+
 TEST(Networks, GoalLogitsAreRowMajorAndSeeA7x7Neighbourhood) {
   // Three 3 x 3 blocks see 7 x 7: changing the input at pixel (x, y) = (8, 2) of a 12-wide, 9-high
   // floor may change only the logits within 3 pixels of it, found at index y * W + x.

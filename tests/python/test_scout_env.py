@@ -175,6 +175,20 @@ def test_bad_arguments_raise_one_clear_line(kwargs, error, message):
     assert message in text, text
 
 
+def test_more_robots_than_memory_allows_are_refused_unless_forced(monkeypatch):
+    # A user's cap stands for a small machine: 4096 robots need more than 64 MiB, 2 fit with force.
+    monkeypatch.setenv("SCOUT_MEMORY_LIMIT", "64M")
+    with pytest.raises(ValueError) as caught:
+        scout.make_vec(WORLD, 4096)
+    text = str(caught.value)
+    assert "\n" not in text
+    assert text.startswith("num_envs = 4096 robots on 28 x 28 floors needs about "), text
+    assert "64.0 MiB is available (SCOUT_MEMORY_LIMIT); ask for less, or pass force=True" in text, text
+    envs = scout.make_vec(WORLD, 2, force=True)
+    obs, _ = envs.reset(seed=1)
+    assert obs["seen"].shape == (2, 28, 28)
+
+
 def resident_kib():
     """The process's resident memory now (not its peak), KiB."""
     with open("/proc/self/statm") as f:

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -41,11 +42,13 @@ inline std::string read_file(const std::filesystem::path& file) {
 }
 
 /// Starts `argv` (argv[0] the program) in a child process with stdout and stderr written to the
-/// two files; returns its pid (or -1).
+/// two files; returns its pid (or -1). `before_exec` runs in the child first (limits, signal
+/// dispositions the program inherits).
 inline pid_t spawn(const std::vector<std::string>& argv, const std::filesystem::path& out,
-                   const std::filesystem::path& err) {
+                   const std::filesystem::path& err, const std::function<void()>& before_exec = {}) {
   const pid_t child = fork();
   if (child != 0) return child;
+  if (before_exec) before_exec();
   const int out_fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   const int err_fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   dup2(out_fd, 1);

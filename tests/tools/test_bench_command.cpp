@@ -65,6 +65,11 @@ TEST_F(Cli, BenchReportsItsFiguresAsJson) {
   EXPECT_GT(b["peak_speed_mps"].get<double>(), 1.9);
   EXPECT_LE(b["peak_speed_mps"].get<double>(), 2.0 + 1e-4);
   EXPECT_FALSE(b["manifest"]["git_commit"].get<std::string>().empty());
+  // The peak resident size: at least the 12 x 12 floors' robots and LibTorch's libraries (tens of
+  // MiB), far below a gigabyte for 8 robots.
+  EXPECT_NE(r.output.find("memory: peak resident"), std::string::npos) << r.output;
+  EXPECT_GT(b["peak_resident_bytes"].get<double>(), 20e6);
+  EXPECT_LT(b["peak_resident_bytes"].get<double>(), 1e9);
 }
 
 }  // namespace scout::testing::bench_command_cli_tests
@@ -105,6 +110,12 @@ TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
     EXPECT_GT(m["share"]["backward"].get<double>(), 0) << m;
   }
   // Mode (i) never consults the action planner; mode (iii) does, where the protocol chooses.
+  // Peak and estimate: the estimate bounds the measured peak from above, within a few times.
+  EXPECT_NE(r.out.find("memory: peak resident"), std::string::npos) << r.out;
+  const double peak = j["peak_resident_bytes"].get<double>(), estimate = j["estimated_bytes"].get<double>();
+  EXPECT_GT(peak, 20e6);
+  EXPECT_GE(estimate, peak) << "the estimate should not be below what a run takes";
+  EXPECT_LT(estimate, 8 * peak);
   EXPECT_EQ(j["modes"][0]["action_decisions_per_batch"].get<double>(), 0);
   EXPECT_GT(j["modes"][1]["action_decisions_per_batch"].get<double>(), 0);
 

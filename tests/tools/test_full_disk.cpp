@@ -17,21 +17,11 @@ using scout::testing::train_cli_support::TrainCli;
 // Runs `argv` with files limited to `max_bytes` and SIGXFSZ ignored; stdout and stderr captured.
 Result run_limited(const std::vector<std::string>& argv, rlim_t max_bytes, const fs::path& scratch) {
   const fs::path out = scratch / "limited.out", err = scratch / "limited.err";
-  const pid_t child = fork();
-  if (child == 0) {
+  const pid_t child = scout::testing::spawn(argv, out, err, [max_bytes] {
     const rlimit limit{max_bytes, max_bytes};
     setrlimit(RLIMIT_FSIZE, &limit);
     signal(SIGXFSZ, SIG_IGN);  // inherited through exec: write() fails with EFBIG instead
-    const int out_fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err_fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    dup2(out_fd, 1);
-    dup2(err_fd, 2);
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    execv(args[0], args.data());
-    _exit(127);
-  }
+  });
   int raw = 0;
   waitpid(child, &raw, 0);
   return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, read_text(out), read_text(err)};

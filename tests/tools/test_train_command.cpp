@@ -368,4 +368,28 @@ TEST_F(TrainCli, CheckpointsInsideAnEpochSoThatAKillLosesMinutesNotAnEpoch) {
   EXPECT_GT(batch, 0);
 }
 
+// Requests that cannot fit are refused before they allocate, with the estimate; a user's cap
+// (SCOUT_MEMORY_LIMIT) counts as the machine's, and --force runs anyway.
+TEST_F(TrainCli, AnEstimateBeyondTheAvailableMemoryIsRefusedUnlessForced) {
+  // 256 x 64 robots (the most --batch x --rollouts allows) with 512-wide planners: about 90 GiB of
+  // activations on these 12 x 12 floors.
+  const Result huge = run("train " + world() + " --out " + path("huge") +
+                          " --epochs 1,0,0 --batch 256 --rollouts 64 --planner-width 512 --threads 1");
+  EXPECT_EQ(huge.status, 1) << huge.err;
+  EXPECT_EQ(std::count(huge.err.begin(), huge.err.end(), '\n'), 1) << huge.err;
+  for (const char* part :
+       {"scout: error: training B x N = 256 x 64 robots", "needs about", "GiB of memory", "is available", "--force"})
+    EXPECT_NE(huge.err.find(part), std::string::npos) << part << " in " << huge.err;
+  EXPECT_FALSE(fs::exists(path("huge")));  // nothing left behind
+
+  ::setenv("SCOUT_MEMORY_LIMIT", "1M", 1);
+  const Result capped = run("train " + world() + " --out " + path("capped") + " --epochs 1,0,0" + kTiny);
+  EXPECT_EQ(capped.status, 1) << capped.err;
+  EXPECT_NE(capped.err.find("1.0 MiB is available (SCOUT_MEMORY_LIMIT)"), std::string::npos) << capped.err;
+  const Result forced = run("train " + world() + " --out " + path("forced") + " --epochs 1,0,0 --force" + kTiny);
+  ::unsetenv("SCOUT_MEMORY_LIMIT");
+  EXPECT_EQ(forced.status, 0) << forced.err;
+  EXPECT_TRUE(fs::is_regular_file(path("forced") + "/checkpoint.pt"));
+}
+
 }  // namespace scout::testing::train_command_train_cli_tests

@@ -1,12 +1,10 @@
 // Data-parallel `scout train` and `scout eval` end to end: real processes on 127.0.0.1 over
 // c10d/Gloo with free ports, the real physics, camera and networks (tiny ones, fp32).
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
 
 #include <chrono>
 #include <thread>
 
+#include "core/process.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace {
@@ -62,17 +60,7 @@ void expect_rank_error(const Result& r, int rank, const std::vector<std::string>
 }
 
 // A port nothing listens on now.
-int free_port() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t length = sizeof(address);
-  bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
-  close(fd);
-  return ntohs(address.sin_port);
-}
+int free_port() { return scout::core::free_loopback_port(); }
 
 // Processes whose command line holds `text` (from /proc).
 int processes_naming(const std::string& text) {
@@ -119,7 +107,10 @@ std::pair<int, double> wait_rank(const Rank& r, double limit_s = 300) {
   return {-1, limit_s};
 }
 
-TEST_F(TrainCli, TwoProcessesTrainTheSameWeightsAsOne) {
+// The multi-process tests under their own name (scripts/sanitize.sh runs them under ThreadSanitizer).
+class TrainDistributed : public TrainCli {};
+
+TEST_F(TrainDistributed, TwoProcessesTrainTheSameWeightsAsOne) {
   // One batch in each of modes (i), (ii), (iii) with the leave-one-out baseline: every layer
   // learns, and a batch's 10 images split 5 + 5 over the two processes, their rollouts together.
   // Only the order of the sums differs, so the weights agree to 1e-5 (relative, L2). Over more
@@ -165,7 +156,7 @@ TEST_F(TrainCli, TwoProcessesTrainTheSameWeightsAsOne) {
   EXPECT_EQ(json::parse(in)["world_size"], 2);
 }
 
-TEST_F(TrainCli, TheSameProcessCountTwiceGivesBitIdenticalWeights) {
+TEST_F(TrainDistributed, TheSameProcessCountTwiceGivesBitIdenticalWeights) {
   const std::string schedule = " --epochs 1,1,1" + std::string(kExact) + scout::testing::train_cli_support::kTiny;
   for (const char* name : {"a", "b"}) {
     const Result r = run("train " + world() + " --out " + path(name) + schedule + " --nproc 2");
@@ -176,7 +167,7 @@ TEST_F(TrainCli, TheSameProcessCountTwiceGivesBitIdenticalWeights) {
   EXPECT_EQ(w.relative, 0);
 }
 
-TEST_F(TrainCli, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
+TEST_F(TrainDistributed, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
   const int port = free_port();
   const std::string run_dir = path("run");
   const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 10" +
@@ -213,7 +204,7 @@ TEST_F(TrainCli, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes) {
   EXPECT_EQ(rows.back().rfind("iii,40,", 0), 0u) << rows.back();
 }
 
-TEST_F(TrainCli, LosingRankZeroStopsTheOthersWithOneLine) {
+TEST_F(TrainDistributed, LosingRankZeroStopsTheOthersWithOneLine) {
   const int port = free_port();
   const std::string args = "train " + world() + " --out " + path("run0") + " --epochs 0,0,40 --timeout 10" +
                            scout::testing::train_cli_support::kTiny;
@@ -232,7 +223,7 @@ TEST_F(TrainCli, LosingRankZeroStopsTheOthersWithOneLine) {
   EXPECT_EQ(read_text(r1.out), "");  // rank 1 never prints progress
 }
 
-TEST_F(TrainCli, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
+TEST_F(TrainDistributed, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
   const std::string run_dir = path("run");
   const fs::path out = local_.path() / "launcher.out", err = local_.path() / "launcher.err";
   std::vector<std::string> argv = {SCOUT_BINARY, "train",   world(), "--out",     run_dir, "--epochs",
@@ -266,7 +257,7 @@ TEST_F(TrainCli, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint) {
   EXPECT_EQ(lines_of(read_text(run_dir + "/metrics.csv")).size(), rows.size() + 1);
 }
 
-TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
+TEST_F(TrainDistributed, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
   const Rank r0 = start_rank(
       0, 2, free_port(),
       "train " + world() + " --out " + path("never") + " --timeout 3" + scout::testing::train_cli_support::kTiny,
@@ -279,7 +270,7 @@ TEST_F(TrainCli, ARankThatNeverArrivesIsOneLineWithinTheTimeout) {
   EXPECT_FALSE(fs::exists(path("never")));  // nothing left behind
 }
 
-TEST_F(TrainCli, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
+TEST_F(TrainDistributed, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
   const std::string args =
       "train " + world() + " --out " + path("wrong") + " --timeout 3" + scout::testing::train_cli_support::kTiny;
   const int port = free_port();
@@ -302,7 +293,7 @@ TEST_F(TrainCli, AWrongPortIsOneLineOnEveryRankWithinTheTimeout) {
       << said1;
 }
 
-TEST_F(TrainCli, RanksThatDisagreeAreRefusedWithOneLineNamingWhat) {
+TEST_F(TrainDistributed, RanksThatDisagreeAreRefusedWithOneLineNamingWhat) {
   const std::string common = "train " + world() + " --out " + path("differ") + " --timeout 20 --epochs 1,0,0";
   const int port = free_port();
   const Rank r0 = start_rank(0, 2, port, common + scout::testing::train_cli_support::kTiny, local_.path());
@@ -316,7 +307,7 @@ TEST_F(TrainCli, RanksThatDisagreeAreRefusedWithOneLineNamingWhat) {
   EXPECT_FALSE(fs::exists(path("differ")));  // the new run never started: no folder left
 }
 
-TEST_F(TrainCli, ResumingWithAnotherProcessCountIsRefusedUnlessAllowed) {
+TEST_F(TrainDistributed, ResumingWithAnotherProcessCountIsRefusedUnlessAllowed) {
   const std::string run_dir = copy_of_base("base_copy");
   const Result refused = run("train --resume " + run_dir + " --epochs 1,1,0 --nproc 2 --timeout 20");
   expect_rank_error(refused, 0, {"--nproc", "trained with 1 process(es), this resume has 2", "--allow-nproc-change"});
@@ -330,7 +321,7 @@ TEST_F(TrainCli, ResumingWithAnotherProcessCountIsRefusedUnlessAllowed) {
   expect_rank_error(odd, 0, {"--batch: B = 7 images do not divide evenly over 2 processes"});
 }
 
-TEST_F(TrainCli, EvalOverTwoProcessesGivesTheSameReport) {
+TEST_F(TrainDistributed, EvalOverTwoProcessesGivesTheSameReport) {
   const std::string data = (temp_->path() / "data").string();
   const std::string common = "eval --checkpoint " + base() + " --images " + data +
                              "/train-images-idx3-ubyte --labels " + data + "/train-labels-idx1-ubyte --runs 3";

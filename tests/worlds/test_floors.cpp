@@ -236,6 +236,87 @@ TEST(PngFloor, ValidPngIsReadAsGrayscale) {
   for (std::uint8_t p : colour.images.pixels) EXPECT_EQ(p, 100);
 }
 
+// PNG chunks carry a CRC-32 over type and data: a mutation that should reach libpng's decoder
+// (rather than its CRC check) has it recomputed.
+void fix_chunk_crcs(Bytes& png) {
+  std::size_t at = 8;
+  while (at + 12 <= png.size()) {
+    const std::uint32_t length = (std::uint32_t{png[at]} << 24) | (std::uint32_t{png[at + 1]} << 16) |
+                                 (std::uint32_t{png[at + 2]} << 8) | std::uint32_t{png[at + 3]};
+    if (length > png.size() - at - 12) return;
+    std::uint32_t crc = 0xffffffffu;  // CRC-32 (ISO 3309), as PNG specifies
+    for (std::size_t i = at + 4; i < at + 8 + length; ++i) {
+      crc ^= png[i];
+      for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    crc ^= 0xffffffffu;
+    for (int k = 0; k < 4; ++k) png[at + 8 + length + k] = static_cast<std::uint8_t>(crc >> (24 - 8 * k));
+    at += 12 + length;
+  }
+}
+
+// A seeded fuzz loop over PNG floors: random bytes behind a PNG signature, and valid floors with
+// flipped bytes (CRCs kept or fixed), truncations, and headers declaring huge sizes. Each is
+// refused in one line with nothing on stderr, or read with the size its header declares; none
+// crashes, and a huge header is refused before the decoder allocates its image.
+TEST(PngFloor, FuzzedFilesAreRefusedInOneLineOrRead) {
+  TempDir dir;
+  const World world = world_in(dir, kPngWorld);
+  std::uint64_t state = 20261202;
+  const auto next = [&state] {  // SplitMix64
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  };
+  const Bytes valid = png_bytes(pattern(28, 28));
+  int refused = 0, read = 0;
+  for (int i = 0; i < 2000; ++i) {
+    Bytes bytes = valid;
+    switch (i % 5) {
+      case 0:  // random bytes behind the signature
+        bytes.resize(8 + next() % 512);
+        for (std::size_t k = 8; k < bytes.size(); ++k) bytes[k] = static_cast<std::uint8_t>(next());
+        break;
+      case 1:  // flipped bytes, CRCs left as they were (the decoder's CRC check meets them)
+        for (int k = 1 + next() % 4; k > 0; --k) bytes[8 + next() % (bytes.size() - 8)] ^= 1 + next() % 255;
+        break;
+      case 2:  // flipped bytes with the CRCs fixed (the decoder itself meets them)
+        for (int k = 1 + next() % 4; k > 0; --k) bytes[8 + next() % (bytes.size() - 8)] ^= 1 + next() % 255;
+        fix_chunk_crcs(bytes);
+        break;
+      case 3:  // truncated
+        bytes.resize(8 + next() % (bytes.size() - 8));
+        break;
+      case 4: {  // a header declaring up to 2^31 - 1 pixels a side, with a valid CRC
+        for (int k = 16; k < 24; ++k) bytes[k] = static_cast<std::uint8_t>(next());
+        bytes[16] &= 0x7f;
+        bytes[20] &= 0x7f;
+        fix_chunk_crcs(bytes);
+        break;
+      }
+    }
+    write_bytes(dir.path() / "x.png", bytes);
+    StderrCapture capture(dir.path() / "stderr.txt");
+    try {
+      const FloorSet set = load_floors(world, "/nonexistent");
+      ASSERT_LE(set.width_px(), kMaxFloorPx);
+      ASSERT_LE(set.height_px(), kMaxFloorPx);
+      ASSERT_EQ(set.images.pixels.size(), static_cast<std::size_t>(set.width_px()) * set.height_px());
+      ++read;
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      ASSERT_EQ(message.rfind(png_prefix(dir), 0), 0u) << message;
+      ASSERT_EQ(message.find('\n'), std::string::npos) << message;
+      ++refused;
+    }
+    ASSERT_EQ(capture.text(), "") << "case " << i;
+  }
+  std::printf("[ measured ] 2000 fuzzed PNG floors: %d refused, %d read\n", refused, read);
+  EXPECT_GT(refused, 1000);
+  EXPECT_GT(read, 0);  // flips in pixel data behind a fixed CRC still decode
+}
+
 // An IDX folder: train and t10k pairs of `count` w x h images with labels `labels`.
 void write_idx_folder(const fs::path& folder, int count, int w, int h, const Bytes& labels) {
   fs::create_directories(folder);

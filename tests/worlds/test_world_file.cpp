@@ -395,6 +395,31 @@ TEST(WorldFile, DeepIndentationNestingIsRefused) {
   expect_error(text, "w.yaml:65: expected nesting at most 64 levels deep, got deeper");
 }
 
+// A "billion laughs": nine levels of nine aliases name 9^9 (387 million) strings in a few hundred
+// bytes. yaml-cpp shares aliased nodes and Scout describes a sequence by its length, never by
+// walking it, so the refusal is immediate and small.
+TEST(WorldFile, AliasBombIsRefusedWithoutExpanding) {
+  std::string bomb = "seed: [&a [x, x, x, x, x, x, x, x, x]";
+  for (char level = 'b'; level <= 'i'; ++level) {
+    bomb += std::string(", &") + level + " [";
+    for (int k = 0; k < 9; ++k) bomb += std::string(k ? ", *" : "*") + static_cast<char>(level - 1);
+    bomb += "]";
+  }
+  bomb += "]\n";
+  expect_error(
+      bomb, "w.yaml:1: seed: expected an unsigned integer in [0, 18446744073709551615], got a sequence of 9 elements");
+}
+
+// A scalar of a megabyte less a little (the file limit) is refused and quoted clipped, not whole.
+TEST(WorldFile, HugeScalarsAreRefusedWithAClippedQuote) {
+  for (const std::string& scalar :
+       {std::string(1000000, '9'), std::string(1000000, 'x'), "\"" + std::string(1000000, 'y') + "\""}) {
+    const std::string message = error_of("seed: " + scalar + "\n");
+    EXPECT_EQ(message.rfind("w.yaml:1: seed: expected an unsigned integer", 0), 0u) << message.substr(0, 200);
+    EXPECT_LT(message.size(), 300u) << message.substr(0, 300);
+  }
+}
+
 TEST(WorldFile, VeryDeepNestingIsRefusedWithoutCrashing) {
   expect_error("seed: " + std::string(200000, '['), "w.yaml:1: expected nesting at most 64 levels deep");
   expect_error("seed: " + std::string(200000, '{'), "w.yaml:1: expected nesting at most 64 levels deep");

@@ -1,0 +1,161 @@
+// Hard kills of the commands that write results: `scout run` and `scout eval` killed with
+// SIGKILL at seeded random moments and at named points (half-way through a file, between the two
+// renames that replace an output folder) leave either nothing or complete output, never a part
+// that passes for the whole; the next run repairs what the killed one left (its hidden staging
+// folders and temporary files) and finishes. `scout data` killed mid-install is repaired by the
+// next run (needs the npm registry, as `scout data` does).
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "tests/support/data.hpp"
+#include "tests/support/train_cli_fixture.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using scout::testing::train_cli_support::lines_of;
+using scout::testing::train_cli_support::read_text;
+using scout::testing::train_cli_support::Result;
+using scout::testing::train_cli_support::TrainCli;
+
+// How one attempt ends: a named point ("POINT:N": the process kills itself there), a kill from
+// outside after `delay_ms`, or none (kNoKill: the attempt runs to its end).
+struct Kill {
+  std::string point;
+  int delay_ms = -1;
+  std::string describe() const { return point.empty() ? std::to_string(delay_ms) + " ms" : point; }
+};
+
+const Kill kNoKill{};
+
+// Runs `scout ARGS` once with `kill`; returns whether it was killed (otherwise it must have
+// finished well).
+bool attempt(const fs::path& dir, const std::string& args, const Kill& kill) {
+  std::vector<std::string> argv = {"/usr/bin/env", "SCOUT_FAULT_KILL_AT=" + kill.point, SCOUT_BINARY};
+  std::istringstream words(args);
+  for (std::string w; words >> w;) argv.push_back(w);
+  const pid_t child = scout::testing::spawn(argv, dir / "out.txt", dir / "err.txt");
+  EXPECT_GT(child, 0);
+  if (kill.point.empty() && kill.delay_ms >= 0) {
+    usleep(kill.delay_ms * 1000);
+    ::kill(child, SIGKILL);
+  }
+  int status = 0;
+  EXPECT_EQ(waitpid(child, &status, 0), child);
+  if (WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) return true;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << kill.describe() << ": " << read_text(dir / "err.txt");
+  return false;
+}
+
+// The hidden entries beside `target` that a writer of it leaves while working.
+std::vector<std::string> leftovers_beside(const fs::path& target) {
+  std::vector<std::string> found;
+  const std::string prefix = std::string(".").append(target.filename().string()).append(".");
+  for (const auto& entry : fs::directory_iterator(target.parent_path()))
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) found.push_back(entry.path().filename().string());
+  return found;
+}
+
+// A schedule of kills: the named points interleaved with seeded random moments in [lo, hi] ms.
+std::vector<Kill> schedule(std::vector<std::string> points, int random_kills, int lo, int hi, unsigned seed) {
+  std::mt19937 random(seed);
+  std::uniform_int_distribution<int> delay_ms(lo, hi);
+  std::vector<Kill> out;
+  for (int k = 0; k < random_kills || !points.empty(); ++k) {
+    if (k < random_kills) out.push_back(Kill{"", delay_ms(random)});
+    if (!points.empty()) {
+      out.push_back(Kill{points.front()});
+      points.erase(points.begin());
+    }
+  }
+  return out;
+}
+
+constexpr int kRuns = 120;
+
+// A complete `scout run` folder: its manifest and all of its runs.
+void expect_complete_run_output(const fs::path& out, const std::string& when) {
+  ASSERT_TRUE(fs::is_regular_file(out / "manifest.json")) << when;
+  const json trajectory = json::parse(read_text(out / "trajectory.json"));
+  EXPECT_EQ(trajectory["runs"].size(), static_cast<std::size_t>(kRuns)) << when;
+}
+
+TEST_F(TrainCli, RunKilledLeavesNoOutputThatPassesForComplete) {
+  const fs::path out = path("out");
+  const std::string args = "run " + world() + " --checkpoint " + base() + " --count " + std::to_string(kRuns) +
+                           " --out " + out.string() + " --overwrite";
+  int kills = 0;
+  for (const Kill& kill : schedule({"file-write:1", "output-commit:1", "file-write:1"}, 6, 20, 900, 20261202)) {
+    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+    // After every attempt: the folder is absent, or whole (the previous run's or this one's).
+    if (fs::exists(out)) expect_complete_run_output(out, kill.describe());
+  }
+  EXPECT_GE(kills, 5);
+
+  // Killed between the two renames of a replacement: the previous output is aside, none in place.
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));  // a whole run first (the kill comes too late)
+  ASSERT_TRUE(attempt(local_.path(), args, Kill{"output-commit:1"}));
+  EXPECT_FALSE(fs::exists(out));
+  // The next run puts it back before anything else: without --overwrite it is refused, as for any
+  // existing output, and the previous output is in place again.
+  const Result refused = run("run " + world() + " --count 1 --out " + out.string());
+  EXPECT_EQ(refused.status, 1) << refused.err;
+  EXPECT_NE(refused.err.find("already exists"), std::string::npos) << refused.err;
+  expect_complete_run_output(out, "restored");
+
+  // Finally a run to the end: complete, and nothing hidden left beside it.
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  expect_complete_run_output(out, "last");
+  EXPECT_EQ(leftovers_beside(out), std::vector<std::string>{});
+  std::printf("[ measured ] scout run: %d SIGKILLs, then complete output\n", kills + 1);
+}
+
+TEST_F(TrainCli, EvalKilledLeavesNoPartialReport) {
+  const fs::path data = temp_->path() / "data";
+  const fs::path report = path("eval.json"), predictions = path("predictions.csv");
+  const std::string args = "eval --checkpoint " + base() + " --images " + (data / "train-images-idx3-ubyte").string() +
+                           " --labels " + (data / "train-labels-idx1-ubyte").string() + " --runs 200 --json " +
+                           report.string() + " --predictions " + predictions.string();
+  const std::size_t images = 48;
+  int kills = 0;
+  for (const Kill& kill : schedule({"file-write:1", "file-write:2", "file-write:1"}, 6, 20, 900, 7)) {
+    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+    if (fs::exists(report)) {
+      const json j = json::parse(read_text(report));  // parses: never half a file
+      EXPECT_TRUE(j.contains("accuracy")) << kill.describe();
+    }
+    if (fs::exists(predictions)) {
+      EXPECT_EQ(lines_of(read_text(predictions)).size(), images + 1) << kill.describe();
+    }
+  }
+  EXPECT_GE(kills, 5);
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  EXPECT_TRUE(json::parse(read_text(report)).contains("accuracy"));
+  EXPECT_EQ(lines_of(read_text(predictions)).size(), images + 1);
+  EXPECT_EQ(leftovers_beside(report), std::vector<std::string>{});
+  EXPECT_EQ(leftovers_beside(predictions), std::vector<std::string>{});
+  std::printf("[ measured ] scout eval: %d SIGKILLs, then a complete report\n", kills);
+}
+
+TEST_F(TrainCli, DataKilledMidInstallIsRepairedByTheNextRun) {
+  if (scout::testing::skip_network_tests()) GTEST_SKIP() << "SCOUT_SKIP_NETWORK_TESTS is set";
+  const fs::path data = path("data");
+  const std::string args = "data mnist-10k --data " + data.string();
+  int kills = 0;
+  for (const Kill& kill : schedule({"file-write:1"}, 4, 300, 4000, 11))
+    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+  EXPECT_GE(kills, 3);
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  // Installed and checked (the next call has nothing to do), and the killed installs' temporary
+  // folders are gone.
+  const Result again = run(args);
+  ASSERT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("nothing to do"), std::string::npos) << again.out;
+  for (const fs::path& folder : {data, data / "mnist-10k"})
+    for (const auto& entry : fs::directory_iterator(folder))
+      EXPECT_NE(entry.path().filename().string()[0], '.') << entry.path();  // no temporaries left
+  std::printf("[ measured ] scout data: %d SIGKILLs, then installed\n", kills);
+}
+
+}  // namespace
