@@ -71,6 +71,14 @@ const char* to_string(ClassifierKind kind) {
   return variant != nullptr ? variant->name : "?";
 }
 
+std::string describe_classifier(const NetworkConfig& config) {
+  const ClassifierVariant* variant = find_classifier_variant(config.classifier);
+  if (variant == nullptr) return "?";
+  if (!variant->uses_depth) return std::string(variant->name) + " width " + std::to_string(config.classifier_width);
+  return std::string(variant->name) + " " + std::to_string(config.classifier_width) + "x" +
+         std::to_string(config.classifier_depth);
+}
+
 std::string classifier_choices(const std::string& separator) {
   std::string names;
   for (const ClassifierVariant& variant : kClassifierVariants) names += (names.empty() ? "" : separator) + variant.name;

@@ -20,6 +20,7 @@ struct ClassifierVariant {
   const char* name;    ///< what --classifier and the checkpoint's config say
   const char* help;    ///< one line for --help
   bool width_doubles;  ///< block k is classifier_width x 2^k wide (validate() bounds the widest block)
+  bool uses_depth;     ///< classifier_depth sets its blocks (ResNet-18's are fixed: the field is ignored)
 };
 
 /// The classifier variants, in the order --help lists them; the first is the default. Parsing,
@@ -30,20 +31,26 @@ inline constexpr ClassifierVariant kClassifierVariants[] = {
     {.kind = ClassifierKind::Paper,
      .name = "paper",
      .help = "METHOD.md's dense blocks at full resolution",
-     .width_doubles = true},
+     .width_doubles = true,
+     .uses_depth = true},
     {.kind = ClassifierKind::Strided,
      .name = "strided",
      .help = "stride-2 blocks with GroupNorm (beyond the paper)",
-     .width_doubles = true},
+     .width_doubles = true,
+     .uses_depth = true},
     {.kind = ClassifierKind::ResNet18,
      .name = "resnet18",
      .help = "ResNet-18, the paper's transfer variant",
-     .width_doubles = false},
+     .width_doubles = false,
+     .uses_depth = false},
 };
 
 /// The row of `kind`, or nullptr for a value outside the enum.
 const ClassifierVariant* find_classifier_variant(ClassifierKind kind);
 const char* to_string(ClassifierKind kind);  ///< the row's name ("paper", "strided", "resnet18")
+struct NetworkConfig;
+/// The classifier as logs and reports name it: "paper 16x3" (width x depth), "resnet18 width 16".
+std::string describe_classifier(const NetworkConfig& config);
 /// Parses a row's name; throws std::invalid_argument naming the choices.
 ClassifierKind parse_classifier_kind(const std::string& text);
 /// The names joined by `separator`: "paper, strided, resnet18".

@@ -270,8 +270,8 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
       report.robots, agent::to_string(c.precision),
       report.world_size > 1 ? fmt::format("{} processes x ", report.world_size) : "", report.threads, opt.batches,
       opt.warmup);
-  fmt::print("  widths: planners {} x {} (width x depth), classifier {} {} x {}\n", n.planner_width, n.planner_depth,
-             agent::to_string(n.classifier), n.classifier_width, n.classifier_depth);
+  fmt::print("  widths: planners {} x {} (width x depth), classifier {}\n", n.planner_width, n.planner_depth,
+             agent::describe_classifier(n));
   fmt::print("  {:<5} {:>9} {:>9}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12}\n", "mode", "images/s", "s/step",
              "physics", "render", "state", "forward", "backward", "adam", "chi=1/batch");
   for (const learn::ModeBench& m : report.modes) {
@@ -394,7 +394,7 @@ void add_bench_command(CLI::App& app, const Context& context) {
       ->capture_default_str()
       ->check(decimal_in(0, 1000));
   train_cmd->add_flag("--force", topt->force,
-                      "Run even when the estimated memory exceeds what is available (the smaller of MemAvailable, "
+                      "Run even when the estimated memory exceeds what is available (the smallest of MemAvailable, "
                       "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   train_cmd->add_option("--threads", topt->threads, "LibTorch threads per process (0: the cores divided among them)")
       ->capture_default_str()

@@ -39,10 +39,10 @@ void export_command(const ExportOptions& o) {
              info.history.size(), source.string());
   const learn::TrainConfig& c = info.config;
   const agent::NetworkConfig& n = c.network;
-  fmt::print("task: m = {}, E = {}, T = {}, step {} px; N = {}, B = {}; planners {}x{}, classifier {} {}x{}, {}\n",
+  fmt::print("task: m = {}, E = {}, T = {}, step {} px; N = {}, B = {}; planners {}x{}, classifier {}, {}\n",
              c.world.camera.patch_px, c.world.task.episodes, c.world.task.steps, c.world.task.step_px, c.rollouts,
-             c.batch_images, n.planner_width, n.planner_depth, agent::to_string(n.classifier), n.classifier_width,
-             n.classifier_depth, agent::to_string(c.precision));
+             c.batch_images, n.planner_width, n.planner_depth, agent::describe_classifier(n),
+             agent::to_string(c.precision));
 }
 
 }  // namespace

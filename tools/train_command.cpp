@@ -381,13 +381,11 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
     if (!resuming) o.net.announce_precision();
     write_manifest(run, context, *trainer, resuming);
     const learn::TrainConfig& c = trainer->config();
-    fmt::print(
-        "training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {} {}x{}; N = {}, B = {}, lr {})\n",
-        c.world.file.string(), run.string(),
-        trainer->world_size() > 1 ? fmt::format("{} processes x ", trainer->world_size()) : "", trainer->threads(),
-        agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
-        agent::to_string(c.network.classifier), c.network.classifier_width, c.network.classifier_depth, c.rollouts,
-        c.batch_images, c.learning_rate);
+    fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {}; N = {}, B = {}, lr {})\n",
+               c.world.file.string(), run.string(),
+               trainer->world_size() > 1 ? fmt::format("{} processes x ", trainer->world_size()) : "",
+               trainer->threads(), agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
+               agent::describe_classifier(c.network), c.rollouts, c.batch_images, c.learning_rate);
     if (resuming) {
       const learn::ScheduleCursor& k = trainer->cursor();
       fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
@@ -471,7 +469,7 @@ void add_train_command(CLI::App& app, const Context& context) {
       ->check(CLI::Range(0.0, 1e6));
   add_group_options(*cmd, o->group);
   cmd->add_flag("--force", o->force,
-                "Start even when the estimated memory exceeds what is available (the smaller of MemAvailable, "
+                "Start even when the estimated memory exceeds what is available (the smallest of MemAvailable, "
                 "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
                 "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");

@@ -59,6 +59,17 @@ TEST(NetworkConfig, DefaultsArePlanner16x3AndPaperClassifier16x3) {
   EXPECT_NO_THROW(config.validate());
 }
 
+TEST(NetworkConfig, DescriptionsGiveTheDepthOnlyWhereTheClassifierHasOne) {
+  NetworkConfig config;
+  config.classifier_width = 24;
+  config.classifier_depth = 5;
+  EXPECT_EQ(describe_classifier(config), "paper 24x5");
+  config.classifier = ClassifierKind::Strided;
+  EXPECT_EQ(describe_classifier(config), "strided 24x5");
+  config.classifier = ClassifierKind::ResNet18;  // four fixed stages: classifier_depth is ignored
+  EXPECT_EQ(describe_classifier(config), "resnet18 width 24");
+}
+
 TEST(NetworkConfig, OutOfRangeValueNamesTheFieldAndTheRange) {
   NetworkConfig config;
   config.planner_width = 0;

@@ -11,7 +11,7 @@ EXAMPLES = os.path.join(SOURCE, "examples", "python")
 
 def run(script, *args):
     result = subprocess.run([sys.executable, os.path.join(EXAMPLES, script), *args], capture_output=True, text=True,
-                            timeout=600)
+                            timeout=1800)  # a guard against a hang, not a speed check (ASan is slow)
     assert result.returncode == 0, result.stderr
     return result.stdout
 
