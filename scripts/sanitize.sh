@@ -48,7 +48,7 @@ ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_t
                  scout scout_python scout_python_agent)
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|TrainerPin\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
-TSAN_TARGETS=(sim_tests render_tests env_tests tools_tests)
+TSAN_TARGETS=(sim_tests render_tests env_tests tools_process_tests)
 
 configure() {  # folder, sanitizers
   # -O1: the sanitizers' usual level (fast enough to run the suite, and it compiles in half the time of -O3).
@@ -86,7 +86,8 @@ if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then
   no_aslr=()
   if setarch "$(uname -m)" -R true 2>/dev/null; then no_aslr=(setarch "$(uname -m)" -R); fi
   # One test at a time: the multi-process tests bound how long the survivors take to stop after a
-  # lost rank, and two of them at once under TSan's slowdown would be timing the machine.
+  # lost rank, and two of them at once under TSan's slowdown would be timing the machine (the
+  # others take seconds).
   "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$TSAN_TESTS"
   echo "sanitize: ThreadSanitizer: worker pool, physics, camera, environment and multi-process tests passed in $((SECONDS - start)) s"
 fi
