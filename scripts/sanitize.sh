@@ -14,8 +14,8 @@
 #   processes over Gloo, each with its worker pool). The rest of the suite is single-threaded on
 #   Scout's side; LibTorch's own threads are not instrumented, so TSan could not see into them.
 # all: address, then thread.
-# ci: what .ci/run runs after the test suite, within its time: `thread` as above, and `address`
-#   on a labelled subset (below), building only what that subset runs.
+# ci: what .ci/run runs after the test suite, within its time: `address` on a labelled subset and
+#   `thread` on a subset of the multi-process tests (both below), building only what they run.
 #
 # The ASan subset (ci): every test labelled core, grid, worlds, sim, render, env, agent, learn or
 # python: the loaders and their fuzzers, the physics, the camera, the networks, the checkpoints
@@ -27,6 +27,15 @@
 #     Python examples (REINFORCE's 600 training batches take over 10 minutes under ASan). Shorter
 #     tests run the same code (rollouts, the estimator, the trainer, ResNet-18, the Python
 #     package's vector environment and agent in test_scout_env.py); these only run it longer.
+#
+# The TSan subset (ci): the worker pool, physics, camera and environment tests, and four of the ten
+# TrainDistributed tests, which between them run every multi-process path: training with its
+# all-reduces and checkpoints (TwoProcessesTrainTheSameWeightsAsOne), a lost rank and the
+# survivors' stop and resume (ALostRank...), Ctrl-C across processes (ControlC...) and evaluation
+# over processes (EvalOverTwoProcesses...). Left out (TSan multiplies their minutes): a second
+# identical run (TheSameProcessCountTwice...), the other lost-rank case (LosingRankZero...), the
+# rendezvous timeouts (ARankThatNeverArrives..., AWrongPort...: one thread waiting 10 s) and the
+# refusals before training starts (RanksThatDisagree..., ResumingWithAnotherProcessCount...).
 #
 # Every report fails the run (no recovery). What is suppressed, and why, is in
 # scripts/sanitizers/*.supp: only other libraries' own leaks at exit, never Scout's code.
@@ -48,6 +57,7 @@ ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_t
                  scout scout_python scout_python_agent)
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|TrainerPin\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
+TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
 TSAN_TARGETS=(sim_tests render_tests env_tests tools_process_tests)
 
 configure() {  # folder, sanitizers
@@ -88,6 +98,8 @@ if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then
   # One test at a time: the multi-process tests bound how long the survivors take to stop after a
   # lost rank, and two of them at once under TSan's slowdown would be timing the machine (the
   # others take seconds).
-  "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$TSAN_TESTS"
+  tests=$TSAN_TESTS
+  [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
+  "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$tests"
   echo "sanitize: ThreadSanitizer: worker pool, physics, camera, environment and multi-process tests passed in $((SECONDS - start)) s"
 fi
