@@ -38,7 +38,8 @@
 # refusals before training starts (RanksThatDisagree..., ResumingWithAnotherProcessCount...).
 #
 # Every report fails the run (no recovery). What is suppressed, and why, is in
-# scripts/sanitizers/*.supp: only other libraries' own leaks at exit, never Scout's code.
+# scripts/sanitizers/*.supp: other libraries' own leaks at exit, and races inside LibTorch and Gloo
+# (not built with TSan), each with its reason; never Scout's code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 which=${1:-all}
