@@ -2,7 +2,10 @@
 # The sanitizer pass, for CI and for contributors before a change to threads, buffers or file
 # parsing:
 #
-#   scripts/sanitize.sh [address|thread|all|ci]     (default: all)
+#   scripts/sanitize.sh [address|thread|all|ci] [STEP]     (default: all, every step)
+#
+# STEP (build-address, test-address, build-thread or test-thread) runs one step alone: .ci/run
+# builds each sanitizer's tree at idle priority while the tests before it run.
 #
 # address: the whole project built again with AddressSanitizer and UndefinedBehaviorSanitizer
 #   (build-asan/), then the whole test suite: every C++ test and the Python tests (the interpreter
@@ -27,6 +30,8 @@
 #     Python examples (REINFORCE's 600 training batches take over 10 minutes under ASan). Shorter
 #     tests run the same code (rollouts, the estimator, the trainer, ResNet-18, the Python
 #     package's vector environment and agent in test_scout_env.py); these only run it longer.
+# With the `tools` tests left out, nothing in the subset runs the `scout` program instrumented, so
+# it is not built: test_scout_env.py compares the package with the Release build's program.
 #
 # The TSan subset (ci): the worker pool, physics, camera and environment tests, and four of the ten
 # TrainDistributed tests, which between them run every multi-process path: training with its
@@ -43,7 +48,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 which=${1:-all}
-case "$which" in address|thread|all|ci) ;; *) echo "usage: $0 [address|thread|all|ci]" >&2; exit 2 ;; esac
+step=${2:-}
+usage="usage: $0 [address|thread|all|ci] [build-address|test-address|build-thread|test-thread]"
+case "$which" in address|thread|all|ci) ;; *) echo "$usage" >&2; exit 2 ;; esac
+case "$step" in ""|build-address|test-address|build-thread|test-thread) ;; *) echo "$usage" >&2; exit 2 ;; esac
+[[ -z "$step" || "$step" == *-address && "$which" != thread || "$step" == *-thread && "$which" != address ]] ||
+  { echo "$usage" >&2; exit 2; }
 jobs=$(nproc)
 supp="$PWD/scripts/sanitizers"
 warnings=${SCOUT_WARNINGS_AS_ERRORS:-OFF}
@@ -54,17 +64,22 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$supp/tsan.supp"
 
 ASAN_CI_LABELS='^(core|grid|worlds|sim|render|env|agent|learn|python)$'
+# Not the `scout` program: no test of the subset runs it instrumented (the Python tests run the
+# Release build's as their reference; tests/python/CMakeLists.txt).
 ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_tests agent_tests learn_tests
-                 scout scout_python scout_python_agent)
+                 scout_python scout_python_agent)
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|TrainerPin\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
 TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
 TSAN_TARGETS=(sim_tests render_tests env_tests tools_process_tests)
 
-configure() {  # folder, sanitizers
+# Ninja for new build folders, as scripts/setup.sh.
+export CMAKE_GENERATOR=${CMAKE_GENERATOR:-Ninja}
+
+configure() {  # folder, sanitizers, [more cmake options...]
   # -O1: the sanitizers' usual level (fast enough to run the suite, and it compiles in half the time of -O3).
   cmake -S . -B "$1" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DSCOUT_SANITIZE="$2" \
-    -DSCOUT_WARNINGS_AS_ERRORS="$warnings" >/dev/null
+    -DSCOUT_WARNINGS_AS_ERRORS="$warnings" "${@:3}" >/dev/null
 }
 build() {  # folder [targets...]
   local folder=$1
@@ -72,35 +87,61 @@ build() {  # folder [targets...]
   if (($#)); then cmake --build "$folder" -j"$jobs" --target "$@"; else cmake --build "$folder" -j"$jobs"; fi
 }
 
-if [[ "$which" == address || "$which" == all || "$which" == ci ]]; then
-  start=$SECONDS
-  configure build-asan address,undefined
+address() {  # build|test
+  local start=$SECONDS
   if [[ "$which" == ci ]]; then
-    build build-asan "${ASAN_CI_TARGETS[@]}"
-    ctest --test-dir build-asan --output-on-failure -j"$jobs" -L "$ASAN_CI_LABELS" -E "$SLOW_UNDER_ASAN"
+    if [[ "$1" == build ]]; then
+      # The Python tests' reference program: the Release build's, brought up to date first, except
+      # in a step of .ci/run, which has just built it and runs its tests meanwhile.
+      if [[ -z "$step" ]]; then
+        cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+        build build scout
+      elif [[ ! -x build/tools/scout ]]; then
+        echo "sanitize: build/tools/scout is missing: run scripts/setup.sh first" >&2
+        exit 1
+      fi
+      configure build-asan address,undefined -DSCOUT_PYTHON_REFERENCE_PROGRAM="$PWD/build/tools/scout"
+      build build-asan "${ASAN_CI_TARGETS[@]}"
+    else
+      ctest --test-dir build-asan --output-on-failure -j"$jobs" -L "$ASAN_CI_LABELS" -E "$SLOW_UNDER_ASAN"
+    fi
     what="the labelled subset (scripts/sanitize.sh)"
   else
-    build build-asan
-    ctest --test-dir build-asan --output-on-failure -j"$jobs"
+    if [[ "$1" == build ]]; then
+      configure build-asan address,undefined -DSCOUT_PYTHON_REFERENCE_PROGRAM=
+      build build-asan
+    else
+      ctest --test-dir build-asan --output-on-failure -j"$jobs"
+    fi
     what="the whole suite"
   fi
-  echo "sanitize: AddressSanitizer + UndefinedBehaviorSanitizer: $what passed in $((SECONDS - start)) s"
-fi
+  echo "sanitize: AddressSanitizer + UndefinedBehaviorSanitizer: $1 of $what done in $((SECONDS - start)) s"
+}
 
-if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then
-  start=$SECONDS
-  configure build-tsan thread
-  build build-tsan "${TSAN_TARGETS[@]}"
-  # TSan maps its shadow memory at fixed addresses, which the kernel's address-space layout
-  # randomisation can collide with (Linux 6.x with 32 random mmap bits): run without it where
-  # the kernel lets us.
-  no_aslr=()
-  if setarch "$(uname -m)" -R true 2>/dev/null; then no_aslr=(setarch "$(uname -m)" -R); fi
-  # One test at a time: the multi-process tests bound how long the survivors take to stop after a
-  # lost rank, and two of them at once under TSan's slowdown would be timing the machine (the
-  # others take seconds).
-  tests=$TSAN_TESTS
-  [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
-  "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$tests"
-  echo "sanitize: ThreadSanitizer: worker pool, physics, camera, environment and multi-process tests passed in $((SECONDS - start)) s"
+thread() {  # build|test
+  local start=$SECONDS
+  if [[ "$1" == build ]]; then
+    configure build-tsan thread
+    build build-tsan "${TSAN_TARGETS[@]}"
+  else
+    # TSan maps its shadow memory at fixed addresses, which the kernel's address-space layout
+    # randomisation can collide with (Linux 6.x with 32 random mmap bits): run without it where
+    # the kernel lets us.
+    local no_aslr=()
+    if setarch "$(uname -m)" -R true 2>/dev/null; then no_aslr=(setarch "$(uname -m)" -R); fi
+    # One test at a time: the multi-process tests bound how long the survivors take to stop after a
+    # lost rank, and two of them at once under TSan's slowdown would be timing the machine (the
+    # others take seconds).
+    local tests=$TSAN_TESTS
+    [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
+    "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$tests"
+  fi
+  echo "sanitize: ThreadSanitizer: $1 of the worker pool, physics, camera, environment and multi-process tests done in $((SECONDS - start)) s"
+}
+
+if [[ -n "$step" ]]; then
+  ${step#*-} "${step%-*}"
+else
+  if [[ "$which" == address || "$which" == all || "$which" == ci ]]; then address build && address test; fi
+  if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then thread build && thread test; fi
 fi
