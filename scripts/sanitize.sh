@@ -103,7 +103,12 @@ address() {  # build|test
       configure build-asan address,undefined -DSCOUT_PYTHON_REFERENCE_PROGRAM="$PWD/build/tools/scout"
       build build-asan "${ASAN_CI_TARGETS[@]}"
     else
-      ctest --test-dir build-asan --output-on-failure -j"$jobs" -L "$ASAN_CI_LABELS" -E "$SLOW_UNDER_ASAN"
+      # Each test program started once per core rather than once per test (the subset has no
+      # RUN_SERIAL test): scripts/sanitizers/run_grouped.py says why.
+      local costs=()
+      [[ -f build/Testing/Temporary/CTestCostData.txt ]] && costs=(--costs build/Testing/Temporary/CTestCostData.txt)
+      /usr/bin/python3 scripts/sanitizers/run_grouped.py build-asan "$jobs" "${costs[@]}" -L "$ASAN_CI_LABELS" \
+        -E "$SLOW_UNDER_ASAN"
     fi
     what="the labelled subset (scripts/sanitize.sh)"
   else
