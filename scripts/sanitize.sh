@@ -19,6 +19,9 @@
 # all: address, then thread.
 # ci: what .ci/run runs after the test suite, within its time: `address` on a labelled subset and
 #   `thread` on a subset of the multi-process tests (both below), building only what they run.
+#   The ASan subset's tests run through scripts/sanitizers/run_grouped.py: each test program is
+#   started once per shard rather than once per test (a program that links LibTorch takes 2.5 s
+#   to start under ASan); the same tests, in the same folders, with the same environment.
 #
 # The ASan subset (ci): every test labelled core, grid, worlds, sim, render, env, agent, learn or
 # python: the loaders and their fuzzers, the physics, the camera, the networks, the checkpoints

@@ -60,7 +60,7 @@ def read_costs(paths):
 def main():
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    folder, jobs, selection = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+    folder, jobs, selection = os.path.abspath(sys.argv[1]), int(sys.argv[2]), sys.argv[3:]
     cost_files = [os.path.join(folder, "Testing", "Temporary", "CTestCostData.txt")]
     if selection[:1] == ["--costs"]:
         cost_files.insert(0, selection[1])
