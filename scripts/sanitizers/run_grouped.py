@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Runs the tests that `ctest` would run, but each GoogleTest program once per core with its share
-of them (GoogleTest's sharding) instead of once per test.
+"""Runs the tests that `ctest` would run, but each GoogleTest program once per shard (up to two
+per core, each with its share of the tests: GoogleTest's sharding) instead of once per test.
 
     run_grouped.py BUILD_FOLDER JOBS [--costs FILE] [ctest selection: -L, -E, -R ...]
 
@@ -65,6 +65,8 @@ def main():
     if selection[:1] == ["--costs"]:
         cost_files.insert(0, selection[1])
         selection = selection[2:]
+    if not os.path.exists(os.path.join(folder, "CTestTestfile.cmake")):
+        sys.exit(f"run_grouped: {folder}: not a configured build folder (no CTestTestfile.cmake)")
     costs = read_costs(cost_files)
     start = time.monotonic()
     programs = {}  # (program, folder) -> gtest names
