@@ -106,7 +106,7 @@ address() {  # build|test
       configure build-asan address,undefined -DSCOUT_PYTHON_REFERENCE_PROGRAM="$PWD/build/tools/scout"
       build build-asan "${ASAN_CI_TARGETS[@]}"
     else
-      # Each test program started once per core rather than once per test (the subset has no
+      # Each test program started once per shard rather than once per test (the subset has no
       # RUN_SERIAL test): scripts/sanitizers/run_grouped.py says why.
       local costs=()
       [[ -f build/Testing/Temporary/CTestCostData.txt ]] && costs=(--costs build/Testing/Temporary/CTestCostData.txt)
