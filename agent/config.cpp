@@ -1,5 +1,8 @@
 #include "agent/config.hpp"
 
+#include <cctype>
+#include <cstdlib>
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
 
@@ -36,6 +39,31 @@ Precision parse_precision(const std::string& text) {
   throw std::invalid_argument("precision: expected one of fp32, bf16, auto, got \"" + text + "\"");
 }
 
+namespace {
+
+// oneDNN's ISA cap (ONEDNN_MAX_CPU_ISA, or its older name DNNL_MAX_CPU_ISA), upper-cased; empty when
+// unset. oneDNN never uses an instruction set above it, so bf16 above the cap is emulated.
+std::string onednn_isa_cap(std::string* variable) {
+  for (const char* name : {"ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA"}) {
+    const char* value = std::getenv(name);
+    if (value == nullptr || *value == '\0') continue;
+    std::string cap(value);
+    for (char& c : cap) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (variable) *variable = std::string(name) + "=" + value;
+    return cap;
+  }
+  return {};
+}
+
+bool cap_allows(const std::string& cap, std::initializer_list<const char*> allowing) {
+  if (cap.empty() || cap == "ALL") return true;
+  for (const char* isa : allowing)
+    if (cap == isa) return true;
+  return false;
+}
+
+}  // namespace
+
 NativeBf16 native_bf16() {
   NativeBf16 found;
 #if defined(__x86_64__) || defined(__i386__)
@@ -43,6 +71,16 @@ NativeBf16 native_bf16() {
   found.amx_bf16 = __builtin_cpu_supports("amx-bf16") != 0;
   found.avx512_bf16 = __builtin_cpu_supports("avx512bf16") != 0;
 #endif
+  // The cap is how a CPU with native bf16 stands in for one without (tests, CI, benchmarks): what
+  // oneDNN may not use is not native to this process.
+  std::string variable;
+  const std::string cap = onednn_isa_cap(&variable);
+  const bool amx_allowed = cap_allows(cap, {"AVX512_CORE_AMX", "AVX512_CORE_AMX_FP16"});
+  const bool avx512_bf16_allowed =
+      amx_allowed || cap_allows(cap, {"AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX10_1_512"});
+  if ((found.amx_bf16 && !amx_allowed) || (found.avx512_bf16 && !avx512_bf16_allowed)) found.capped_by = variable;
+  found.amx_bf16 = found.amx_bf16 && amx_allowed;
+  found.avx512_bf16 = found.avx512_bf16 && avx512_bf16_allowed;
   return found;
 }
 
@@ -56,6 +94,8 @@ std::string auto_precision_note() {
   if (cpu.amx_bf16 && cpu.avx512_bf16) return "precision: bf16 (this CPU has AMX-BF16 and AVX-512 BF16)";
   if (cpu.amx_bf16) return "precision: bf16 (this CPU has AMX-BF16)";
   if (cpu.avx512_bf16) return "precision: bf16 (this CPU has AVX-512 BF16)";
+  if (!cpu.capped_by.empty())
+    return "precision: fp32 (" + cpu.capped_by + " leaves no native bf16; bf16 would be emulated and slower)";
   return "precision: fp32 (no native bf16 on this CPU; bf16 would be emulated and slower)";
 }
 

@@ -66,10 +66,14 @@ const char* to_string(Precision precision);  ///< "fp32", "bf16", "auto"
 /// Parses "fp32" | "bf16" | "auto"; throws std::invalid_argument naming the choices.
 Precision parse_precision(const std::string& text);
 
-/// The CPU's native bfloat16 arithmetic (x86 CPUID as GCC reads it; none elsewhere).
+/// The CPU's native bfloat16 arithmetic as this process may use it: x86 CPUID as GCC reads it (none
+/// elsewhere), less what oneDNN's ISA cap forbids (ONEDNN_MAX_CPU_ISA or DNNL_MAX_CPU_ISA below
+/// AVX512_CORE_BF16 leaves none; below AVX512_CORE_AMX leaves no AMX). The cap is also how a CPU
+/// with native bf16 stands in for one without: `ONEDNN_MAX_CPU_ISA=AVX2 ATEN_CPU_CAPABILITY=avx2`.
 struct NativeBf16 {
   bool amx_bf16 = false;     ///< AMX-BF16 (/proc/cpuinfo flag amx_bf16)
   bool avx512_bf16 = false;  ///< AVX-512 BF16 (/proc/cpuinfo flag avx512_bf16)
+  std::string capped_by;     ///< "ONEDNN_MAX_CPU_ISA=AVX2" when the cap removed what the CPU has
   bool any() const { return amx_bf16 || avx512_bf16; }
 };
 NativeBf16 native_bf16();

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <climits>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -10,7 +11,22 @@
 
 #include "core/error.hpp"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 namespace scout::core {
+
+void keep_freed_memory_for_reuse() {
+  for (const char* variable : {"MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
+    if (std::getenv(variable) != nullptr) return;  // the user's own tuning wins
+#if defined(__GLIBC__)
+  // Blocks up to 1 GiB come from the heap (not mmap), and the heap's top is returned to the kernel
+  // only beyond 2 GiB free (mallopt takes an int).
+  mallopt(M_MMAP_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, INT_MAX);
+#endif
+}
 
 namespace fs = std::filesystem;
 

@@ -125,8 +125,13 @@ class Evaluator {
  public:
   // `images`: the most images this process evaluates (its share).
   Evaluator(agent::AgentImpl& agent, const worlds::World& world, const Data& data, int batch_robots, int images,
-            agent::Precision precision, core::StopToken stop)
-      : agent_(agent), world_(world), data_(data), precision_(precision), stop_(std::move(stop)) {
+            agent::Precision precision, core::StopToken stop, std::function<void(int)> on_batch)
+      : agent_(agent),
+        world_(world),
+        data_(data),
+        precision_(precision),
+        stop_(std::move(stop)),
+        on_batch_(std::move(on_batch)) {
     const int robots = std::max(1, std::min(batch_robots, images));
     try {
       engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
@@ -162,6 +167,7 @@ class Evaluator {
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);
+      if (on_batch_) on_batch_(k);
     }
     pass.log_probs = parts.empty() ? torch::zeros({0, agent_.config().classes}) : torch::cat(parts, 0);
     return pass;
@@ -187,6 +193,7 @@ class Evaluator {
   const Data& data_;
   agent::Precision precision_;
   core::StopToken stop_;
+  std::function<void(int)> on_batch_;  // after each rollout batch: its robots
   std::unique_ptr<RolloutEngine> engine_;
   std::unique_ptr<AgentPolicy> policy_;
   int batch_ = 1;
@@ -254,7 +261,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   agent->eval();
 
   const LearnedLayers learned = learned_layers(state.history);
-  const agent::Precision precision = agent::resolve_precision(config.precision.value_or(state.config.precision));
+  const agent::Precision precision = agent::resolve_precision(config.precision);
   Sampling sampling;
   sampling.learned_goals = learned.goals;
   sampling.learned_actions = learned.actions;
@@ -287,7 +294,20 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   const int ranks = group ? group->size() : 1, rank = group ? group->rank() : 0;
   const int begin = static_cast<int>(static_cast<long>(n) * rank / ranks);
   const int end = static_cast<int>(static_cast<long>(n) * (rank + 1) / ranks);
-  Evaluator evaluator(*agent, world, data, config.batch_robots, end - begin, precision, stop);
+  // Progress in rollouts: per run the agent's pass and its baselines, then the greedy pass.
+  const long share = end - begin;
+  const int passes_per_run = config.agent_only ? 1 : (learned.goals ? 3 : 2);
+  EvalProgress progress{
+      .rollouts_total = share * (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)),
+      .runs = runs,
+      .precision = precision,
+      .trained_precision = state.config.precision};
+  auto on_batch = [&](int robots) {
+    progress.rollouts_done += robots;
+    progress.seconds = core::seconds_since(t0);
+    if (config.on_progress) config.on_progress(progress);
+  };
+  Evaluator evaluator(*agent, world, data, config.batch_robots, end - begin, precision, stop, on_batch);
   // Per run: correct, top-2, revealed pixels, i.i.d. correct, goals-only correct; then per run the
   // confusion counts (D x D), per image the probabilities summed over the runs, and the
   // full-image and greedy counts.
@@ -301,6 +321,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   for (int k = 0; k < runs; ++k) {
     double* const figures = tally.data() + kPerRun * k;
     const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
+    progress.run = k + 1;
     const Pass pass = evaluator.run(sampling, seed_k, begin, end);
     figures[0] = pass.correct;
     figures[1] = pass.top2;

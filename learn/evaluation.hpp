@@ -16,19 +16,31 @@
 
 namespace scout::learn {
 
+/// How far an evaluation has got, in rollouts (one digit driven once, by any policy) of this process.
+struct EvalProgress {
+  long rollouts_done = 0, rollouts_total = 0;
+  int run = 0, runs = 0;  ///< the stochastic run under way (1-based), of R
+  double seconds = 0;     ///< since the evaluation started
+  agent::Precision precision = agent::Precision::Float32;
+  agent::Precision trained_precision = agent::Precision::Float32;  ///< what the checkpoint was trained in
+};
+
 struct EvalConfig {
-  std::filesystem::path checkpoint;                 ///< RUN/checkpoint.pt or a model file
-  std::filesystem::path images, labels;             ///< any IDX image and label files
-  std::optional<std::filesystem::path> world_file;  ///< default: the checkpoint's world
-  int runs = 20;                                    ///< R
-  std::uint64_t seed = 1;                           ///< run k uses derive_seed(seed, k)
-  int batch_robots = 240;                           ///< robots per rollout batch
-  std::optional<agent::Precision> precision;        ///< default: the checkpoint's; Auto: this CPU's
+  std::filesystem::path checkpoint;                     ///< RUN/checkpoint.pt or a model file
+  std::filesystem::path images, labels;                 ///< any IDX image and label files
+  std::optional<std::filesystem::path> world_file;      ///< default: the checkpoint's world
+  int runs = 20;                                        ///< R
+  std::uint64_t seed = 1;                               ///< run k uses derive_seed(seed, k)
+  int batch_robots = 240;                               ///< robots per rollout batch
+  agent::Precision precision = agent::Precision::Auto;  ///< Auto: this CPU's best (never the checkpoint's)
   /// A world given whole (scout report's budget sweep: other m, E, T); overrides world_file.
   std::optional<worlds::World> world;
   int image_limit = 0;      ///< the first K images only (0: all)
   bool agent_only = false;  ///< only the R stochastic runs: no baselines, full images or greedy run
   int threads = 0;          ///< LibTorch threads (0: one per core)
+  /// Called after every rollout batch with how far this process has got (a long evaluation that
+  /// prints nothing looks hung); unset: nothing is reported.
+  std::function<void(const EvalProgress&)> on_progress;
 };
 
 /// A mean over runs and the half-width of its 95 % Student-t interval (R - 1 degrees of freedom).

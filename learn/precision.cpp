@@ -21,7 +21,7 @@ ComputePrecision::~ComputePrecision() {
 }
 
 torch::Tensor network_input(const torch::Tensor& x, agent::Precision precision) {
-  if (precision != agent::Precision::BFloat16) return x;
+  if (precision != agent::Precision::BFloat16) return x.contiguous(torch::MemoryFormat::ChannelsLast);
   return x.to(torch::kBFloat16, /*non_blocking=*/false, /*copy=*/false, torch::MemoryFormat::ChannelsLast);
 }
 

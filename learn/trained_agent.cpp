@@ -26,6 +26,7 @@ struct TrainedAgent::Impl {
   agent::Agent agent{nullptr};
   CheckpointState state;
   LearnedLayers learned;
+  agent::Precision precision = agent::Precision::Float32;
   std::unique_ptr<AgentPolicy> policy;
   // What the policy was built for: a new frame, patch or a larger batch builds it again.
   grid::FloorFrame frame{.width_px = 0, .height_px = 0, .pixel_size_m = 0};
@@ -36,8 +37,9 @@ struct TrainedAgent::Impl {
 TrainedAgent::TrainedAgent(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 TrainedAgent::~TrainedAgent() = default;
 
-std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& checkpoint) {
+std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& checkpoint, agent::Precision precision) {
   auto impl = std::make_unique<Impl>();
+  impl->precision = agent::resolve_precision(precision);
   impl->agent = load_agent(checkpoint, &impl->state);
   if (impl->state.config.network.image_channels != worlds::ImageSet::channels)
     throw InputError(checkpoint.string() + ": network.image_channels: expected " +
@@ -50,6 +52,7 @@ std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& ch
 const TrainConfig& TrainedAgent::config() const { return impl_->state.config; }
 LearnedLayers TrainedAgent::learned() const { return impl_->learned; }
 int TrainedAgent::classes() const { return impl_->state.config.network.classes; }
+agent::Precision TrainedAgent::precision() const { return impl_->precision; }
 
 void TrainedAgent::begin(const grid::FloorFrame& frame, int patch_px, std::span<const std::uint64_t> seeds, bool greedy,
                          bool record_goal_maps) {
@@ -66,7 +69,7 @@ void TrainedAgent::begin(const grid::FloorFrame& frame, int patch_px, std::span<
   sampling.learned_goals = m.learned.goals;
   sampling.learned_actions = m.learned.actions;
   sampling.greedy = greedy;
-  sampling.precision = impl_->state.config.precision;
+  sampling.precision = m.precision;
   // Goal maps exist only where the goal planner chooses.
   sampling.record_goal_maps = record_goal_maps && m.learned.goals;
   m.policy->begin(seeds, sampling);
@@ -87,7 +90,7 @@ std::vector<float> TrainedAgent::classify(const BatchState& state, int count) {
   if (count == 0) return {};
   torch::NoGradGuard no_grad;
   const torch::Tensor y = revealed_images(state, count);
-  const torch::Tensor p = classifier_log_probs(*impl_->agent, y, impl_->state.config.precision).exp().contiguous();
+  const torch::Tensor p = classifier_log_probs(*impl_->agent, y, impl_->precision).exp().contiguous();
   const float* data = p.data_ptr<float>();
   return std::vector<float>(data, data + static_cast<std::size_t>(count) * classes());
 }

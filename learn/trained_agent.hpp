@@ -23,8 +23,10 @@ LearnedLayers learned_layers(const std::vector<EpochMetrics>& history);
 
 class TrainedAgent {
  public:
-  /// Loads RUN/checkpoint.pt or a model file; throws InputError naming the file.
-  static std::unique_ptr<TrainedAgent> load(const std::filesystem::path& checkpoint);
+  /// Loads RUN/checkpoint.pt or a model file; throws InputError naming the file. The networks run
+  /// in `precision` (Auto: this CPU's best), whatever precision the checkpoint was trained in.
+  static std::unique_ptr<TrainedAgent> load(const std::filesystem::path& checkpoint,
+                                            agent::Precision precision = agent::Precision::Auto);
   ~TrainedAgent();
 
   /// The checkpoint's config (its world, network and training options).
@@ -41,6 +43,8 @@ class TrainedAgent {
   /// pi_c of the first `count` robots of the state (count * D floats).
   std::vector<float> classify(const BatchState& state, int count);
   int classes() const;
+  /// The arithmetic the networks run in here (resolved: fp32 or bf16).
+  agent::Precision precision() const;
 
  private:
   struct Impl;

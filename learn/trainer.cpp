@@ -513,6 +513,7 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   if (epochs) state.config.epochs = *epochs;
   if (options.data_folder) state.config.data_folder = fs::absolute(*options.data_folder);
   if (options.learning_rate) state.config.learning_rate = *options.learning_rate;
+  if (options.precision) state.config.precision = agent::resolve_precision(*options.precision);
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;

@@ -92,6 +92,10 @@ struct ResumeOptions {
   /// Adam's step size from the next batch on (fine-tuning at a lower rate); metrics.csv records
   /// each epoch's rate, so nothing of the history is lost.
   std::optional<double> learning_rate = std::nullopt;
+  /// The networks' arithmetic from the next batch on (a bf16 run continued in fp32 on a CPU without
+  /// native bf16): the weights, Adam's state and the schedule carry over; the continuation is no
+  /// longer bit for bit what an uninterrupted run in the old precision would give.
+  std::optional<agent::Precision> precision = std::nullopt;
 };
 
 /// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.

@@ -11,6 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -67,13 +68,21 @@ const T* per_robot(const A& a, int n, const char* name) {
 // --checkpoint` chooses for the same runs.
 class AgentCore {
  public:
-  AgentCore(const std::string& model, bool greedy, int threads) : greedy_(greedy) {
+  AgentCore(const std::string& model, bool greedy, int threads, const std::string& precision) : greedy_(greedy) {
+    agent::Precision asked;
+    try {
+      asked = agent::parse_precision(precision);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(e.what());
+    }
     py::gil_scoped_release release;
     learn::set_torch_threads(threads);
-    agent_ = learn::TrainedAgent::load(model);
+    agent_ = learn::TrainedAgent::load(model, asked);
   }
 
   int classes() const { return agent_->classes(); }
+  std::string precision() const { return agent::to_string(agent_->precision()); }
+  std::string trained_precision() const { return agent::to_string(agent_->config().precision); }
 
   // Returns (moves (N,), goals (N, 2)).
   py::tuple act(const Array<std::int32_t>& pose, const Array<std::uint8_t>& seen, const Array<float>& revealed,
@@ -189,8 +198,11 @@ PYBIND11_MODULE(_scout_agent, m) {
   m.doc() = "Scout's trained agent (use scout.Agent)";
   register_errors();
   py::class_<AgentCore>(m, "AgentCore")
-      .def(py::init<const std::string&, bool, int>(), py::arg("model"), py::arg("greedy"), py::arg("threads"))
+      .def(py::init<const std::string&, bool, int, const std::string&>(), py::arg("model"), py::arg("greedy"),
+           py::arg("threads"), py::arg("precision"))
       .def_property_readonly("classes", &AgentCore::classes)
+      .def_property_readonly("precision", &AgentCore::precision)
+      .def_property_readonly("trained_precision", &AgentCore::trained_precision)
       .def("act", &AgentCore::act, py::arg("pose"), py::arg("seen"), py::arg("revealed"), py::arg("time_step"),
            py::arg("policy_seed"), py::arg("episode"), py::arg("episode_start"), py::arg("patch_px"))
       .def("classify", &AgentCore::classify, py::arg("pose"), py::arg("seen"), py::arg("revealed"),

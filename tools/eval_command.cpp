@@ -22,6 +22,7 @@
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
+#include "tools/progress.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::tools {
@@ -36,7 +37,7 @@ struct EvalOptions {
   int runs = 20;
   int limit = 0;  // the first K images only (0: all)
   std::string json_out, predictions_out;
-  std::string precision;  // empty: the checkpoint's
+  std::string precision = "auto";
   GroupFlags group;
 };
 
@@ -89,8 +90,7 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   config.runs = opt.runs;
   config.image_limit = opt.limit;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
-  // Checked by the option; auto is resolved here and announced once the evaluation has run.
-  if (!opt.precision.empty()) config.precision = agent::resolve_precision(agent::parse_precision(opt.precision));
+  config.precision = agent::parse_precision(opt.precision);  // checked by the option; auto resolved by evaluate
   // Data-parallel: every process evaluates a share of the images; rank 0 prints and writes.
   std::unique_ptr<learn::ProcessGroup> group;
   if (const std::optional<learn::GroupOptions> options = group_from_flags(opt.group)) {
@@ -110,11 +110,21 @@ void eval_command(const EvalOptions& opt, const Context& context) {
     }
     return interrupt_token().requested();
   });
+  // The leader's share stands for the whole: every process drives an equal share at the same pace.
+  ProgressLine progress("scout eval", "rollouts");
+  bool announced = !leader;
+  if (leader)
+    config.on_progress = [&](const learn::EvalProgress& e) {
+      if (!announced) {
+        announced = true;
+        announce_model_precision(opt.precision, e.trained_precision);
+      }
+      progress.update(fmt::format("run {} of {}", e.run, e.runs), e.rollouts_done, e.rollouts_total, e.seconds);
+    };
   report = learn::evaluate(config, stop, group.get());
   // Nothing is written when a signal arrives before here; after it the files are complete.
   interrupt_token().throw_if_requested();
   if (!leader) return;
-  if (!opt.precision.empty()) announce_auto_precision(opt.precision);
   print_table(report);
   if (!opt.json_out.empty()) {
     const nlohmann::ordered_json j = eval_document(learn::report_json(report), context.argv, opt.checkpoint, opt.images,
@@ -151,10 +161,7 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--seed", opt->seed,
                   "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
       ->check(seed_validator());
-  cmd->add_option("--precision", opt->precision,
-                  "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 | fp32 "
-                  "(default: the checkpoint's)")
-      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
+  add_model_precision_option(*cmd, opt->precision);
   cmd->add_option("--limit", opt->limit, "Evaluate on the first K images only (0: all)")
       ->capture_default_str()
       ->check(decimal_in(0, 100000000));

@@ -8,12 +8,14 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/memory.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/output.hpp"
 #include "tools/parsing.hpp"
 
 int main(int argc, char** argv) {
+  scout::core::keep_freed_memory_for_reuse();  // before any tensor is allocated
   scout::tools::Context context{.argv = scout::tools::command_line(argc, argv)};
   CLI::App app{
       "Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.",

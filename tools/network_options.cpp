@@ -1,5 +1,7 @@
 #include "tools/network_options.hpp"
 
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
@@ -43,8 +45,31 @@ agent::Precision NetworkOptions::arithmetic() const {
 void NetworkOptions::announce_precision() const { announce_auto_precision(precision); }
 
 void announce_auto_precision(const std::string& requested) {
-  if (agent::parse_precision(requested) == agent::Precision::Auto)
-    std::fprintf(stderr, "%s\n", agent::auto_precision_note().c_str());
+  // Training has no model yet: what it trains in is what it runs in.
+  announce_model_precision(requested, agent::resolve_precision(agent::parse_precision(requested)));
+}
+
+void add_model_precision_option(CLI::App& cmd, std::string& precision) {
+  precision = "auto";
+  cmd.add_option("--precision", precision,
+                 "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32, whatever the model was "
+                 "trained in) | bf16 | fp32")
+      ->capture_default_str()
+      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
+}
+
+void announce_model_precision(const std::string& requested, agent::Precision trained) {
+  const agent::Precision asked = agent::parse_precision(requested);  // checked by the option
+  const agent::Precision used = agent::resolve_precision(asked);
+  if (asked == agent::Precision::Auto) {
+    std::string line = agent::auto_precision_note();
+    if (used != trained) line += fmt::format("; the model was trained in {}", agent::to_string(trained));
+    std::fprintf(stderr, "%s\n", line.c_str());
+  } else if (used == agent::Precision::BFloat16 && !agent::native_bf16().any()) {
+    std::fprintf(stderr,
+                 "precision: bf16 as asked, emulated: this CPU has no native bf16, so the networks run several "
+                 "times slower than in fp32 (--precision auto picks fp32 here)\n");
+  }
 }
 
 void add_network_options(CLI::App& cmd, NetworkOptions& o) {

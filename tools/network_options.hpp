@@ -37,10 +37,20 @@ struct NetworkOptions {
 /// Adds --planner-width/-depth, --classifier, --classifier-width/-depth and --precision.
 void add_network_options(CLI::App& cmd, NetworkOptions& o);
 
-/// Prints agent::auto_precision_note() on stderr when `requested` is "auto".
+/// Prints agent::auto_precision_note() on stderr when `requested` is "auto", and a warning when bf16
+/// is asked for on a CPU that would emulate it.
 void announce_auto_precision(const std::string& requested);
 
 /// --precision's choices and help ("auto (default: ...) | bf16 (...) | fp32"), shared with eval.
 std::string precision_choices();
+
+/// --precision for the commands that run a trained model (run, eval, report): default auto, this
+/// CPU's best arithmetic, whatever the model was trained in.
+void add_model_precision_option(CLI::App& cmd, std::string& precision);
+
+/// One line on stderr saying what a model runs in here: with `auto`, what it chose and why (and
+/// that the model was trained in the other one when it differs); with bf16 asked on a CPU without
+/// native bf16, that it is emulated and several times slower than fp32. Nothing otherwise.
+void announce_model_precision(const std::string& requested, agent::Precision trained);
 
 }  // namespace scout::tools

@@ -25,7 +25,9 @@
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
+#include "tools/progress.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/idx.hpp"
 
@@ -54,6 +56,7 @@ struct ReportOptions {
   int sweep_runs = 2;
   int episodes = 8;
   std::string seed;  // empty: 1
+  std::string precision = "auto";
   bool overwrite = false;
 };
 
@@ -229,7 +232,10 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
       {"patch_px", trained.camera.patch_px}, {"episodes", trained.task.episodes}, {"steps", trained.task.steps}};
   out["seed"] = seed;
   out["points"] = json::array();
+  ProgressLine progress("scout report", "digits");
+  int point = 0;
   for (const Point& p : points) {
+    ++point;
     worlds::World world = trained;
     world.camera.patch_px = p.patch;
     world.task.episodes = p.episodes;
@@ -242,6 +248,11 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
     config.seed = seed;
     config.image_limit = opt.sweep_digits;
     config.agent_only = true;
+    config.precision = agent::parse_precision(opt.precision);
+    config.on_progress = [&](const learn::EvalProgress& e) {
+      progress.update(fmt::format("budget point {} of {}", point, points.size()), e.rollouts_done, e.rollouts_total,
+                      e.seconds);
+    };
     const learn::EvalReport r = learn::evaluate(config, interrupt_token());
     out["points"].push_back({{"kind", p.kind},
                              {"patch_px", p.patch},
@@ -261,7 +272,8 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
 // its goal maps recorded; half right and half wrong where there are enough wrong ones.
 json test_episodes(const ReportOptions& opt, const fs::path& checkpoint, const worlds::ImageSet& images,
                    const std::vector<std::uint8_t>& labels, std::uint64_t seed) {
-  std::unique_ptr<learn::TrainedAgent> agent = learn::TrainedAgent::load(checkpoint);
+  std::unique_ptr<learn::TrainedAgent> agent =
+      learn::TrainedAgent::load(checkpoint, agent::parse_precision(opt.precision));
   const worlds::World& world = agent->config().world;
   worlds::check_against_floor(world, images.cols, images.rows);
   const grid::FloorFrame frame{
@@ -420,6 +432,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
 
   fmt::print("scout report: {} -> {}\n", model.string(), opt.out);
   std::fflush(stdout);
+  announce_model_precision(opt.precision, info.config.precision);
   std::string eval_source;
   if (eval.is_null()) {
     fmt::print("  evaluating on {} digits, {} runs (no evaluation beside the model)\n", test_images.count, opt.runs);
@@ -430,6 +443,12 @@ void report_command(const ReportOptions& opt, const Context& context) {
     config.labels = labels;
     config.runs = opt.runs;
     config.seed = seed;
+    config.precision = agent::parse_precision(opt.precision);
+    ProgressLine progress("scout report", "rollouts");
+    config.on_progress = [&](const learn::EvalProgress& e) {
+      progress.update(fmt::format("evaluating, run {} of {}", e.run, e.runs), e.rollouts_done, e.rollouts_total,
+                      e.seconds);
+    };
     const learn::EvalReport r = learn::evaluate(config, interrupt_token());
     eval = eval_document(learn::report_json(r), context.argv, checkpoint, images, labels, 1);
     write_file_atomic(out.path() / "eval.json", eval.dump(2) + "\n");
@@ -552,6 +571,7 @@ void add_report_command(CLI::App& app, const Context& context) {
       ->check(decimal_in(0, 64));
   cmd->add_option("--seed", opt->seed, "Seed of the evaluation, the sweep and the episodes (default 1)")
       ->check(seed_validator());
+  add_model_precision_option(*cmd, opt->precision);
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing report folder");
   cmd->callback([opt, &context] { report_command(*opt, context); });
 }

@@ -20,6 +20,7 @@
 #include "render/snapshot.hpp"
 #include "render/video.hpp"
 #include "tools/commands.hpp"
+#include "tools/network_options.hpp"
 #include "tools/output.hpp"
 #include "tools/run_video.hpp"
 #include "worlds/dataset.hpp"
@@ -45,6 +46,7 @@ struct RunOptions {
   bool no_images = false;
   int scale = 10;
   std::string checkpoint;  // empty: mode (i)
+  std::string precision = "auto";
   bool greedy = false;
   bool heat_map = false;
   std::string video;  // empty: none
@@ -153,11 +155,12 @@ void run_command(const RunOptions& opt, const Context& context) {
   }
   std::unique_ptr<learn::TrainedAgent> agent;
   if (!opt.checkpoint.empty()) {
-    agent = learn::TrainedAgent::load(opt.checkpoint);
+    agent = learn::TrainedAgent::load(opt.checkpoint, agent::parse_precision(opt.precision));
     if (opt.heat_map && !agent->learned().goals)
       throw InputError(opt.checkpoint +
                        ": --heat-map: expected a checkpoint with a learned goal layer (trained in mode (ii) or "
                        "(iii)); this one drives with i.i.d. goals");
+    announce_model_precision(opt.precision, agent->config().precision);
   }
   worlds::World world = worlds::load_world(opt.world);
   if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
@@ -258,7 +261,8 @@ void run_command(const RunOptions& opt, const Context& context) {
                               {"sha256", worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint))},
                               {"greedy", opt.greedy},
                               {"learned_goals", agent->learned().goals},
-                              {"learned_actions", agent->learned().actions}};
+                              {"learned_actions", agent->learned().actions},
+                              {"precision", agent::to_string(agent->precision())}};
   }
   manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
   if (video) {
@@ -310,6 +314,8 @@ void add_run_command(CLI::App& app, const Context& context) {
                       "training; its prediction goes into trajectory.json and the pictures");
   cmd->add_flag("--greedy", opt->greedy, "With --checkpoint: argmax goals and actions instead of sampling")
       ->needs(checkpoint);
+  add_model_precision_option(*cmd, opt->precision);
+  cmd->get_option("--precision")->needs(checkpoint);
   cmd->add_flag("--heat-map", opt->heat_map,
                 "With --checkpoint (learned goals): draw each episode's goal distribution on its picture")
       ->needs(checkpoint);

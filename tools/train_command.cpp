@@ -168,10 +168,6 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
       {.option = "--rollouts", .stored = number(c.rollouts), .asked = number(o.rollouts)},
       {.option = "--baseline", .stored = on_off(c.leave_one_out), .asked = on_off(o.baseline)},
       {.option = "--entropy-bonus", .stored = number(c.entropy_bonus), .asked = number(o.entropy_bonus)},
-      // auto asks for what it resolves to on this CPU.
-      {.option = "--precision",
-       .stored = agent::to_string(c.precision),
-       .asked = agent::to_string(agent::resolve_precision(agent::parse_precision(o.net.precision)))},
       {.option = "--pretrain-epochs", .stored = number(c.pretrain_epochs), .asked = number(o.pretrain_epochs)},
       {.option = "--seed", .stored = number(c.seed), .asked = o.seed},
       {.option = "--train-limit", .stored = number(c.train_limit), .asked = number(o.train_limit)},
@@ -191,6 +187,28 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
       throw InputError(o.world + ": differs from the world the run at " + run +
                        " was trained on (a resumed run keeps its world; omit WORLD or start a new run)");
   }
+}
+
+// The precision a resumed run continues in. A run continues in its own precision, bit for bit,
+// except a bf16 run on a CPU without native bf16, where bf16 would be emulated several times
+// slower (and trains differently): that needs --precision, fp32 to continue in fp32 (no longer bit
+// for bit) or bf16 to continue emulated. --precision may always change it; auto is this CPU's.
+std::optional<agent::Precision> resume_precision(const CLI::App& cmd, const TrainOptions& o,
+                                                 const learn::TrainConfig& c, const std::string& run) {
+  if (cmd.get_option("--precision")->count() > 0) {
+    const agent::Precision asked = agent::resolve_precision(agent::parse_precision(o.net.precision));
+    if (asked != c.precision)
+      fmt::print("precision {} -> {} from the next batch on (the continuation is not bit for bit what {} gave)\n",
+                 agent::to_string(c.precision), agent::to_string(asked), agent::to_string(c.precision));
+    return asked;
+  }
+  if (c.precision == agent::Precision::BFloat16 && !agent::native_bf16().any())
+    throw InputError(fmt::format(
+        "--precision: the run at {} trains in bf16, which this CPU has no native instructions for (emulated, "
+        "several times slower); resume with --precision fp32 to continue in fp32 (not bit for bit), or "
+        "--precision bf16 to continue emulated",
+        run));
+  return std::nullopt;
 }
 
 // The data a resumed run reads: its own folder, or --data (the same data, moved). Every data file
@@ -232,7 +250,8 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
                                   {"torch_threads", trainer.threads()},
                                   {"world_size", trainer.world_size()},
                                   {"epochs", trainer.config().epochs},
-                                  {"learning_rate", trainer.config().learning_rate}});
+                                  {"learning_rate", trainer.config().learning_rate},
+                                  {"precision", agent::to_string(trainer.config().precision)}});
       write_file_atomic(file, first.dump(2) + "\n");
       return;
     } catch (const std::exception&) {
@@ -307,6 +326,7 @@ std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOpt
     if (epochs_given) resume.epochs = epochs;
     resume.data_folder = data_folder;
     if (lr_given) resume.learning_rate = o.lr;
+    resume.precision = resume_precision(cmd, o, info.config, o.resume);
     auto trainer = learn::Trainer::resume(run, threads, resume);
     if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
       fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);

@@ -182,16 +182,22 @@ class Agent:
                 break
         logits = agent.classify(obs)       # (num_envs, D) log-probabilities
 
+    `precision` is the networks' arithmetic here: "auto" (bf16 where this CPU has native bf16,
+    else fp32, whatever the model was trained in), "bf16" or "fp32"; `agent.precision` says which
+    runs, `agent.trained_precision` what the model was trained in.
+
     LibTorch is loaded only when an Agent is made (the scout._scout_agent module)."""
 
-    def __init__(self, model, greedy=False, threads=0):
+    def __init__(self, model, greedy=False, threads=0, precision="auto"):
         if not isinstance(model, (str, os.PathLike)):
             raise TypeError(f"model: expected a path to a model file or run folder, got {model!r}")
         if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) or not 0 <= threads <= 256:
             raise ValueError(f"threads: expected an integer in 0..256 (0: one per core), got {threads!r}")
         from . import _scout_agent  # LibTorch comes with it
-        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads))
+        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads), str(precision))
         self.num_classes = self._core.classes
+        self.precision = self._core.precision
+        self.trained_precision = self._core.trained_precision
 
     @staticmethod
     def _robots(obs, info=None):

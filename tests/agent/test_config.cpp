@@ -2,7 +2,9 @@
 // the field.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -162,12 +164,67 @@ std::set<std::string> cpuinfo_flags() {
   return {};
 }
 
+// Sets an environment variable for one scope, restoring what was there.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    if (value)
+      ::setenv(name, value, 1);
+    else
+      ::unsetenv(name);
+  }
+  ~ScopedEnv() {
+    if (old_)
+      ::setenv(name_, old_->c_str(), 1);
+    else
+      ::unsetenv(name_);
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
 TEST(Precision, NativeBf16AgreesWithProcCpuinfo) {
   const std::set<std::string> flags = cpuinfo_flags();
   if (flags.empty()) GTEST_SKIP() << "no flags in /proc/cpuinfo (not an x86 Linux machine)";
+  // Without a oneDNN cap, what the CPU has is what this process may use.
+  const ScopedEnv no_cap("ONEDNN_MAX_CPU_ISA", nullptr), no_old_cap("DNNL_MAX_CPU_ISA", nullptr);
   const NativeBf16 cpu = native_bf16();
   EXPECT_EQ(cpu.avx512_bf16, flags.count("avx512_bf16") == 1);
   EXPECT_EQ(cpu.amx_bf16, flags.count("amx_bf16") == 1);
+  EXPECT_EQ(cpu.capped_by, "");
+}
+
+// Auto never picks emulated bf16: a oneDNN cap below AVX512_CORE_BF16 (the stand-in for a CPU
+// without native bf16) leaves none, whatever this CPU has, and the note names the cap; a cap at
+// AVX512_CORE_BF16 keeps AVX-512 BF16 but not AMX; ALL changes nothing.
+TEST(Precision, AutoNeverPicksBf16WhereOneDnnMayNotUseIt) {
+  const NativeBf16 uncapped = [] {
+    const ScopedEnv no_cap("ONEDNN_MAX_CPU_ISA", nullptr), no_old_cap("DNNL_MAX_CPU_ISA", nullptr);
+    return native_bf16();
+  }();
+  for (const char* variable : {"ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA"}) {
+    const ScopedEnv no_cap("ONEDNN_MAX_CPU_ISA", nullptr), no_old_cap("DNNL_MAX_CPU_ISA", nullptr);
+    for (const char* cap : {"AVX2", "avx2", "SSE41", "AVX512_CORE", "AVX512_CORE_VNNI"}) {
+      const ScopedEnv capped(variable, cap);
+      EXPECT_FALSE(native_bf16().any()) << variable << "=" << cap;
+      EXPECT_EQ(resolve_precision(Precision::Auto), Precision::Float32) << variable << "=" << cap;
+      const std::string note = auto_precision_note();
+      EXPECT_EQ(note.rfind("precision: fp32 (", 0), 0u) << note;
+      if (uncapped.any()) {
+        EXPECT_NE(note.find(std::string(variable) + "=" + cap), std::string::npos) << note;
+      }
+    }
+    const ScopedEnv bf16_cap(variable, "AVX512_CORE_BF16");
+    EXPECT_EQ(native_bf16().avx512_bf16, uncapped.avx512_bf16);
+    EXPECT_FALSE(native_bf16().amx_bf16);
+    const ScopedEnv all(variable, "ALL");
+    EXPECT_EQ(native_bf16().any(), uncapped.any());
+  }
 }
 
 }  // namespace

@@ -71,11 +71,11 @@ struct Result {
   std::string out, err;
 };
 
-// Runs `scout ARGS` with stdout and stderr captured apart.
-inline Result scout(const std::string& args, const fs::path& scratch) {
+// Runs `scout ARGS` with stdout and stderr captured apart; `environment`: "NAME=VALUE ..." for it.
+inline Result scout(const std::string& args, const fs::path& scratch, const std::string& environment = "") {
   const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-  const std::string command =
-      std::string(SCOUT_BINARY) + " " + args + " > '" + out.string() + "' 2> '" + err.string() + "'";
+  const std::string command = (environment.empty() ? "" : "env " + environment + " ") + std::string(SCOUT_BINARY) +
+                              " " + args + " > '" + out.string() + "' 2> '" + err.string() + "'";
   Result r;
   const int raw = std::system(command.c_str());
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -118,7 +118,9 @@ class TrainCli : public ::testing::Test {
   std::string path(const std::string& name) const { return (local_.path() / name).string(); }
   static std::string world() { return (temp_->path() / "world.yaml").string(); }
   static std::string base() { return (temp_->path() / "base").string(); }
-  Result run(const std::string& args) const { return scout(args, local_.path()); }
+  Result run(const std::string& args, const std::string& environment = "") const {
+    return scout(args, local_.path(), environment);
+  }
 
   // A copy of the finished base run.
   std::string copy_of_base(const std::string& name) const {

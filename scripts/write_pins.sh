@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Rewrites the fp32 pins (tests/learn/pins/trainer-fp32.txt: the short training run's weights
+# digest; tests/tools/golden/FAMILY/: the pinned evaluation) for the families of fp32 kernels this
+# machine can run: its own, and on a CPU with AVX-512 also "avx2" through the stand-in for an
+# AVX2-only CPU (oneDNN and ATen capped to AVX2, which reproduces an AVX2-only EPYC bit for bit).
+# Run it after a change that is meant to change fp32 results, and commit the pins with the change
+# saying why. Needs a Release build in build/ (./scripts/setup.sh).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cmake --build build -j"$(nproc)" --target learn_tests tools_tests scout
+pins='TrainerPin\.|TrainerGradientHook\.AnIdentityHook|EvalCommand\.ThePinnedReport'
+run() {  # ENV...: the pin tests in write mode, then again comparing
+  env "$@" SCOUT_WRITE_PINS=1 ctest --test-dir build -R "$pins" --no-tests=error --output-on-failure
+  env "$@" ctest --test-dir build -R "$pins" --no-tests=error --output-on-failure
+}
+run
+if grep -qw avx512f /proc/cpuinfo; then
+  run ONEDNN_MAX_CPU_ISA=AVX2 ATEN_CPU_CAPABILITY=avx2
+fi
+git status --short tests/learn/pins tests/tools/golden
