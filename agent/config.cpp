@@ -84,6 +84,23 @@ NativeBf16 native_bf16() {
   return found;
 }
 
+std::string bf16_unavailable() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  // LibTorch sends bf16 convolutions to oneDNN on CPUs with AVX-512 BW, VL and DQ (elsewhere it
+  // emulates them itself); oneDNN runs them only at AVX512_CORE or above.
+  const bool to_onednn =
+      __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+  std::string variable;
+  const std::string cap = onednn_isa_cap(&variable);
+  if (to_onednn && !cap.empty() && cap != "ALL" && cap.rfind("AVX512", 0) != 0 && cap.rfind("AVX10", 0) != 0)
+    return variable +
+           " keeps oneDNN below AVX-512, where it has no bf16 convolutions, and LibTorch sends this "
+           "CPU's bf16 convolutions to oneDNN; unset it, or use fp32";
+#endif
+  return {};
+}
+
 Precision resolve_precision(Precision requested) {
   if (requested != Precision::Auto) return requested;
   return native_bf16().any() ? Precision::BFloat16 : Precision::Float32;

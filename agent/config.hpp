@@ -77,6 +77,9 @@ struct NativeBf16 {
   bool any() const { return amx_bf16 || avx512_bf16; }
 };
 NativeBf16 native_bf16();
+/// Why bf16 cannot run at all in this process ("" where it can, natively or emulated): a oneDNN
+/// cap below AVX-512 on a CPU with AVX-512, as the stand-in for a CPU without native bf16 sets.
+std::string bf16_unavailable();
 /// Auto -> BFloat16 where native_bf16().any(), else Float32; Float32 and BFloat16 unchanged.
 Precision resolve_precision(Precision requested);
 /// What Auto resolves to on this CPU and why, in one line: "precision: bf16 (this CPU has

@@ -28,6 +28,29 @@ std::string NetworkOptions::default_precision() { return agent::to_string(learn:
 
 std::string precision_choices() { return "auto, bf16, fp32"; }
 
+namespace {
+
+// --precision's check: one of the names, and bf16 only where it can run at all.
+CLI::Validator precision_validator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        agent::Precision precision;
+        try {
+          precision = agent::parse_precision(text);
+        } catch (const std::invalid_argument&) {
+          return "expected one of " + precision_choices() + ", got '" + one_line(text) + "'";
+        }
+        if (precision == agent::Precision::BFloat16) {
+          const std::string why = agent::bf16_unavailable();
+          if (!why.empty()) return "bf16: " + why;
+        }
+        return {};
+      },
+      "PRECISION");
+}
+
+}  // namespace
+
 agent::NetworkConfig NetworkOptions::network() const {
   agent::NetworkConfig n;
   n.planner_width = planner_width;
@@ -55,7 +78,7 @@ void add_model_precision_option(CLI::App& cmd, std::string& precision) {
                  "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32, whatever the model was "
                  "trained in) | bf16 | fp32")
       ->capture_default_str()
-      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
+      ->check(precision_validator());
 }
 
 void announce_model_precision(const std::string& requested, agent::Precision trained) {
@@ -92,7 +115,7 @@ void add_network_options(CLI::App& cmd, NetworkOptions& o) {
                  "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 (bfloat16 "
                  "convolutions, fp32 weights and optimizer) | fp32")
       ->capture_default_str()
-      ->check(one_of(agent::parse_precision, precision_choices(), "PRECISION"));
+      ->check(precision_validator());
 }
 
 }  // namespace scout::tools

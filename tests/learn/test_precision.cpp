@@ -106,6 +106,7 @@ class Precision : public ::testing::Test {
 // every classifier variant. Measured while this test was written (random init): goal max |dp|
 // ~1e-5 (784 pixels share the mass), action and classifier ~2e-3, KL below 1e-4.
 TEST_F(Precision, Bf16GivesTheFp32DistributionsToWithinRounding) {
+  if (const std::string why = agent::bf16_unavailable(); !why.empty()) GTEST_SKIP() << "bf16 cannot run here: " << why;
   for (const agent::ClassifierKind kind :
        {agent::ClassifierKind::Paper, agent::ClassifierKind::Strided, agent::ClassifierKind::ResNet18}) {
     agent::NetworkConfig config;
@@ -194,6 +195,7 @@ TEST_F(Precision, Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32) {
 // keeps BatchNorm2d's semantics: batch statistics in training, running averages with momentum
 // 0.1 (unbiased variance), a batch counter, and the running statistics in eval mode.
 TEST_F(Precision, ResNetBatchNormKeepsBatchNorm2dSemantics) {
+  if (const std::string why = agent::bf16_unavailable(); !why.empty()) GTEST_SKIP() << "bf16 cannot run here: " << why;
   agent::NetworkConfig config;
   config.classifier = agent::ClassifierKind::ResNet18;
   config.classifier_width = 8;
@@ -230,6 +232,7 @@ TEST_F(Precision, ResNetBatchNormKeepsBatchNorm2dSemantics) {
 // The guard switches autocast on for bf16 and off for fp32 (also nested inside a bf16 guard),
 // restores what was there when it ends, and leaves fp32 results bit for bit as they were.
 TEST_F(Precision, TheGuardNestsAndRestoresAutocast) {
+  if (const std::string why = agent::bf16_unavailable(); !why.empty()) GTEST_SKIP() << "bf16 cannot run here: " << why;
   agent::NetworkConfig config;
   config.classifier = agent::ClassifierKind::Strided;
   torch::manual_seed(9);

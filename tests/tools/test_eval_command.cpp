@@ -170,8 +170,8 @@ TEST_F(EvalRun, EvalUsesThisCpusPrecisionUnlessTold) {
 }
 
 // A model trained in bf16 (tests/data/mnist-8k-v1.pt) on a CPU without native bf16 (oneDNN capped
-// to AVX2: the stand-in for one) runs in fp32 and says why; bf16 asked for there runs emulated and
-// says that it is slow.
+// to AVX2: the stand-in for one) runs in fp32 and says why. Under the stand-in bf16 cannot run at
+// all (LibTorch sends it to oneDNN, which the cap forbids): asked for, it is refused with one line.
 TEST(EvalCommand, ABf16ModelRunsInFp32WhereBf16IsNotNative) {
   TempDir temp("eval-precision");
   const fs::path source = SCOUT_SOURCE_DIR;
@@ -188,6 +188,15 @@ TEST(EvalCommand, ABf16ModelRunsInFp32WhereBf16IsNotNative) {
       << automatic.output;
   EXPECT_NE(automatic.output.find("the model was trained in bf16"), std::string::npos) << automatic.output;
   const CliResult forced = run_cli(no_native_bf16, args + (temp.path() / "bf16.json").string() + " --precision bf16");
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq")) {
+    EXPECT_EQ(forced.status, 2) << forced.output;
+    EXPECT_NE(forced.output.find("--precision: bf16: ONEDNN_MAX_CPU_ISA=AVX2"), std::string::npos) << forced.output;
+    EXPECT_EQ(forced.output.find('\n'), forced.output.size() - 1) << forced.output;
+    EXPECT_FALSE(fs::exists(temp.path() / "bf16.json"));
+    return;
+  }
+  // A CPU without AVX-512: bf16 runs emulated (LibTorch's own kernels), and says so.
   ASSERT_EQ(forced.status, 0) << forced.output;
   EXPECT_EQ(json::parse(read_text(temp.path() / "bf16.json"))["precision"], "bf16");
   EXPECT_NE(forced.output.find("emulated"), std::string::npos) << forced.output;

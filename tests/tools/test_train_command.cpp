@@ -224,6 +224,8 @@ TEST_F(TrainCli, ResumeExtendsAFinishedSchedule) {
 // CPU) does not silently continue emulated: without --precision it is refused with one line naming
 // the flag; --precision fp32 continues it in fp32 and says so; the manifest records it.
 TEST_F(TrainCli, ABf16RunResumedWithoutNativeBf16NeedsPrecision) {
+  if (const std::string why = scout::agent::bf16_unavailable(); !why.empty())
+    GTEST_SKIP() << "bf16 cannot run here: " << why;
   const char* const no_native_bf16 = "ONEDNN_MAX_CPU_ISA=AVX2 ATEN_CPU_CAPABILITY=avx2";
   const Result trained =
       run("train " + world() + " --out " + path("bf16") + " --epochs 1,0,0 --precision bf16" + kTiny);

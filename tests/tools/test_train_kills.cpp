@@ -1,6 +1,7 @@
 // Hard kills: `scout train` killed with SIGKILL at random moments and at named points (inside a
 // batch, in the middle of a checkpoint write, during validation), resumed each time, ends with
 // the weights and metrics of an uninterrupted run.
+#include <chrono>
 #include <random>
 
 #include "tests/support/train_cli_fixture.hpp"
@@ -41,14 +42,21 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   // 5 minutes is on a long run; fp32 so that nothing depends on the CPU's bf16.
   const std::string options = " --epochs 2,2,2 --baseline --precision fp32" + std::string(kTiny);
   const std::string every = " --checkpoint-every 0.00002";  // 1 ms
+  const auto started = std::chrono::steady_clock::now();
   const Result reference = run("train " + world() + " --out " + path("reference") + options + every);
   ASSERT_EQ(reference.status, 0) << reference.out << reference.err;
+  const double reference_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
 
   std::vector<Kill> schedule = {{"batch:3"},      {"file-write:2"}, {"validation:1"}, {"batch:2"},
                                 {"file-write:5"}, {"validation:2"}, {"file-write:1"}};
-  std::mt19937 random(20261202);  // the random moments, seeded: the same schedule every run
-  std::uniform_int_distribution<int> delay_ms(150, 1200);
-  for (int k = 0; k < 7; ++k) schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", delay_ms(random)});
+  // The random moments, seeded (the same schedule every run), as shares of the uninterrupted run's
+  // time on this machine now, so that they land inside the work however fast the machine is: a
+  // resumed run has less left to do, so the shares stay in its first half.
+  std::mt19937 random(20261202);
+  std::uniform_real_distribution<double> share(0.1, 0.5);
+  for (int k = 0; k < 7; ++k)
+    schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", static_cast<int>(share(random) * reference_ms)});
 
   const std::string killed = path("killed");
   int kills = 0, fresh_starts = 0;
