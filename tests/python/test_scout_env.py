@@ -5,6 +5,7 @@ agent-steps. ctest runs this with PYTHONPATH=build/python, SCOUT_BINARY and SCOU
 import json
 import os
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -55,6 +56,32 @@ def test_the_agent_through_make_vec_is_scout_run_bit_for_bit(tmp_path):
         probabilities = np.exp(logits[i])
         assert np.allclose(probabilities, run["probabilities"], atol=1e-6), (probabilities, run["probabilities"])
         assert int(np.argmax(logits[i])) == run["prediction"]
+
+
+def test_the_agent_runs_in_the_precision_asked_for_as_scout_run_does(tmp_path):
+    # The model was trained in bf16; fp32 asked for runs fp32 and chooses what `scout run
+    # --precision fp32` chooses.
+    n, seed = 8, 4
+    out = tmp_path / "run"
+    subprocess.run([BINARY, "run", WORLD, "--checkpoint", MODEL, "--precision", "fp32", "--seed", str(seed),
+                    "--count", str(n), "--no-images", "--out", str(out)], check=True, capture_output=True)
+    runs = json.loads((out / "trajectory.json").read_text())["runs"]
+    agent = scout.Agent(MODEL, precision="fp32")
+    assert (agent.precision, agent.trained_precision) == ("fp32", "bf16")
+    _, poses, goals, logits = drive(scout.make_vec(WORLD, n, seed=seed), agent, seed)
+    for i, run in enumerate(runs):
+        assert [list(p) for p in poses[1:, i]] == [s["grid_pose"] for s in run["steps"]]
+        assert np.allclose(np.exp(logits[i]), run["probabilities"], atol=1e-6)
+    with pytest.raises(ValueError, match="precision"):
+        scout.Agent(MODEL, precision="fp16")
+
+
+def test_the_agents_auto_precision_is_fp32_where_bf16_is_not_native():
+    # oneDNN capped to AVX2: the stand-in for a CPU without native bf16.
+    env = dict(os.environ, ONEDNN_MAX_CPU_ISA="AVX2", ATEN_CPU_CAPABILITY="avx2")
+    probe = "import scout; a = scout.Agent(%r); print(a.precision, a.trained_precision)" % MODEL
+    result = subprocess.run([sys.executable, "-c", probe], env=env, check=True, capture_output=True, text=True)
+    assert result.stdout.split() == ["fp32", "bf16"], result.stderr
 
 
 def test_observations_match_the_described_spaces_and_are_never_overwritten():
