@@ -41,25 +41,49 @@ Precision parse_precision(const std::string& text) {
 
 namespace {
 
-// oneDNN's ISA cap (ONEDNN_MAX_CPU_ISA, or its older name DNNL_MAX_CPU_ISA), upper-cased; empty when
-// unset. oneDNN never uses an instruction set above it, so bf16 above the cap is emulated.
-std::string onednn_isa_cap(std::string* variable) {
+// What oneDNN may use under each value of its ISA cap (ONEDNN_MAX_CPU_ISA, or its older name
+// DNNL_MAX_CPU_ISA; oneDNN 2.x's names). A value not in the table is no cap: oneDNN ignores it.
+struct IsaCap {
+  const char* name;
+  bool avx512;  // AVX-512 (where oneDNN has bf16 convolutions at all)
+  bool bf16;    // AVX-512 BF16 instructions
+  bool amx;     // AMX tiles
+};
+constexpr IsaCap kIsaCaps[] = {
+    {"SSE41", false, false, false},
+    {"AVX", false, false, false},
+    {"AVX2", false, false, false},
+    {"AVX2_VNNI", false, false, false},
+    {"AVX2_VNNI_2", false, false, false},
+    {"AVX512_MIC", true, false, false},
+    {"AVX512_MIC_4OPS", true, false, false},
+    {"AVX512_CORE", true, false, false},
+    {"AVX512_CORE_VNNI", true, false, false},
+    {"AVX512_CORE_BF16", true, true, false},
+    {"AVX512_CORE_FP16", true, true, false},
+    {"AVX10_1_512", true, true, false},
+    {"AVX512_CORE_AMX", true, true, true},
+    {"AVX512_CORE_AMX_FP16", true, true, true},
+    {"AVX10_1_512_AMX", true, true, true},
+    {"AVX10_1_512_AMX_FP16", true, true, true},
+    {"ALL", true, true, true},
+};
+
+// The cap in effect, or nullptr; `variable` gets "NAME=value" as the user wrote it.
+const IsaCap* onednn_isa_cap(std::string* variable) {
   for (const char* name : {"ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA"}) {
     const char* value = std::getenv(name);
     if (value == nullptr || *value == '\0') continue;
     std::string cap(value);
     for (char& c : cap) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-    if (variable) *variable = std::string(name) + "=" + value;
-    return cap;
+    for (const IsaCap& known : kIsaCaps) {
+      if (cap != known.name) continue;
+      if (variable) *variable = std::string(name) + "=" + value;
+      return &known;
+    }
+    return nullptr;  // oneDNN reads the first variable set, and ignores a value it does not know
   }
-  return {};
-}
-
-bool cap_allows(const std::string& cap, std::initializer_list<const char*> allowing) {
-  if (cap.empty() || cap == "ALL") return true;
-  for (const char* isa : allowing)
-    if (cap == isa) return true;
-  return false;
+  return nullptr;
 }
 
 }  // namespace
@@ -74,13 +98,11 @@ NativeBf16 native_bf16() {
   // The cap is how a CPU with native bf16 stands in for one without (tests, CI, benchmarks): what
   // oneDNN may not use is not native to this process.
   std::string variable;
-  const std::string cap = onednn_isa_cap(&variable);
-  const bool amx_allowed = cap_allows(cap, {"AVX512_CORE_AMX", "AVX512_CORE_AMX_FP16"});
-  const bool avx512_bf16_allowed =
-      amx_allowed || cap_allows(cap, {"AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX10_1_512"});
-  if ((found.amx_bf16 && !amx_allowed) || (found.avx512_bf16 && !avx512_bf16_allowed)) found.capped_by = variable;
-  found.amx_bf16 = found.amx_bf16 && amx_allowed;
-  found.avx512_bf16 = found.avx512_bf16 && avx512_bf16_allowed;
+  if (const IsaCap* cap = onednn_isa_cap(&variable)) {
+    if ((found.amx_bf16 && !cap->amx) || (found.avx512_bf16 && !cap->bf16)) found.capped_by = variable;
+    found.amx_bf16 = found.amx_bf16 && cap->amx;
+    found.avx512_bf16 = found.avx512_bf16 && cap->bf16;
+  }
   return found;
 }
 
@@ -88,12 +110,12 @@ std::string bf16_unavailable() {
 #if defined(__x86_64__) || defined(__i386__)
   __builtin_cpu_init();
   // LibTorch sends bf16 convolutions to oneDNN on CPUs with AVX-512 BW, VL and DQ (elsewhere it
-  // emulates them itself); oneDNN runs them only at AVX512_CORE or above.
+  // emulates them itself); oneDNN runs them only with AVX-512.
   const bool to_onednn =
       __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
   std::string variable;
-  const std::string cap = onednn_isa_cap(&variable);
-  if (to_onednn && !cap.empty() && cap != "ALL" && cap.rfind("AVX512", 0) != 0 && cap.rfind("AVX10", 0) != 0)
+  const IsaCap* cap = onednn_isa_cap(&variable);
+  if (to_onednn && cap && !cap->avx512)
     return variable +
            " keeps oneDNN below AVX-512, where it has no bf16 convolutions, and LibTorch sends this "
            "CPU's bf16 convolutions to oneDNN; unset it, or use fp32";

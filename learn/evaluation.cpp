@@ -286,6 +286,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   report.learned_goals = learned.goals;
   report.learned_actions = learned.actions;
   report.precision = precision;
+  report.trained_precision = state.config.precision;
   report.labels.assign(data.set.labels.begin(), data.set.labels.end());
   report.confusion.assign(classes, std::vector<double>(classes, 0.0));
 
@@ -298,10 +299,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   const long share = end - begin;
   const int passes_per_run = config.agent_only ? 1 : (learned.goals ? 3 : 2);
   EvalProgress progress{
-      .rollouts_total = share * (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)),
-      .runs = runs,
-      .precision = precision,
-      .trained_precision = state.config.precision};
+      .rollouts_total = share * (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)), .runs = runs};
   auto on_batch = [&](int robots) {
     progress.rollouts_done += robots;
     progress.seconds = core::seconds_since(t0);
@@ -339,6 +337,7 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   const torch::Tensor mine = probability_sum.contiguous();
   std::copy_n(mine.data_ptr<double>(), mine.numel(), probability_sums + static_cast<std::size_t>(begin) * classes);
   if (!config.agent_only) {
+    progress.run = 0;
     final_counts[0] = evaluator.full_image_correct(begin, end);
     final_counts[1] = evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy), begin, end).correct;
   }
@@ -391,6 +390,7 @@ std::string report_json(const EvalReport& report) {
   j["seed"] = report.seed;
   j["learned"] = {{"goals", report.learned_goals}, {"actions", report.learned_actions}};
   j["precision"] = agent::to_string(report.precision);
+  j["trained_precision"] = agent::to_string(report.trained_precision);
   j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
   j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
   j["confusion"] = report.confusion;

@@ -19,10 +19,8 @@ namespace scout::learn {
 /// How far an evaluation has got, in rollouts (one digit driven once, by any policy) of this process.
 struct EvalProgress {
   long rollouts_done = 0, rollouts_total = 0;
-  int run = 0, runs = 0;  ///< the stochastic run under way (1-based), of R
+  int run = 0, runs = 0;  ///< the stochastic run under way (1-based), of R; 0: the final greedy run
   double seconds = 0;     ///< since the evaluation started
-  agent::Precision precision = agent::Precision::Float32;
-  agent::Precision trained_precision = agent::Precision::Float32;  ///< what the checkpoint was trained in
 };
 
 struct EvalConfig {
@@ -69,6 +67,7 @@ struct EvalReport {
   bool learned_goals = false;                              ///< the checkpoint's history has a mode (ii) or (iii) epoch
   bool learned_actions = false;                            ///< ... a mode (iii) epoch
   agent::Precision precision = agent::Precision::Float32;  ///< the networks' arithmetic in this evaluation
+  agent::Precision trained_precision = agent::Precision::Float32;  ///< what the checkpoint was trained in
 };
 
 class ProcessGroup;  // learn/distributed.hpp

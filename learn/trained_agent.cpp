@@ -40,6 +40,9 @@ TrainedAgent::~TrainedAgent() = default;
 std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& checkpoint, agent::Precision precision) {
   auto impl = std::make_unique<Impl>();
   impl->precision = agent::resolve_precision(precision);
+  if (impl->precision == agent::Precision::BFloat16) {
+    if (const std::string why = agent::bf16_unavailable(); !why.empty()) throw InputError("precision: bf16: " + why);
+  }
   impl->agent = load_agent(checkpoint, &impl->state);
   if (impl->state.config.network.image_channels != worlds::ImageSet::channels)
     throw InputError(checkpoint.string() + ": network.image_channels: expected " +

@@ -100,26 +100,26 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   }
   const bool leader = !group || group->rank() == 0;
   learn::EvalReport report;
-  // One line on stderr once the inputs are read and the first batch is about to run (what a
-  // caller can wait for before signalling).
+  // Once the inputs are read and the first batch is about to run, one line on stderr (what a caller
+  // can wait for before signalling) and what the networks run in: after the checks, so that a
+  // refusal stays one line.
+  const agent::Precision trained =
+      leader ? learn::read_checkpoint_info(opt.checkpoint).config.precision : agent::Precision::Float32;
   bool started = !leader;
-  const core::StopToken stop([&started, runs = opt.runs] {
+  const core::StopToken stop([&started, &opt, trained] {
     if (!started) {
       started = true;
-      std::fprintf(stderr, "scout eval: evaluating, %d run%s\n", runs, runs == 1 ? "" : "s");
+      std::fprintf(stderr, "scout eval: evaluating, %d run%s\n", opt.runs, opt.runs == 1 ? "" : "s");
+      announce_model_precision(opt.precision, trained);
     }
     return interrupt_token().requested();
   });
-  // The leader's share stands for the whole: every process drives an equal share at the same pace.
-  ProgressLine progress("scout eval", "rollouts");
-  bool announced = !leader;
+  // In a group every process drives an equal share at the same pace: the leader reports its own.
+  ProgressLine progress(group ? "scout eval (rank 0's share)" : "scout eval", "rollouts");
   if (leader)
-    config.on_progress = [&](const learn::EvalProgress& e) {
-      if (!announced) {
-        announced = true;
-        announce_model_precision(opt.precision, e.trained_precision);
-      }
-      progress.update(fmt::format("run {} of {}", e.run, e.runs), e.rollouts_done, e.rollouts_total, e.seconds);
+    config.on_progress = [&progress](const learn::EvalProgress& e) {
+      const std::string what = e.run > 0 ? fmt::format("run {} of {}", e.run, e.runs) : "greedy run";
+      progress.update(what, e.rollouts_done, e.rollouts_total, e.seconds);
     };
   report = learn::evaluate(config, stop, group.get());
   // Nothing is written when a signal arrives before here; after it the files are complete.

@@ -1,7 +1,8 @@
 #pragma once
 // The networks' options that `scout train` and `scout bench train` share: widths, depths, the
-// classifier variant and the arithmetic, with one set of checks. Their defaults are those of a
-// default-constructed agent::NetworkConfig and learn::TrainConfig.
+// classifier variant and the arithmetic, with one set of checks (their defaults are those of a
+// default-constructed agent::NetworkConfig and learn::TrainConfig); and --precision for the
+// commands that run a trained model (run, eval, report), with what each says about it.
 #include <string>
 
 #include "agent/config.hpp"
@@ -27,8 +28,9 @@ struct NetworkOptions {
   agent::NetworkConfig network() const;
   /// The requested arithmetic, `auto` resolved for this CPU.
   agent::Precision arithmetic() const;
-  /// With `auto`: prints what it chose and why, in one line on stderr. Called once the command's
-  /// checks have passed, so that a refusal stays one line.
+  /// With `auto`: prints what it chose and why, in one line on stderr; with bf16 where it is
+  /// emulated, a warning. Called once the command's checks have passed, so that a refusal stays
+  /// one line.
   void announce_precision() const;
   /// learn::TrainConfig's default precision, as --precision spells it.
   static std::string default_precision();
@@ -41,7 +43,7 @@ void add_network_options(CLI::App& cmd, NetworkOptions& o);
 /// is asked for on a CPU that would emulate it.
 void announce_auto_precision(const std::string& requested);
 
-/// --precision's choices and help ("auto (default: ...) | bf16 (...) | fp32"), shared with eval.
+/// --precision's choices, "auto, bf16, fp32" (its messages).
 std::string precision_choices();
 
 /// --precision for the commands that run a trained model (run, eval, report): default auto, this

@@ -31,7 +31,7 @@ void ProgressLine::update(const std::string& what, long done, long total, double
 
 std::string ProgressLine::format(const std::string& command, const std::string& unit, const std::string& what,
                                  long done, long total, double seconds) {
-  std::string line = fmt::format("{}: {}{}{:L} of {:L} {}", command, what, what.empty() ? "" : ": ", done, total, unit);
+  std::string line = fmt::format("{}: {}{}{} of {} {}", command, what, what.empty() ? "" : ": ", done, total, unit);
   if (total > 0) line += fmt::format(" ({} %)", done * 100 / total);
   if (done > 0 && seconds > 0) {
     const double rate = static_cast<double>(done) / seconds;

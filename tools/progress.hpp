@@ -4,8 +4,6 @@
 // looks hung. Stdout keeps only the results.
 #include <string>
 
-#include "core/timing.hpp"
-
 namespace scout::tools {
 
 class ProgressLine {
@@ -17,8 +15,8 @@ class ProgressLine {
   /// the period has passed since the last line (or at the end: done == total).
   void update(const std::string& what, long done, long total, double seconds);
 
-  /// The line update() prints, without its time check: "scout eval: run 3 of 20: 12,000 of 90,000
-  /// digits (13 %), 312 digits/s, about 4 min 30 s left".
+  /// The line update() prints, without its time check: "scout eval: run 3 of 20: 12000 of 90000
+  /// rollouts (13 %), 312 rollouts/s, about 4 min 30 s left".
   static std::string format(const std::string& command, const std::string& unit, const std::string& what, long done,
                             long total, double seconds);
 

@@ -232,10 +232,10 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
       {"patch_px", trained.camera.patch_px}, {"episodes", trained.task.episodes}, {"steps", trained.task.steps}};
   out["seed"] = seed;
   out["points"] = json::array();
-  ProgressLine progress("scout report", "digits");
   int point = 0;
   for (const Point& p : points) {
     ++point;
+    ProgressLine progress("scout report", "rollouts");  // one per point: each evaluation has its own clock
     worlds::World world = trained;
     world.camera.patch_px = p.patch;
     world.task.episodes = p.episodes;
@@ -446,8 +446,8 @@ void report_command(const ReportOptions& opt, const Context& context) {
     config.precision = agent::parse_precision(opt.precision);
     ProgressLine progress("scout report", "rollouts");
     config.on_progress = [&](const learn::EvalProgress& e) {
-      progress.update(fmt::format("evaluating, run {} of {}", e.run, e.runs), e.rollouts_done, e.rollouts_total,
-                      e.seconds);
+      progress.update(e.run > 0 ? fmt::format("evaluating, run {} of {}", e.run, e.runs) : "evaluating, greedy run",
+                      e.rollouts_done, e.rollouts_total, e.seconds);
     };
     const learn::EvalReport r = learn::evaluate(config, interrupt_token());
     eval = eval_document(learn::report_json(r), context.argv, checkpoint, images, labels, 1);

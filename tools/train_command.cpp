@@ -196,18 +196,20 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
 std::optional<agent::Precision> resume_precision(const CLI::App& cmd, const TrainOptions& o,
                                                  const learn::TrainConfig& c, const std::string& run) {
   if (cmd.get_option("--precision")->count() > 0) {
-    const agent::Precision asked = agent::resolve_precision(agent::parse_precision(o.net.precision));
-    if (asked != c.precision)
-      fmt::print("precision {} -> {} from the next batch on (the continuation is not bit for bit what {} gave)\n",
-                 agent::to_string(c.precision), agent::to_string(asked), agent::to_string(c.precision));
-    return asked;
+    announce_auto_precision(o.net.precision);  // also warns when bf16 would be emulated
+    return agent::resolve_precision(agent::parse_precision(o.net.precision));
   }
-  if (c.precision == agent::Precision::BFloat16 && !agent::native_bf16().any())
+  const agent::NativeBf16 cpu = agent::native_bf16();
+  if (c.precision == agent::Precision::BFloat16 && !cpu.any()) {
+    const std::string why =
+        cpu.capped_by.empty() ? "this CPU has no native bf16 instructions" : cpu.capped_by + " leaves no native bf16";
+    const std::string emulated =
+        agent::bf16_unavailable().empty() ? ", or --precision bf16 to continue emulated (several times slower)" : "";
     throw InputError(fmt::format(
-        "--precision: the run at {} trains in bf16, which this CPU has no native instructions for (emulated, "
-        "several times slower); resume with --precision fp32 to continue in fp32 (not bit for bit), or "
-        "--precision bf16 to continue emulated",
-        run));
+        "--precision: the run at {} trains in bf16 and {}; resume with --precision fp32 to continue in fp32 (not "
+        "bit for bit){}",
+        run, why, emulated));
+  }
   return std::nullopt;
 }
 
@@ -330,6 +332,10 @@ std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOpt
     auto trainer = learn::Trainer::resume(run, threads, resume);
     if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
       fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
+    if (resume.precision && *resume.precision != info.config.precision && !trainer->finished())
+      fmt::print("precision {} -> {} from the next batch on (not bit for bit what {} would give)\n",
+                 agent::to_string(info.config.precision), agent::to_string(*resume.precision),
+                 agent::to_string(info.config.precision));
     return trainer;
   }
   const learn::TrainConfig config = new_run_config(o, epochs);

@@ -224,6 +224,10 @@ TEST(Precision, AutoNeverPicksBf16WhereOneDnnMayNotUseIt) {
     EXPECT_FALSE(native_bf16().amx_bf16);
     const ScopedEnv all(variable, "ALL");
     EXPECT_EQ(native_bf16().any(), uncapped.any());
+    // oneDNN ignores a value it does not know, and so does auto.
+    const ScopedEnv typo(variable, "AVX3");
+    EXPECT_EQ(native_bf16().any(), uncapped.any());
+    EXPECT_EQ(native_bf16().capped_by, "");
   }
 }
 

@@ -2,6 +2,7 @@
 // their usage up the hierarchy, and SCOUT_MEMORY_LIMIT, the smallest winning and named; files as
 // the kernel writes them, in a fake /proc and /sys/fs/cgroup.
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <stdlib.h>
 
 #include <fstream>
@@ -118,6 +119,26 @@ TEST(FormatBytes, PicksAReadableUnit) {
   EXPECT_EQ(format_bytes(512), "512 bytes");
   EXPECT_EQ(format_bytes(3 * 1024 * 1024 + 300 * 1024), "3.3 MiB");
   EXPECT_EQ(format_bytes(41 * kGiB + kGiB / 4), "41.2 GiB");
+}
+
+// After keep_freed_memory_for_reuse(), a 64 MiB block (a training step's activations are blocks of
+// this size) comes from the heap, not from a fresh mapping, and freeing it keeps it for the next:
+// glibc's mallinfo2() counts mapped blocks in hblkhd and the heap's size in arena.
+TEST(KeepFreedMemory, LargeBlocksComeFromTheHeapAndStayThereWhenFreed) {
+#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  keep_freed_memory_for_reuse();
+  constexpr std::size_t kBlock = std::size_t{64} << 20;
+  const struct mallinfo2 before = mallinfo2();
+  void* block = std::malloc(kBlock);
+  ASSERT_NE(block, nullptr);
+  static_cast<volatile char*>(block)[kBlock - 1] = 1;
+  const struct mallinfo2 holding = mallinfo2();
+  EXPECT_EQ(holding.hblkhd, before.hblkhd) << "the block was mapped on its own";
+  std::free(block);
+  EXPECT_GE(mallinfo2().arena, holding.arena) << "the heap was trimmed when the block was freed";
+#else
+  GTEST_SKIP() << "glibc's allocator only (a sanitizer's allocator ignores mallopt)";
+#endif
 }
 
 }  // namespace
