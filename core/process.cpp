@@ -14,7 +14,9 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <stdexcept>
 #include <string>
+#include <string_view>
 #include <system_error>
 #include <vector>
 
@@ -75,33 +77,83 @@ std::string last_output_line(const fs::path& log) {
   return line;
 }
 
+namespace {
+
+// "KEY=VALUE" strings: this process's environment with `overrides` set on top.
+std::vector<std::string> child_environment(const std::vector<std::pair<std::string, std::string>>& overrides) {
+  std::vector<std::string> out;
+  for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
+    const std::string_view entry(*e);
+    const std::string_view key = entry.substr(0, entry.find('='));
+    bool replaced = false;
+    for (const auto& [name, value] : overrides) replaced = replaced || key == name;
+    if (!replaced) out.emplace_back(entry);
+  }
+  for (const auto& [name, value] : overrides) out.push_back(name + "=" + value);
+  return out;
+}
+
+std::vector<char*> pointers(std::vector<std::string>& strings) {
+  std::vector<char*> out;
+  for (std::string& s : strings) out.push_back(s.data());
+  out.push_back(nullptr);
+  return out;
+}
+
+// posix_spawn's result: 0, or the errno why the child could not be started.
+int start_child(const ChildSpec& spec, pid_t& pid) {
+  if (spec.args.empty()) throw std::invalid_argument("spawn_child: an empty argument vector");
+  std::vector<std::string> args = spec.args, environment = child_environment(spec.environment);
+  std::vector<char*> argv = pointers(args), envp = pointers(environment);
+  // Absolute, since the child changes to `cwd` before the open would otherwise be resolved.
+  std::optional<std::string> log;
+  if (spec.output_log) {
+    std::error_code ec;
+    const fs::path absolute = fs::absolute(*spec.output_log, ec);
+    log = (ec ? *spec.output_log : absolute).string();
+  }
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  if (log) {
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log->c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  }
+  if (spec.cwd) posix_spawn_file_actions_addchdir_np(&actions, spec.cwd->c_str());
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  if (spec.signal_mask) {
+    posix_spawnattr_setsigmask(&attributes, &*spec.signal_mask);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK);
+  }
+  const int rc = spec.executable.empty()
+                     ? posix_spawnp(&pid, argv[0], &actions, &attributes, argv.data(), envp.data())
+                     : posix_spawn(&pid, spec.executable.c_str(), &actions, &attributes, argv.data(), envp.data());
+  posix_spawnattr_destroy(&attributes);
+  posix_spawn_file_actions_destroy(&actions);
+  return rc;
+}
+
+}  // namespace
+
+pid_t spawn_child(const ChildSpec& spec) {
+  pid_t pid = 0;
+  if (const int rc = start_child(spec, pid); rc != 0)
+    throw InputError(fmt::format("cannot run {}: {}", spec.args[0], std::strerror(rc)));
+  return pid;
+}
+
 // (process.hpp) Runs a program found on PATH with an argument vector (no shell, so nothing is re-parsed) in
 // `cwd`. Its stdout and stderr both go to `log` (npm prints the tarball name on stdout and its
 // "npm ERR!" lines on stderr), never to the user's terminal: a failure is reported as one line
 // that quotes the last line of the log.
 ProgramResult run_program(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& log) {
-  std::vector<char*> argv;
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));  // posix_spawn's API
-  argv.push_back(nullptr);
-
-  // Absolute, since the child changes to `cwd` before the open would otherwise be resolved.
-  std::error_code ec;
-  const fs::path log_file = fs::absolute(log, ec);
   ProgramResult result;
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, (ec ? log : log_file).c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                   0600);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-  posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
   pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) {
+  if (const int rc = start_child({.args = args, .cwd = cwd, .output_log = log}, pid); rc != 0) {
     result.run_error = std::strerror(rc);
     return result;
   }
-
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
     if (errno != EINTR) {

@@ -1,8 +1,15 @@
 #pragma once
-// Running another program (npm, tar, the report's plotting script) without a shell, its output
-// kept in a log file and quoted in one-line errors; a free local port for the processes of a group.
+// Starting other programs — npm, tar, the report's plotting script, the ranks of `--nproc` — through
+// one spawner (posix_spawn: no shell, and nothing runs in the child between fork and exec, which
+// matters once threads exist); output kept in a log file and quoted in one-line errors; a free
+// local port for the processes of a group.
+#include <signal.h>
+#include <sys/types.h>
+
 #include <filesystem>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace scout::core {
@@ -18,6 +25,21 @@ struct ProgramResult {
   /// "(exit 1): <its last line>", "(killed by signal 9)", "(cannot run npm: No such file or directory)".
   std::string describe(const std::string& program) const;
 };
+
+/// What to start. Everything the child gets is built here, before the spawn.
+struct ChildSpec {
+  std::vector<std::string> args = {};  ///< the argument vector; args[0] is looked up on PATH unless `executable` is set
+  std::filesystem::path executable = {};  ///< the file to run (e.g. /proc/self/exe); empty: args[0] on PATH
+  /// Variables set (or replaced) on top of this process's environment.
+  std::vector<std::pair<std::string, std::string>> environment = {};
+  std::optional<std::filesystem::path> cwd = {};         ///< nullopt: this process's
+  std::optional<std::filesystem::path> output_log = {};  ///< stdout and stderr both go here; nullopt: inherited
+  std::optional<sigset_t> signal_mask = {};              ///< the child's blocked signals; nullopt: inherited
+};
+
+/// Starts a child as `spec` says and returns its pid without waiting. Throws InputError with
+/// "cannot run <program>: <reason>" when it cannot be started (not found, not executable).
+pid_t spawn_child(const ChildSpec& spec);
 
 /// Runs args[0] (found on PATH) with the argument vector `args` (no shell, so nothing is
 /// re-parsed) in `cwd`. Its stdout and stderr both go to `log`, never to the user's terminal.

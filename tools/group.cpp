@@ -91,8 +91,9 @@ std::optional<int> launch_local_group(const GroupFlags& flags, const Context& co
     throw InputError(std::string("--nproc: ") + e.what());
   }
   const std::vector<std::string> command = rank_command(context.argv);
-  // The children inherit a blocked SIGINT/SIGTERM mask only until exec: they restore it, and the
-  // parent takes the signals synchronously to forward them.
+  // The parent blocks SIGINT/SIGTERM to take them synchronously and forward them; the children
+  // start with the mask this process had before (posix_spawn sets it, nothing runs between fork
+  // and exec).
   sigset_t forwarded, previous;
   sigemptyset(&forwarded);
   sigaddset(&forwarded, SIGINT);
@@ -100,28 +101,22 @@ std::optional<int> launch_local_group(const GroupFlags& flags, const Context& co
   sigprocmask(SIG_BLOCK, &forwarded, &previous);
   std::vector<pid_t> children;
   for (int rank = 0; rank < flags.nproc; ++rank) {
-    const pid_t pid = fork();
-    if (pid < 0) {
+    const std::string r = std::to_string(rank), n = std::to_string(flags.nproc);
+    try {
+      children.push_back(core::spawn_child({.args = command,
+                                            .executable = "/proc/self/exe",
+                                            .environment = {{"RANK", r},
+                                                            {"WORLD_SIZE", n},
+                                                            {"LOCAL_RANK", r},
+                                                            {"LOCAL_WORLD_SIZE", n},
+                                                            {"MASTER_ADDR", "127.0.0.1"},
+                                                            {"MASTER_PORT", std::to_string(port)}},
+                                            .signal_mask = previous}));
+    } catch (const InputError& e) {
       for (pid_t c : children) kill(c, SIGTERM);
       sigprocmask(SIG_SETMASK, &previous, nullptr);
-      throw InputError(std::string("--nproc: cannot start a process: ") + std::strerror(errno));
+      throw InputError(fmt::format("--nproc: rank {}: {}", rank, e.what()));
     }
-    if (pid == 0) {
-      sigprocmask(SIG_SETMASK, &previous, nullptr);
-      setenv("RANK", std::to_string(rank).c_str(), 1);
-      setenv("WORLD_SIZE", std::to_string(flags.nproc).c_str(), 1);
-      setenv("LOCAL_RANK", std::to_string(rank).c_str(), 1);
-      setenv("LOCAL_WORLD_SIZE", std::to_string(flags.nproc).c_str(), 1);
-      setenv("MASTER_ADDR", "127.0.0.1", 1);
-      setenv("MASTER_PORT", std::to_string(port).c_str(), 1);
-      std::vector<char*> args;
-      for (const std::string& a : command) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      execv("/proc/self/exe", args.data());
-      std::fprintf(stderr, "scout: rank %d: error: cannot start: %s\n", rank, std::strerror(errno));
-      _exit(1);
-    }
-    children.push_back(pid);
   }
   std::vector<std::optional<int>> status(children.size());
   std::size_t running = children.size();
