@@ -14,7 +14,8 @@ namespace scout::env {
 
 namespace fs = std::filesystem;
 
-VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs), reward_(config.reward) {
+VectorEnv::VectorEnv(const VectorEnvConfig& config)
+    : num_envs_(static_cast<int>(config.num_envs)), reward_(config.reward), autoreset_(config.autoreset) {
   if (config.num_envs < 1 || config.num_envs > kMaxEnvs)
     throw InputError(
         fmt::format("num_envs: expected an integer in 1..{} (the camera's batch), got {}", kMaxEnvs, config.num_envs));
@@ -46,6 +47,8 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config) : num_envs_(config.num_envs)
   } catch (const std::runtime_error& e) {
     throw InputError(std::string("the camera cannot start: ") + one_line(e.what()));
   }
+  sequence_.assign(num_envs_, nullptr);
+  stride_.assign(num_envs_, static_cast<std::uint64_t>(num_envs_));
   run_.resize(num_envs_);
   planned_.resize(num_envs_);
   done_.assign(num_envs_, 0);
@@ -63,7 +66,7 @@ void VectorEnv::plan(std::span<const int> robots) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   for (std::size_t k = 0; k < robots.size(); ++k) {
     const int i = robots[k];
-    planned_[i] = sequence_->run(run_[i]);
+    planned_[i] = sequence_[i]->run(run_[i]);
     std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * k);
     starts_[k] = planned_[i].start;
     done_[i] = 0;
@@ -71,18 +74,59 @@ void VectorEnv::plan(std::span<const int> robots) {
   }
 }
 
+// The run sequence of `seed`, shared by the robots that use it (a sequence is a function of its seed).
+const RunSequence* VectorEnv::sequence(std::uint64_t seed) {
+  std::unique_ptr<RunSequence>& s = sequences_[seed];
+  if (!s) s = std::make_unique<RunSequence>(world_, frame_, floors_.size(), seed);
+  return s.get();
+}
+
 void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& out) {
-  if (seed || !sequence_) {
-    if (seed) seed_ = *seed;
-    sequence_ = std::make_unique<RunSequence>(world_, frame_, floors_.size(), seed_);
-    for (int i = 0; i < num_envs_; ++i) run_[i] = static_cast<std::uint64_t>(i);
-  } else {
-    for (int i = 0; i < num_envs_; ++i) run_[i] += static_cast<std::uint64_t>(num_envs_);
+  reset(VectorReset{.seed = seed}, out);
+}
+
+void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
+  const auto n = static_cast<std::size_t>(num_envs_);
+  if (!which.mask.empty() && which.mask.size() != n)
+    throw InputError(fmt::format("reset_mask: expected {} flags (one per robot), got {}", n, which.mask.size()));
+  if (!which.robot_seeds.empty() && which.robot_seeds.size() != n)
+    throw InputError(fmt::format("seed: expected one seed or a list of {} (one per robot), got a list of {}", n,
+                                 which.robot_seeds.size()));
+  if (which.seed && !which.robot_seeds.empty())
+    throw InputError("seed: expected one seed or a list, not both");
+  std::vector<int> robots;
+  for (int i = 0; i < num_envs_; ++i)
+    if (which.mask.empty() || which.mask[i]) robots.push_back(i);
+  if (robots.empty()) throw InputError("reset_mask: expected at least one robot to reset");
+  const bool first = sequence_[0] == nullptr;
+  if (first && robots.size() != n) throw InputError("reset_mask: the first reset starts every robot");
+  if (which.seed) seed_ = *which.seed;
+  for (const int i : robots) {
+    const std::optional<std::uint64_t> own = which.robot_seeds.empty() ? std::nullopt : which.robot_seeds[i];
+    if (own) {  // its own sequence, from its first run
+      sequence_[i] = sequence(*own);
+      stride_[i] = 1;
+      run_[i] = 0;
+    } else if (which.seed || !sequence_[i]) {  // the batch's sequence, dealt out
+      sequence_[i] = sequence(seed_);
+      stride_[i] = n;
+      run_[i] = static_cast<std::uint64_t>(i);
+    } else {  // its next run
+      run_[i] += stride_[i];
+    }
   }
-  std::vector<int> all(num_envs_);
-  std::iota(all.begin(), all.end(), 0);
-  plan(all);
-  env_->reset(floor_bytes_, starts_);
+  std::vector<const RunSequence*> used(sequence_);  // drop the sequences no robot runs any more
+  std::sort(used.begin(), used.end());
+  std::erase_if(sequences_,
+                [&](const auto& entry) { return !std::binary_search(used.begin(), used.end(), entry.second.get()); });
+  plan(robots);
+  if (robots.size() == n) {
+    env_->reset(floor_bytes_, starts_);
+  } else {
+    const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+    env_->reset_robots(robots, std::span(floor_bytes_.data(), area * robots.size()),
+                       std::span(starts_.data(), robots.size()));
+  }
   if (out.reward) std::fill_n(out.reward, num_envs_, 0.0f);
   if (out.terminated) std::fill_n(out.terminated, num_envs_, 0);
   if (out.truncated) std::fill_n(out.truncated, num_envs_, 0);
@@ -92,7 +136,7 @@ void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& ou
 // Copies the action (so that what is checked is what is used, whoever owns the caller's
 // buffers) and checks the copy.
 void VectorEnv::take(const VectorAction& action) {
-  if (!sequence_) throw InputError("step: call reset first");
+  if (!sequence_[0]) throw InputError("step: call reset first");
   if (static_cast<int>(action.move.size()) != num_envs_)
     throw InputError(
         fmt::format("action['move']: expected {} moves (one per robot), got {}", num_envs_, action.move.size()));
@@ -120,6 +164,10 @@ void VectorEnv::take(const VectorAction& action) {
         throw InputError(fmt::format("action['goal'][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,
                                      frame_.width_px, frame_.height_px, goal_[2 * i], goal_[2 * i + 1]));
   }
+  if (!autoreset_)
+    for (int i = 0; i < num_envs_; ++i)
+      if (done_[i])
+        throw InputError(fmt::format("step: robot {}'s run has ended: reset it first (autoreset is off)", i));
 }
 
 void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
@@ -130,7 +178,7 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
   for (int i = 0; i < num_envs_; ++i)
     if (done_[i]) {
       reset_now_[i] = 1;
-      run_[i] += static_cast<std::uint64_t>(num_envs_);
+      run_[i] += stride_[i];
       finished_.push_back(i);
     }
   const int s = world_.task.step_px;
@@ -142,16 +190,15 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
     }
     static const grid::Cell kDirections[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
     const grid::Cell d = kDirections[move_[i]];
-    int length = s;
-    if (!goal_.empty()) {  // the protocol's cut: never past the goal on this axis
+    if (!goal_.empty()) {  // the protocol's move: along the move's axis toward the goal, never past it
       const grid::Cell goal(goal_[2 * i], goal_[2 * i + 1]);
-      const int ahead = d.x() != 0 ? (goal.x() - poses[i].x()) * d.x() : (goal.y() - poses[i].y()) * d.y();
-      length = std::clamp(ahead, 0, s);
+      commands_[i] = grid::move_command(poses[i], goal, d.x() != 0 ? grid::Axis::Horizontal : grid::Axis::Vertical, s);
+      continue;
     }
     // A move past the floor's edge stops on the border pixel, where the wall would stop it, without
     // the controller pushing against the wall until its tick limit.
-    const grid::Cell target(std::clamp(poses[i].x() + d.x() * length, 0, frame_.width_px - 1),
-                            std::clamp(poses[i].y() + d.y() * length, 0, frame_.height_px - 1));
+    const grid::Cell target(std::clamp(poses[i].x() + d.x() * s, 0, frame_.width_px - 1),
+                            std::clamp(poses[i].y() + d.y() * s, 0, frame_.height_px - 1));
     commands_[i] = target - poses[i];
   }
   if (!finished_.empty()) {

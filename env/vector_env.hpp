@@ -2,9 +2,11 @@
 /// The Gymnasium-style vector environment behind the Python package (python/): num_envs robots
 /// over the digits of one split, each moved one step at a time by an integer action, with
 /// observations written into caller-owned arrays, rewards from the caller's predictions, and
-/// Gymnasium's NEXT_STEP autoreset. Torch-free; the Python layer only wraps it.
+/// Gymnasium's NEXT_STEP autoreset (or none: DISABLED, with partial resets). Every action and
+/// reset is checked here, once; the Python layer only converts and wraps. Torch-free.
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -23,12 +25,29 @@ enum class Reward { Dense, Sparse };
 
 struct VectorEnvConfig {
   std::filesystem::path world_file;
-  int num_envs = 1;
+  std::int64_t num_envs = 1;  ///< 1 .. VectorEnv::kMaxEnvs
   std::optional<std::uint64_t> seed;   ///< default: the world file's `seed`
   std::optional<worlds::Split> split;  ///< default: the world file's `floor.split`
   std::filesystem::path data_root;     ///< empty: worlds::default_data_root()
   Reward reward = Reward::Dense;
   bool force = false;  ///< start even when the memory estimate exceeds what is available
+  /// true: Gymnasium's NEXT_STEP (the step after a run ends starts the robot's next run); false:
+  /// DISABLED (a robot whose run ended waits for a reset that names it in VectorReset::mask).
+  bool autoreset = true;
+};
+
+/// Which robots a reset starts on a new run, and which run.
+struct VectorReset {
+  /// Empty: every robot; else num_envs flags, 1 where the robot starts a new run (Gymnasium's
+  /// reset_mask; the first reset starts every robot).
+  std::vector<std::uint8_t> mask = {};
+  /// One sequence for the batch: robot i runs run i of this seed's sequence, then i + num_envs,
+  /// i + 2 num_envs, ... (`scout run --seed s --count K`'s run k is robot k mod N's).
+  std::optional<std::uint64_t> seed = {};
+  /// Or one seed per robot (num_envs entries): robot i runs runs 0, 1, 2, ... of its own seed's
+  /// sequence (a single environment reset with that seed does the same); an empty entry keeps
+  /// the robot's sequence. Not with `seed`.
+  std::vector<std::optional<std::uint64_t>> robot_seeds = {};
 };
 
 /// Where reset and step write: caller-owned, C-contiguous arrays of num_envs rows each. The
@@ -64,7 +83,7 @@ struct VectorAction {
 class VectorEnv {
  public:
   /// The most robots one environment holds (the camera's batch).
-  static constexpr int kMaxEnvs = 4096;
+  static constexpr int kMaxEnvs = kMaxRobots;
 
   /// Loads the world and its floors. Throws InputError (one line) for a bad world, split or data.
   explicit VectorEnv(const VectorEnvConfig& config);
@@ -85,13 +104,22 @@ class VectorEnv {
   /// of that seed's sequence (as `scout run --seed s --count num_envs` does); without one, each
   /// robot takes its next run (the first reset uses the configured or the world's seed).
   void reset(std::optional<std::uint64_t> seed, const VectorOutputs& out);
+  /// Starts the robots `which` names on a new run (see VectorReset); the others keep theirs. The
+  /// outputs describe every robot. Throws InputError (one line) for a bad mask or seed list.
+  void reset(const VectorReset& which, const VectorOutputs& out);
   /// One move per robot. A robot whose episode ended on the previous step starts its next run
-  /// instead (its action is ignored, its reward is 0). Throws InputError naming the bad entry of
-  /// `action` before anything moves.
+  /// instead (its action is ignored, its reward is 0); without autoreset such a step is refused.
+  /// Throws InputError naming the bad entry of `action` before anything moves.
   void step(const VectorAction& action, const VectorOutputs& out);
+  /// 1 where the robot's run ended on the last step (it starts its next run with the next step,
+  /// or, without autoreset, waits for a reset).
+  std::span<const std::uint8_t> ended() const { return done_; }
+  /// The digit robot i's current run drives over (its index in the split).
+  int floor_index(int robot) const { return planned_[robot].index; }
 
  private:
   void take(const VectorAction& action);
+  const RunSequence* sequence(std::uint64_t seed);
   void plan(std::span<const int> robots);
   void write(const VectorOutputs& out) const;
 
@@ -103,8 +131,11 @@ class VectorEnv {
   int moves_;
   Reward reward_;
   std::uint64_t seed_;
-  std::unique_ptr<RunSequence> sequence_;
+  bool autoreset_;
+  std::map<std::uint64_t, std::unique_ptr<RunSequence>> sequences_;  // by seed, those in use
   std::unique_ptr<BatchEnv> env_;
+  std::vector<const RunSequence*> sequence_;  // each robot's sequence (null before the first reset)
+  std::vector<std::uint64_t> stride_;         // and how far its next run is: num_envs, or 1 (own seed)
   std::vector<std::uint64_t> run_;       // each robot's current run k
   std::vector<PlannedRun> planned_;      // and what it is
   std::vector<std::uint8_t> done_;       // its episode ended on the last step

@@ -1,15 +1,19 @@
-"""Scout from Python: a batched, Gymnasium-style vector environment of robots that drive over
-MNIST floors with the Box2D physics and the OSMesa camera in the loop, and Scout's trained agent.
+"""Scout from Python: a batched vector environment of robots that drive over MNIST floors with the
+Box2D physics and the OSMesa camera in the loop, and Scout's trained agent. Where Gymnasium
+imports, the environments are Gymnasium's own kind and `import scout` registers their ids:
 
-    import scout
-    envs = scout.make_vec("worlds/mnist.yaml", num_envs=240, seed=1)
-    obs, info = envs.reset()
-    obs, reward, terminated, truncated, info = envs.step({"move": moves})
+    import gymnasium, scout
+    envs = gymnasium.make_vec("scout/MNIST-v0", num_envs=64)      # or scout.make_vec("worlds/mnist.yaml", 64)
+    envs = gymnasium.wrappers.vector.RecordEpisodeStatistics(envs)
+    obs, info = envs.reset(seed=1)
+    obs, reward, terminated, truncated, info = envs.step({"move": moves, "prediction": logits})
+    env = gymnasium.make("scout/MNIST-v0")                          # one robot
 
+Without Gymnasium the same calls work on scout.make_vec, with scout.spaces' stand-ins.
 Conventions (README § Python): `move` 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up),
-each a step_px move; an episode ends (terminated) after the world's E x T moves and the next step
-starts that robot's next run, ignoring its action (Gymnasium's NEXT_STEP autoreset). Every array
-returned is new: the next step never overwrites it.
+each a step_px move; an episode (a run) ends (terminated) after the world's E x T moves. Every
+array returned is new: the next step never overwrites it. Arguments and actions are checked once,
+in C++ (scout._scout): a bad one raises ValueError or TypeError with one line.
 """
 import numbers
 import os
@@ -18,132 +22,149 @@ import numpy as np
 
 from . import _scout
 from ._scout import __version__
-
-_MAX_ENVS = 4096  # the camera's batch
+from . import spaces
 from .spaces import Box, Dict, MultiDiscrete, Discrete
 
-__all__ = ["make_vec", "VectorEnv", "Agent", "Box", "Dict", "Discrete", "MultiDiscrete", "__version__"]
+try:
+    import gymnasium
+    from gymnasium.vector import AutoresetMode
+except ImportError:  # Gymnasium is optional: the package works the same without it
+    gymnasium = None
+    AutoresetMode = None
 
-_MOVES = 4
+__all__ = ["make_vec", "VectorEnv", "Env", "Agent", "Box", "Dict", "Discrete", "MultiDiscrete", "WORLDS",
+           "__version__"]
+
+#: The registered ids (scout/<name>) and their world files in the source tree's worlds/.
+WORLDS = {"MNIST-v0": "mnist.yaml", "FashionMNIST-v0": "fashion.yaml"}
+_DEFAULT_WORLD = os.path.join(_scout.source_dir, "worlds", WORLDS["MNIST-v0"])
+_MODES = ("NextStep", "SameStep", "Disabled")
+_METADATA = {"render_modes": ["rgb_array"], "render_fps": 30}
 
 
-def _seed(value, name="seed"):
-    if value is None:
+def _autoreset_mode(value):
+    value = getattr(value, "value", value)  # AutoresetMode or its value
+    if value not in _MODES:
+        raise ValueError(f"autoreset_mode: expected AutoresetMode.NEXT_STEP, SAME_STEP or DISABLED (or "
+                         f"'NextStep', 'SameStep', 'Disabled'), got {value!r}")
+    return value
+
+
+def _render_mode(value):
+    if value not in (None, "rgb_array"):
+        raise ValueError(f"render_mode: expected None or 'rgb_array', got {value!r}")
+    return value
+
+
+def _reset_mask(options, allow_mask):
+    """options: None, {} or (vector envs) {"reset_mask": booleans}; returns the mask or None."""
+    if not options:
         return None
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
-        raise TypeError(f"{name}: expected an integer in [0, 2**64) or None, got {value!r}")
-    value = int(value)
-    if not 0 <= value < 2**64:
-        raise ValueError(f"{name}: expected an integer in [0, 2**64), got {value}")
-    return value
+    if not isinstance(options, dict) or set(options) - ({"reset_mask"} if allow_mask else set()):
+        expected = "None or {'reset_mask': a NumPy array of num_envs booleans}" if allow_mask else "None or {}"
+        raise ValueError(f"options: expected {expected}, got {options!r}")
+    return options.get("reset_mask")
 
 
-def _array(action, key, kinds, shape, dtype):
-    value = np.asarray(action[key])
-    if value.dtype.kind not in kinds:
-        raise TypeError(f"action[{key!r}]: expected {'integers' if 'i' in kinds else 'floats'}, "
-                        f"got dtype {value.dtype}")
-    if value.shape != shape:
-        raise ValueError(f"action[{key!r}]: expected shape {shape}, got {value.shape}")
-    return value
+if gymnasium is not None:
+    _VectorBase, _EnvBase = gymnasium.vector.VectorEnv, gymnasium.Env
+else:
+    class _Base:
+        """What gymnasium.Env and gymnasium.vector.VectorEnv give, for when Gymnasium is not installed."""
+        spec = None
+        render_mode = None
+        closed = False
+        _np_random = None
+
+        @property
+        def np_random(self):
+            if self._np_random is None:
+                self._np_random = np.random.default_rng()
+            return self._np_random
+
+        @np_random.setter
+        def np_random(self, value):
+            self._np_random = value
+
+        @property
+        def unwrapped(self):
+            return self
+
+        def reset(self, *, seed=None, options=None):
+            if isinstance(seed, int):
+                self._np_random = np.random.default_rng(seed)
+
+        def close(self):
+            if not self.closed:
+                self.close_extras()
+                self.closed = True
+
+    _VectorBase = _EnvBase = _Base
 
 
-class VectorEnv:
-    """num_envs robots, each over its own digit of one split (see the module's docstring)."""
+class VectorEnv(_VectorBase):
+    """num_envs robots, each over its own digit of one split (see make_vec). A
+    gymnasium.vector.VectorEnv where Gymnasium imports."""
 
-    metadata = {"autoreset_mode": "NextStep"}
-
-    def __init__(self, world, num_envs, seed=None, split=None, data=None, reward="dense", force=False):
-        if isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, numbers.Integral):
-            raise TypeError(f"num_envs: expected a positive integer, got {num_envs!r}")
-        if not 1 <= int(num_envs) <= _MAX_ENVS:
-            raise ValueError(f"num_envs: expected an integer in 1..{_MAX_ENVS} (the camera's batch), got {num_envs}")
-        if not isinstance(world, (str, os.PathLike)):
-            raise TypeError(f"world: expected a path to a world file, got {world!r}")
-        if split is not None and split not in ("train", "validation", "test"):
-            raise ValueError(f"split: expected 'train', 'validation' or 'test', got {split!r}")
-        if reward not in ("dense", "sparse"):
-            raise ValueError(f"reward: expected 'dense' or 'sparse', got {reward!r}")
-        self._core = _scout.VectorEnvCore(os.fspath(world), int(num_envs), _seed(seed), split,
-                                          None if data is None else os.fspath(data), reward, bool(force))
-        core = self._core
+    def __init__(self, world, num_envs, seed=None, split=None, data=None, reward="dense", force=False,
+                 autoreset_mode="NextStep", render_mode=None):
+        mode = _autoreset_mode(autoreset_mode)
+        self.render_mode = _render_mode(render_mode)
+        self._core = core = _scout.VectorEnvCore(world, num_envs, seed, split, data, reward, force,
+                                                 mode == "NextStep", render_mode is not None)
+        self._same_step = mode == "SameStep"
+        self.metadata = dict(_METADATA, autoreset_mode=AutoresetMode(mode) if AutoresetMode else mode)
         self.num_envs = core.num_envs
         self.num_classes = core.classes
         self.episodes, self.steps, self.step_px = core.episodes, core.steps, core.step_px
-        n, m, h, w = core.num_envs, core.patch_px, core.height, core.width
-        self.single_observation_space = Dict({
-            "patch": Box(0.0, 1.0, (m, m), np.float32),
-            "pose": Box(np.zeros(2, np.int32), np.array([w - 1, h - 1], np.int32), (2,), np.int32),
-            "revealed": Box(0.0, 1.0, (h, w), np.float32),
-            "seen": Box(0, 1, (h, w), np.uint8),
-            "time_step": Box(0, self.episodes * self.steps, (), np.int32),
-        })
-        self.observation_space = Dict({
-            "patch": Box(0.0, 1.0, (n, m, m), np.float32),
-            "pose": Box(np.zeros((n, 2), np.int32), np.tile(np.array([w - 1, h - 1], np.int32), (n, 1)), (n, 2),
-                        np.int32),
-            "revealed": Box(0.0, 1.0, (n, h, w), np.float32),
-            "seen": Box(0, 1, (n, h, w), np.uint8),
-            "time_step": Box(0, self.episodes * self.steps, (n,), np.int32),
-        })
-        single_action = {"move": Discrete(_MOVES)}
-        batch_action = {"move": MultiDiscrete(np.full(n, _MOVES))}
-        if self.num_classes > 0:
-            single_action["prediction"] = Box(-np.inf, np.inf, (self.num_classes,), np.float32)
-            batch_action["prediction"] = Box(-np.inf, np.inf, (n, self.num_classes), np.float32)
-        self.single_action_space = Dict(single_action)
-        self.action_space = Dict(batch_action)
+        (self.single_observation_space, self.single_action_space,
+         self.observation_space, self.action_space) = spaces.describe(core)
 
     def reset(self, seed=None, options=None):
-        """Starts every robot on a new run: with a seed, runs 0 .. num_envs - 1 of that seed (as
-        `scout run --seed SEED --count num_envs`); without, each robot's next run."""
-        if self._core is None:
-            raise ValueError("reset: the environment is closed")
-        if options:
-            raise ValueError(f"options: expected None, got {options!r}")
-        return self._core.reset(_seed(seed))
+        """Starts robots on new runs: with an integer seed, robot i runs run i of that seed's
+        sequence (as `scout run --seed SEED --count num_envs`); with a list of num_envs seeds,
+        robot i runs its own seed's runs 0, 1, 2, ... (what SyncVectorEnv over single envs does);
+        without, each robot its next run. options={"reset_mask": booleans} starts only those robots."""
+        core = self._live("reset")
+        mask = _reset_mask(options, allow_mask=True)
+        if isinstance(seed, int) or seed is None:
+            super().reset(seed=seed)  # np_random
+        return core.reset(seed, mask)
 
-    def step(self, action):
+    def step(self, actions):
         """One move per robot; returns obs, reward, terminated, truncated, info."""
-        if not isinstance(action, dict):
-            raise TypeError(f"action: expected a dict with 'move' (and optionally 'prediction', 'goal'), "
-                            f"got {type(action).__name__}")
-        unknown = set(action) - {"move", "prediction", "goal"}
-        if unknown:
-            raise ValueError(f"action: unknown key(s) {sorted(unknown)}; expected 'move', 'prediction', 'goal'")
-        if "move" not in action:
-            raise ValueError("action: expected a 'move' entry")
-        if self._core is None:
-            raise ValueError("step: the environment is closed")
-        n = self.num_envs
-        move = _array(action, "move", "iu", (n,), np.int32)
-        bad = np.flatnonzero((move < 0) | (move >= _MOVES))
-        if bad.size:
-            i = int(bad[0])
-            raise ValueError(f"action['move'][{i}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {move[i]}")
-        move = np.ascontiguousarray(move, dtype=np.int32)
-        prediction = goal = None
-        if action.get("prediction") is not None:
-            if self.num_classes == 0:
-                raise ValueError("action['prediction']: the floors have no labels to predict")
-            prediction = _array(action, "prediction", "f", (n, self.num_classes), np.float32)
-            too_big = np.flatnonzero(np.isfinite(prediction) & (np.abs(prediction) > np.finfo(np.float32).max))
-            if too_big.size:
-                i, j = divmod(int(too_big[0]), self.num_classes)
-                raise ValueError(f"action['prediction'][{i}][{j}]: expected a logit within float32's range, "
-                                 f"got {prediction[i, j]}")
-            prediction = np.ascontiguousarray(prediction, dtype=np.float32)
-        if action.get("goal") is not None:
-            goal = _array(action, "goal", "iu", (n, 2), np.int32)
-            bad = np.flatnonzero(((goal < 0) | (goal > np.iinfo(np.int32).max)).any(axis=1))
-            if bad.size:
-                i = int(bad[0])
-                raise ValueError(f"action['goal'][{i}]: expected a cell of the floor, got {tuple(goal[i])}")
-            goal = np.ascontiguousarray(goal, dtype=np.int32)
-        return self._core.step(move, prediction, goal)
+        core = self._live("step")
+        if not self._same_step:
+            return core.step(actions)
+        obs, reward, terminated, truncated, info = core.step(actions)
+        if terminated.any():  # SAME_STEP: the finished robots start their next runs now
+            final = obs
+            obs, new_info = core.reset(None, terminated)
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(terminated):
+                final_obs[i] = {k: v[i] for k, v in final.items()}
+            final_info = dict(info)
+            for key in info:
+                final_info["_" + key] = terminated
+            new_info.update(final_obs=final_obs, _final_obs=terminated, final_info=final_info, _final_info=terminated)
+            info = new_info
+        return obs, reward, terminated, truncated, info
 
-    def close(self):
+    def render(self):
+        """Every robot's picture (render_mode="rgb_array"): a tuple of (H, W, 3) uint8 RGB arrays,
+        what `scout run --video` draws after a move."""
+        core = self._live("render")
+        if self.render_mode is None:
+            raise ValueError('render: make the environment with render_mode="rgb_array"')
+        return tuple(core.render(i) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs):
         self._core = None
+
+    def _live(self, what):
+        if self._core is None:
+            raise ValueError(f"{what}: the environment is closed")
+        return self._core
 
     def __enter__(self):
         return self
@@ -156,7 +177,8 @@ class VectorEnv:
         return f"scout.VectorEnv(num_envs={self.num_envs}, classes={self.num_classes})"
 
 
-def make_vec(world, num_envs, seed=None, split=None, data=None, reward="dense", force=False):
+def make_vec(world=_DEFAULT_WORLD, num_envs=1, seed=None, split=None, data=None, reward="dense", force=False,
+             autoreset_mode="NextStep", render_mode=None):
     """A VectorEnv of `num_envs` robots on the world file `world` (e.g. "worlds/mnist.yaml").
 
     seed: the run sequence's seed (default: the world file's); robot i's j-th run is run
@@ -165,8 +187,80 @@ def make_vec(world, num_envs, seed=None, split=None, data=None, reward="dense", 
     reward: "dense" (-cross-entropy of the prediction after every move) or "sparse" (after the
     last move only); 0 where no prediction is given. force: start even when the memory estimate
     (num_envs x the floor's size) exceeds what the machine has available (the smallest of
-    MemAvailable, the cgroup limit and $SCOUT_MEMORY_LIMIT), which is otherwise refused."""
-    return VectorEnv(world, num_envs, seed=seed, split=split, data=data, reward=reward, force=force)
+    MemAvailable, the cgroup limit and $SCOUT_MEMORY_LIMIT), which is otherwise refused.
+    autoreset_mode: Gymnasium's AutoresetMode (or its value): NEXT_STEP (default), SAME_STEP or
+    DISABLED. render_mode: None or "rgb_array"."""
+    return VectorEnv(world, num_envs, seed=seed, split=split, data=data, reward=reward, force=force,
+                     autoreset_mode=autoreset_mode, render_mode=render_mode)
+
+
+def _first(batch, arrays):
+    """Robot 0's entries: 0-d arrays for observations (arrays), NumPy scalars for infos."""
+    return {k: v[0, ...] if arrays else v[0] for k, v in batch.items()}
+
+
+class Env(_EnvBase):
+    """One robot on a world file (a gymnasium.Env where Gymnasium imports; gymnasium.make("scout/
+    MNIST-v0") makes one). reset(seed=s) runs run 0 of seed s's sequence, then reset() runs 1, 2,
+    ...: `scout run --seed s --count K`'s runs, and what make_vec's robot i runs after
+    reset(seed=[..., s, ...]) with s at i. Actions: {"move": 0..3, optional "prediction": (D,)
+    logits, optional "goal": (x, y)}; the episode ends (terminated) after the world's E x T moves
+    and the next step needs a reset."""
+
+    metadata = _METADATA
+
+    def __init__(self, world=_DEFAULT_WORLD, seed=None, split=None, data=None, reward="dense", render_mode=None):
+        self.render_mode = _render_mode(render_mode)
+        self._core = core = _scout.VectorEnvCore(world, 1, seed, split, data, reward, False, False,
+                                                 render_mode is not None)
+        self.num_classes = core.classes
+        self.episodes, self.steps, self.step_px = core.episodes, core.steps, core.step_px
+        self.observation_space, self.action_space, _, _ = spaces.describe(core)
+
+    def reset(self, *, seed=None, options=None):
+        core = self._live("reset")
+        _reset_mask(options, allow_mask=False)
+        super().reset(seed=seed)  # np_random
+        obs, info = core.reset(seed)
+        return _first(obs, True), _first(info, False)
+
+    def step(self, action):
+        core = self._live("step")
+        if isinstance(action, dict):
+            action = {k: None if v is None else np.expand_dims(v, 0) for k, v in action.items()}
+        obs, reward, terminated, truncated, info = core.step(action)
+        return _first(obs, True), float(reward[0]), bool(terminated[0]), bool(truncated[0]), _first(info, False)
+
+    def render(self):
+        """The robot's picture (render_mode="rgb_array"): (H, W, 3) uint8 RGB."""
+        core = self._live("render")
+        if self.render_mode is None:
+            raise ValueError('render: make the environment with render_mode="rgb_array"')
+        return core.render(0)
+
+    def close(self):
+        self._core = None
+
+    def _live(self, what):
+        if self._core is None:
+            raise ValueError(f"{what}: the environment is closed")
+        return self._core
+
+    def __repr__(self):
+        return f"scout.Env(classes={self.num_classes})"
+
+
+def _register():
+    """Registers scout/<name> for every world in WORLDS (once per process)."""
+    for name, world in WORLDS.items():
+        env_id = f"scout/{name}"
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point="scout:Env", vector_entry_point="scout:make_vec",
+                               kwargs={"world": os.path.join(_scout.source_dir, "worlds", world)})
+
+
+if gymnasium is not None:
+    _register()
 
 
 class Agent:
@@ -223,8 +317,8 @@ class Agent:
         if info is not None:
             arrays.update(time_step=get(obs, "obs", "time_step", np.int32, (n,)),
                           policy_seed=get(info, "info", "policy_seed", np.uint64, (n,)),
-                          episode=get(info, "info", "episode", np.int32, (n,)),
-                          episode_start=get(info, "info", "episode_start", bool, (n,)))
+                          episode=get(info, "info", "goal_episode", np.int32, (n,)),
+                          episode_start=get(info, "info", "goal_episode_start", bool, (n,)))
         return arrays
 
     def act(self, obs, info):

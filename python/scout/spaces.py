@@ -1,7 +1,15 @@
-"""Space descriptions with Gymnasium's attribute names (shape, dtype, low, high, n, nvec, spaces,
-contains, sample). Gymnasium itself is not a dependency (Debian 12 does not package it); where it
-is installed, `to_gymnasium()` converts a description into the real thing."""
+"""Scout's spaces. Where Gymnasium imports, they are `gymnasium.spaces` objects (an action's
+optional keys in an `ActionDict`, a `gymnasium.spaces.Dict`); without it, the small classes here
+stand in with Gymnasium's attribute names (shape, dtype, low, high, n, nvec, spaces, contains,
+sample), and `to_gymnasium()` converts them where Gymnasium is installed later."""
 import numpy as np
+
+try:
+    import gymnasium
+except ImportError:  # Gymnasium is optional
+    gymnasium = None
+
+MOVES = 4  # 0 = +x, 1 = -x, 2 = +y, 3 = -y
 
 
 class Box:
@@ -17,6 +25,8 @@ class Box:
         x = np.asarray(x)
         return (x.shape == self.shape and np.can_cast(x.dtype, self.dtype, "same_kind")
                 and bool(np.all(x >= self.low)) and bool(np.all(x <= self.high)))
+
+    __contains__ = contains
 
     def sample(self, rng=None):
         rng = np.random.default_rng(rng)
@@ -46,6 +56,8 @@ class Discrete:
         x = np.asarray(x)
         return x.shape == () and x.dtype.kind in "iu" and 0 <= int(x) < self.n
 
+    __contains__ = contains
+
     def sample(self, rng=None):
         return np.int64(np.random.default_rng(rng).integers(self.n))
 
@@ -69,6 +81,8 @@ class MultiDiscrete:
         x = np.asarray(x)
         return x.shape == self.shape and x.dtype.kind in "iu" and bool(np.all((x >= 0) & (x < self.nvec)))
 
+    __contains__ = contains
+
     def sample(self, rng=None):
         return np.random.default_rng(rng).integers(0, self.nvec).astype(np.int64)
 
@@ -81,10 +95,11 @@ class MultiDiscrete:
 
 
 class Dict:
-    """Named sub-spaces."""
+    """Named sub-spaces; the `optional` ones may be left out of a member."""
 
-    def __init__(self, spaces):
+    def __init__(self, spaces, optional=()):
         self.spaces = dict(spaces)
+        self.optional = tuple(optional)
 
     def __getitem__(self, key):
         return self.spaces[key]
@@ -93,8 +108,10 @@ class Dict:
         return self.spaces.keys()
 
     def contains(self, x):
-        return isinstance(x, dict) and set(x) == set(self.spaces) and all(
-            s.contains(x[k]) for k, s in self.spaces.items())
+        return (isinstance(x, dict) and set(self.spaces) - set(self.optional) <= set(x) <= set(self.spaces)
+                and all(self.spaces[k].contains(v) for k, v in x.items()))
+
+    __contains__ = contains
 
     def sample(self, rng=None):
         rng = np.random.default_rng(rng)
@@ -102,7 +119,84 @@ class Dict:
 
     def to_gymnasium(self):
         import gymnasium
-        return gymnasium.spaces.Dict({k: s.to_gymnasium() for k, s in self.spaces.items()})
+        spaces = {k: s.to_gymnasium() for k, s in self.spaces.items()}
+        return ActionDict(spaces, optional=self.optional) if self.optional else gymnasium.spaces.Dict(spaces)
 
     def __repr__(self):
         return "Dict(" + ", ".join(f"{k!r}: {s!r}" for k, s in self.spaces.items()) + ")"
+
+
+def _batch(space, n):
+    """Scout's own batching (Gymnasium's batch_space where it is installed)."""
+    if isinstance(space, Box):
+        return Box(np.broadcast_to(space.low, (n, *space.shape)), np.broadcast_to(space.high, (n, *space.shape)),
+                   (n, *space.shape), space.dtype)
+    if isinstance(space, Discrete):
+        return MultiDiscrete(np.full(n, space.n))
+    if isinstance(space, MultiDiscrete):
+        return MultiDiscrete(np.broadcast_to(space.nvec, (n, *space.shape)))
+    return Dict({k: _batch(s, n) for k, s in space.spaces.items()}, optional=space.optional)
+
+
+if gymnasium is not None:
+    from gymnasium.vector.utils import batch_space, iterate
+
+    class ActionDict(gymnasium.spaces.Dict):
+        """A gymnasium.spaces.Dict whose `optional` keys may be left out of an action: the other keys
+        are required. `sample()` gives every key; batch_space and iterate keep the optional keys."""
+
+        def __init__(self, spaces=None, optional=(), seed=None, **kwargs):
+            super().__init__(spaces, seed=seed, **kwargs)
+            self.optional = tuple(optional)
+
+        def contains(self, x):
+            return (isinstance(x, dict) and set(self.spaces) - set(self.optional) <= x.keys() <= self.spaces.keys()
+                    and all(x[k] in self.spaces[k] for k in x))
+
+        def __eq__(self, other):
+            return isinstance(other, ActionDict) and self.spaces == other.spaces and self.optional == other.optional
+
+        def __repr__(self):
+            return f"ActionDict({', '.join(f'{k!r}: {s}' for k, s in self.spaces.items())}; optional {list(self.optional)})"
+
+    @batch_space.register(ActionDict)
+    def _batch_action_dict(space, n=1):
+        from copy import deepcopy
+        return ActionDict({k: batch_space(s, n) for k, s in space.spaces.items()}, optional=space.optional,
+                          seed=deepcopy(space.np_random))
+
+    @iterate.register(ActionDict)
+    def _iterate_action_dict(space, items):
+        keys = [k for k in space.spaces if k in items and items[k] is not None]
+        return (dict(zip(keys, values)) for values in zip(*(iterate(space.spaces[k], items[k]) for k in keys)))
+
+    def _batch_with(space, n):
+        return batch_space(space, n)
+else:
+    ActionDict = None
+
+    def _batch_with(space, n):
+        return _batch(space, n)
+
+
+def describe(core):
+    """The single observation and action spaces of an environment core, and batched for its robots:
+    (single_observation_space, single_action_space, observation_space, action_space)."""
+    S = gymnasium.spaces if gymnasium is not None else None
+    box = S.Box if S else Box
+    m, h, w, classes = core.patch_px, core.height, core.width, core.classes
+    single_observation = (S.Dict if S else Dict)({
+        "patch": box(0.0, 1.0, (m, m), np.float32),
+        "pose": box(np.zeros(2, np.int32), np.array([w - 1, h - 1], np.int32), (2,), np.int32),
+        "revealed": box(0.0, 1.0, (h, w), np.float32),
+        "seen": box(0, 1, (h, w), np.uint8),
+        "time_step": box(0, core.episodes * core.steps, (), np.int32),
+    })
+    action = {"move": (S.Discrete if S else Discrete)(MOVES)}
+    if classes > 0:
+        action["prediction"] = box(-np.inf, np.inf, (classes,), np.float32)
+    action["goal"] = (S.MultiDiscrete if S else MultiDiscrete)(np.array([w, h]))
+    optional = [k for k in action if k != "move"]
+    single_action = ActionDict(action, optional=optional) if S else Dict(action, optional=optional)
+    n = core.num_envs
+    return single_observation, single_action, _batch_with(single_observation, n), _batch_with(single_action, n)

@@ -154,6 +154,19 @@ TEST_F(VectorEnvTest, RewardsAreTheLogProbabilityOfTheLabelDenseOrAtTheEnd) {
   }
 }
 
+TEST_F(VectorEnvTest, WithAGoalAMoveIsTheProtocolsAlongItsAxis) {
+  VectorEnv env(config(1));
+  Buffers b(1, 3, 12, 12);
+  env.reset(11, b.outputs());
+  const int x0 = b.pose[0], y0 = b.pose[1];
+  // A goal to the left (or right at the edge) on this row, and a move pointing away from it: the
+  // protocol moves toward the goal along the move's axis (grid::move_command), at most step_px.
+  const int gx = x0 >= 3 ? x0 - 3 : x0 + 3;
+  env.step({.move = std::vector<std::int32_t>{gx < x0 ? 0 : 1}, .goal = std::vector<std::int32_t>{gx, y0}}, b.outputs());
+  EXPECT_EQ(b.pose[0], x0 + (gx < x0 ? -2 : 2));
+  EXPECT_EQ(b.pose[1], y0);
+}
+
 TEST_F(VectorEnvTest, AGoalCutsMovesShortAndHoldsARobotOnIt) {
   VectorEnv env(config(1));
   Buffers b(1, 3, 12, 12);
@@ -185,6 +198,61 @@ TEST_F(VectorEnvTest, AMovePastTheEdgeEndsOnTheBorderPixelWithoutPushingTheWall)
   EXPECT_EQ(b.pose[1], y);
   EXPECT_EQ(env.batch().last_results()[0].ticks, 0);
   EXPECT_FALSE(env.batch().last_results()[0].touched_wall);
+}
+
+TEST_F(VectorEnvTest, ASeedPerRobotRunsThatSeedsSequenceFromItsFirstRun) {
+  VectorEnv env(config(3));
+  Buffers b(3, 3, 12, 12);
+  env.reset(VectorReset{.robot_seeds = {21, std::nullopt, 23}}, b.outputs());  // robot 1: the world's seed
+  const grid::FloorFrame frame{12, 12, 0.1};
+  const RunSequence s21(env.world(), frame, 30, 21), s23(env.world(), frame, 30, 23), five(env.world(), frame, 30, 5);
+  EXPECT_EQ(b.index[0], s21.run(0).index);
+  EXPECT_EQ(b.policy_seed[0], s21.run(0).policy_seed);
+  EXPECT_EQ(b.policy_seed[1], five.run(1).policy_seed);
+  EXPECT_EQ(b.policy_seed[2], s23.run(0).policy_seed);
+  // Its next runs are its own sequence's next, by reset or by autoreset.
+  env.reset(std::nullopt, b.outputs());
+  EXPECT_EQ(b.policy_seed[0], s21.run(1).policy_seed);
+  EXPECT_EQ(b.policy_seed[1], five.run(4).policy_seed);
+  const std::vector<std::int32_t> stay(3, 0);
+  for (int t = 0; t <= 6; ++t) env.step({.move = stay}, b.outputs());
+  EXPECT_EQ(b.policy_seed[2], s23.run(2).policy_seed);
+  EXPECT_EQ(b.time_step[2], 0);
+}
+
+TEST_F(VectorEnvTest, AMaskedResetStartsOnlyTheMaskedRobots) {
+  VectorEnvConfig c = config(3);
+  c.autoreset = false;  // Gymnasium's DISABLED
+  VectorEnv env(c);
+  Buffers b(3, 3, 12, 12);
+  EXPECT_THROW(env.reset(VectorReset{.mask = {1, 0, 0}}, b.outputs()), InputError) << "the first reset starts all";
+  env.reset(4, b.outputs());
+  const std::vector<std::int32_t> down(3, 2);
+  for (int t = 1; t <= 6; ++t) env.step({.move = down}, b.outputs());
+  EXPECT_EQ(b.terminated[0], 1);
+  EXPECT_EQ(env.ended()[1], 1);
+  try {  // without autoreset a finished robot waits for its reset
+    env.step({.move = down}, b.outputs());
+    ADD_FAILURE() << "a finished robot stepped";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "step: robot 0's run has ended: reset it first (autoreset is off)");
+  }
+  const std::vector<std::int32_t> pose_before = b.pose;
+  env.reset(VectorReset{.mask = {1, 0, 1}}, b.outputs());
+  const RunSequence four(env.world(), grid::FloorFrame{12, 12, 0.1}, 30, 4);
+  EXPECT_EQ(b.policy_seed[0], four.run(3).policy_seed);
+  EXPECT_EQ(b.policy_seed[1], four.run(1).policy_seed) << "robot 1 keeps its run";
+  EXPECT_EQ(b.pose[2], pose_before[2]);
+  EXPECT_EQ(b.pose[3], pose_before[3]);
+  EXPECT_EQ(b.time_step[0], 0);
+  EXPECT_EQ(b.time_step[1], 6);
+  EXPECT_EQ(env.ended()[1], 1);
+  env.reset(VectorReset{.mask = {0, 1, 0}}, b.outputs());
+  env.step({.move = down}, b.outputs());
+  EXPECT_EQ(b.time_step[1], 1);
+  EXPECT_THROW(env.reset(VectorReset{.mask = {0, 0, 0}}, b.outputs()), InputError);
+  EXPECT_THROW(env.reset(VectorReset{.mask = {1, 1}}, b.outputs()), InputError);
+  EXPECT_THROW(env.reset(VectorReset{.robot_seeds = {1, 2}}, b.outputs()), InputError);
 }
 
 std::string refusal(VectorEnv& env, const VectorAction& action, Buffers& b) {
