@@ -220,24 +220,17 @@ torch::Tensor DenseStackImpl::forward(torch::Tensor x) {
   return x;
 }
 
-GoalPlannerImpl::GoalPlannerImpl(const NetworkConfig& config) {
+PlannerImpl::PlannerImpl(const NetworkConfig& config, Head head) : kind_(head) {
   config.validate();
   body_ = register_module("body", DenseStack(planner_channels(config), config.planner_width, config.planner_depth));
-  head_ = register_module("head", conv1x1(body_->out_channels(), 1));
+  head_ = register_module("head", conv1x1(body_->out_channels(), head == Head::GoalPixels ? 1 : 2));
 }
 
-torch::Tensor GoalPlannerImpl::forward(torch::Tensor u) {
-  // [B, 1, H, W] -> [B, H * W]: pixel (x, y) is logit y * W + x, the floor's row-major order.
-  return head_->forward(body_->forward(u)).flatten(1);
+torch::Tensor PlannerImpl::forward(torch::Tensor u) {
+  const torch::Tensor maps = head_->forward(body_->forward(u));
+  // Goals: [B, 1, H, W] -> [B, H * W], pixel (x, y) is logit y * W + x, the floor's row-major order.
+  return kind_ == Head::GoalPixels ? maps.flatten(1) : global_average(maps);
 }
-
-ActionPlannerImpl::ActionPlannerImpl(const NetworkConfig& config) {
-  config.validate();
-  body_ = register_module("body", DenseStack(planner_channels(config), config.planner_width, config.planner_depth));
-  head_ = register_module("head", conv1x1(body_->out_channels(), 2));
-}
-
-torch::Tensor ActionPlannerImpl::forward(torch::Tensor u) { return global_average(head_->forward(body_->forward(u))); }
 
 namespace {
 
@@ -281,8 +274,8 @@ std::shared_ptr<ClassifierImpl> make_classifier(const NetworkConfig& config) {
 
 AgentImpl::AgentImpl(const NetworkConfig& config) : config_(config) {
   config_.validate();
-  goal = register_module("goal", GoalPlanner(config_));
-  action = register_module("action", ActionPlanner(config_));
+  goal = register_module("goal", Planner(config_, PlannerImpl::Head::GoalPixels));
+  action = register_module("action", Planner(config_, PlannerImpl::Head::ActionAxes));
   classifier = register_module("classifier", make_classifier(config_));
 }
 

@@ -26,29 +26,23 @@ class DenseStackImpl : public torch::nn::Module {
 };
 TORCH_MODULE(DenseStack);
 
-/// f1: u_g [B, c+3, H, W] -> goal logits [B, H*W] (softmax over the floor's pixels, row-major).
-class GoalPlannerImpl : public torch::nn::Module {
+/// f1 and f2, one network with two heads: a dense stack, then a 1 x 1 convolution.
+/// - f1, the goal planner: u_g [B, c+3, H, W] -> goal logits [B, H*W], one per floor pixel
+///   (softmax over them, row-major);
+/// - f2, the action planner: u_a [B, c+3, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical),
+///   the head's two maps averaged over the floor.
+class PlannerImpl : public torch::nn::Module {
  public:
-  explicit GoalPlannerImpl(const NetworkConfig& config);
+  enum class Head { GoalPixels, ActionAxes };
+  PlannerImpl(const NetworkConfig& config, Head head);
   torch::Tensor forward(torch::Tensor u);
 
  private:
+  Head kind_;
   DenseStack body_{nullptr};
   torch::nn::Conv2d head_{nullptr};
 };
-TORCH_MODULE(GoalPlanner);
-
-/// f2: u_a [B, c+3, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical), 1x1 head then GAP.
-class ActionPlannerImpl : public torch::nn::Module {
- public:
-  explicit ActionPlannerImpl(const NetworkConfig& config);
-  torch::Tensor forward(torch::Tensor u);
-
- private:
-  DenseStack body_{nullptr};
-  torch::nn::Conv2d head_{nullptr};
-};
-TORCH_MODULE(ActionPlanner);
+TORCH_MODULE(Planner);
 
 /// f3: u_c [B, c, H, W] -> class logits [B, D]. One interface, three variants (ClassifierKind).
 class ClassifierImpl : public torch::nn::Module {
@@ -66,8 +60,8 @@ class AgentImpl : public torch::nn::Module {
   explicit AgentImpl(const NetworkConfig& config);
   const NetworkConfig& config() const { return config_; }
 
-  GoalPlanner goal{nullptr};
-  ActionPlanner action{nullptr};
+  Planner goal{nullptr};    ///< f1, Head::GoalPixels
+  Planner action{nullptr};  ///< f2, Head::ActionAxes
   std::shared_ptr<ClassifierImpl> classifier;
 
  private:

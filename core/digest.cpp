@@ -36,4 +36,17 @@ std::vector<std::uint8_t> digest_file(const std::filesystem::path& file, DigestK
   return digest;
 }
 
+std::string to_hex(std::span<const std::uint8_t> bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(2 * bytes.size());
+  for (std::uint8_t byte : bytes) {
+    out += kDigits[byte >> 4];
+    out += kDigits[byte & 15];
+  }
+  return out;
+}
+
+std::string sha256_hex(const std::filesystem::path& file) { return to_hex(digest_file(file, DigestKind::Sha256)); }
+
 }  // namespace scout::core

@@ -10,6 +10,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/error.hpp"
@@ -33,6 +34,13 @@ struct GroupOptions {
 /// GLOO_SOCKET_IFNAME for the interface. nullopt when RANK and WORLD_SIZE are both unset; throws
 /// InputError naming the variable for a malformed or contradictory value.
 std::optional<GroupOptions> group_from_environment();
+
+/// Rank `rank`'s contiguous share [first, end) of `count` items split over `ranks` processes
+/// (shares differ by at most one; a lone process gets them all).
+inline std::pair<int, int> share_of(int count, int rank, int ranks) {
+  const auto part = [&](int r) { return static_cast<int>(static_cast<long>(count) * r / ranks); };
+  return {part(rank), part(rank + 1)};
+}
 
 /// A collective failed or did not finish within the timeout: one line for the user, naming the
 /// lost rank where it can be told. An InputError: the CLI reports it as one line, exit status 1.

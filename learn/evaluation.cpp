@@ -7,6 +7,7 @@
 #include <torch/torch.h>
 
 #include <algorithm>
+#include <boost/math/distributions/students_t.hpp>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -33,48 +34,6 @@ namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
 namespace {
-
-// The continued fraction of the regularized incomplete beta I_x(a, b), evaluated by the modified
-// Lentz method (as Numerical Recipes' betacf).
-double beta_continued_fraction(double a, double b, double x) {
-  constexpr double kTiny = 1e-300;
-  const double qab = a + b, qap = a + 1, qam = a - 1;
-  double c = 1, d = 1 - qab * x / qap;
-  if (std::abs(d) < kTiny) d = kTiny;
-  d = 1 / d;
-  double h = d;
-  for (int m = 1; m <= 10000; ++m) {
-    const double m2 = 2.0 * m;
-    double aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-    d = 1 + aa * d;
-    if (std::abs(d) < kTiny) d = kTiny;
-    c = 1 + aa / c;
-    if (std::abs(c) < kTiny) c = kTiny;
-    d = 1 / d;
-    h *= d * c;
-    aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-    d = 1 + aa * d;
-    if (std::abs(d) < kTiny) d = kTiny;
-    c = 1 + aa / c;
-    if (std::abs(c) < kTiny) c = kTiny;
-    d = 1 / d;
-    const double delta = d * c;
-    h *= delta;
-    if (std::abs(delta - 1) < 1e-15) break;
-  }
-  return h;
-}
-
-// The regularized incomplete beta function I_x(a, b), x in [0, 1].
-double incomplete_beta(double a, double b, double x) {
-  if (x <= 0) return 0;
-  if (x >= 1) return 1;
-  const double front =
-      std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x));
-  // The continued fraction converges fast for x < (a + 1) / (a + b + 2); use the symmetry beyond.
-  if (x < (a + 1) / (a + b + 2)) return front * beta_continued_fraction(a, b, x) / a;
-  return 1 - front * beta_continued_fraction(b, a, 1 - x) / b;
-}
 
 struct Data {
   worlds::LabeledImages set;
@@ -209,16 +168,8 @@ double mean_of(const std::vector<double>& v) {
 
 double student_t_975(int dof) {
   if (dof < 1) throw std::invalid_argument("student_t_975: dof must be at least 1, got " + std::to_string(dof));
-  // P(|T| > t) = I_{v / (v + t^2)}(v / 2, 1 / 2), decreasing in t; the 97.5 % quantile is where
-  // it is 0.05. Bisection to double precision (the tail at t = 1e3 is below 0.05 for every dof).
-  const double v = dof;
-  double lo = 0, hi = 1000;
-  for (int i = 0; i < 200 && hi - lo > 1e-13 * hi; ++i) {
-    const double t = 0.5 * (lo + hi);
-    const double tail = incomplete_beta(v / 2, 0.5, v / (v + t * t));
-    (tail > 0.05 ? lo : hi) = t;
-  }
-  return 0.5 * (lo + hi);
+  // As the upper 2.5 % tail: 1 - 0.975 would lose digits to cancellation.
+  return boost::math::quantile(boost::math::complement(boost::math::students_t(dof), 0.025));
 }
 
 Interval mean_ci95(std::span<const double> values) {
@@ -240,129 +191,157 @@ Interval mean_ci95(std::span<const double> values) {
   return out;
 }
 
-EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, ProcessGroup* group) {
-  const auto t0 = core::Clock::now();
+namespace {
+
+// Every figure of an evaluation is a sum of per-image counts: each process counts its share of the
+// images, and the counts are summed over the processes in one all-reduce of `storage`, which the
+// named spans below view (the tally is neither copied nor moved, so they stay valid).
+struct EvalTally {
+  EvalTally(int runs, int images, int classes)
+      : cells(static_cast<std::size_t>(classes) * classes),
+        storage(kPerRun * runs + runs * cells + static_cast<std::size_t>(images) * classes + 2, 0.0) {
+    std::span<double> rest(storage);
+    auto take = [&](std::size_t count) {
+      const std::span<double> part = rest.first(count);
+      rest = rest.subspan(count);
+      return part;
+    };
+    const auto r = static_cast<std::size_t>(runs);
+    correct = take(r);
+    top2 = take(r);
+    revealed_px = take(r);
+    iid_correct = take(r);
+    goals_only_correct = take(r);
+    confusion = take(r * cells);
+    probability_sums = take(static_cast<std::size_t>(images) * classes);
+    full_image_correct = &take(1)[0];
+    greedy_correct = &take(1)[0];
+  }
+  EvalTally(const EvalTally&) = delete;
+  EvalTally& operator=(const EvalTally&) = delete;
+
+  void sum_over(ProcessGroup* group) {
+    if (group) group->all_reduce_sum(std::span<double>(storage));
+  }
+  // Run k's confusion counts: [true label * D + predicted].
+  std::span<double> confusion_of_run(int k) const { return confusion.subspan(k * cells, cells); }
+
+  static constexpr std::size_t kPerRun = 5;  // the per-run spans below
+  const std::size_t cells;                   // D x D
+  std::vector<double> storage;
+  std::span<double> correct, top2, revealed_px, iid_correct, goals_only_correct;  // per run
+  std::span<double> confusion;                                                    // per run, D x D
+  std::span<double> probability_sums;  // per image: pi_c summed over the runs (D values)
+  double* full_image_correct = nullptr;
+  double* greedy_correct = nullptr;
+};
+
+// What an evaluation reads before it drives: the checkpoint, the world, the digits, the policies.
+struct EvalSetup {
+  CheckpointState state;
+  agent::Agent agent{nullptr};
+  worlds::World world;
+  Data data;
+  LearnedLayers learned;
+  agent::Precision precision = agent::Precision::Float32;
+  Sampling sampling, iid, goals_only, greedy;
+};
+
+EvalSetup prepare(const EvalConfig& config) {
   if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
   if (config.batch_robots < 1)
     throw std::invalid_argument("evaluate: batch_robots must be positive, got " + std::to_string(config.batch_robots));
-  CheckpointState state;
-  agent::Agent agent = load_agent(config.checkpoint, &state);
-  const std::string checkpoint = config.checkpoint.string();
-  const agent::NetworkConfig& network = state.config.network;
+  EvalSetup s;
+  s.agent = load_agent(config.opened ? *config.opened : open_checkpoint(config.checkpoint), &s.state);
+  const agent::NetworkConfig& network = s.state.config.network;
   if (network.image_channels != worlds::ImageSet::channels)
-    throw InputError(fmt::format("{}: network.image_channels: expected {} (the floors' channels), got {}", checkpoint,
-                                 worlds::ImageSet::channels, network.image_channels));
-  const worlds::World world = config.world        ? *config.world
-                              : config.world_file ? worlds::load_world(*config.world_file)
-                                                  : state.config.world;
-  const Data data = read_data(config, world, network.classes);
-  set_torch_threads(config.threads);
-  torch::NoGradGuard no_grad;
-  agent->eval();
+    throw InputError(fmt::format("{}: network.image_channels: expected {} (the floors' channels), got {}",
+                                 config.checkpoint.string(), worlds::ImageSet::channels, network.image_channels));
+  s.world = config.world        ? *config.world
+            : config.world_file ? worlds::load_world(*config.world_file)
+                                : s.state.config.world;
+  s.data = read_data(config, s.world, network.classes);
+  s.learned = learned_layers(s.state.history);
+  s.precision = agent::resolve_precision(config.precision);
+  s.sampling.learned_goals = s.learned.goals;
+  s.sampling.learned_actions = s.learned.actions;
+  s.sampling.precision = s.precision;
+  s.iid.precision = s.precision;
+  s.goals_only = s.iid;
+  s.goals_only.learned_goals = true;
+  s.greedy = s.sampling;
+  s.greedy.greedy = true;
+  return s;
+}
 
-  const LearnedLayers learned = learned_layers(state.history);
-  const agent::Precision precision = agent::resolve_precision(config.precision);
-  Sampling sampling;
-  sampling.learned_goals = learned.goals;
-  sampling.learned_actions = learned.actions;
-  sampling.precision = precision;
-  Sampling iid;
-  iid.precision = precision;
-  Sampling goals_only = iid;
-  goals_only.learned_goals = true;
-  Sampling greedy = sampling;
-  greedy.greedy = true;
-
-  const int n = data.set.images.count, classes = network.classes, runs = config.runs;
-  EvalReport report;
-  report.runs = runs;
-  report.images = n;
-  report.checkpoint = checkpoint;
-  report.world = config.world_file && !config.world ? config.world_file->string() : world.file.string();
-  report.patch_px = world.camera.patch_px;
-  report.episodes = world.task.episodes;
-  report.steps = world.task.steps;
-  report.seed = config.seed;
-  report.learned_goals = learned.goals;
-  report.learned_actions = learned.actions;
-  report.precision = precision;
-  report.trained_precision = state.config.precision;
-  report.labels.assign(data.set.labels.begin(), data.set.labels.end());
-  report.confusion.assign(classes, std::vector<double>(classes, 0.0));
-
-  // In a group each process evaluates a contiguous share of the images; every figure is a sum of
-  // per-image counts, gathered in one tally and summed over the processes once at the end.
-  const int ranks = group ? group->size() : 1, rank = group ? group->rank() : 0;
-  const int begin = static_cast<int>(static_cast<long>(n) * rank / ranks);
-  const int end = static_cast<int>(static_cast<long>(n) * (rank + 1) / ranks);
+// Drives this process's share [begin, end) of the images through every pass and counts.
+void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, const core::StopToken& stop,
+                  EvalTally& tally, core::Clock::time_point t0) {
+  const int classes = s.state.config.network.classes, runs = config.runs;
   // Progress in rollouts: per run the agent's pass and its baselines, then the greedy pass.
-  const long share = end - begin;
-  const int passes_per_run = config.agent_only ? 1 : (learned.goals ? 3 : 2);
-  EvalProgress progress{
-      .rollouts_total = share * (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)), .runs = runs};
+  const int passes_per_run = config.agent_only ? 1 : (s.learned.goals ? 3 : 2);
+  EvalProgress progress{.rollouts_total = static_cast<long>(end - begin) *
+                                          (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)),
+                        .runs = runs};
   auto on_batch = [&](int robots) {
     progress.rollouts_done += robots;
     progress.seconds = core::seconds_since(t0);
     if (config.on_progress) config.on_progress(progress);
   };
-  Evaluator evaluator(*agent, world, data, config.batch_robots, end - begin, precision, stop, on_batch);
-  // Per run: correct, top-2, revealed pixels, i.i.d. correct, goals-only correct; then per run the
-  // confusion counts (D x D), per image the probabilities summed over the runs, and the
-  // full-image and greedy counts.
-  constexpr std::size_t kPerRun = 5;
-  const std::size_t cells = static_cast<std::size_t>(classes) * classes;
-  std::vector<double> tally(kPerRun * runs + runs * cells + static_cast<std::size_t>(n) * classes + 2, 0.0);
-  double* const confusion_counts = tally.data() + kPerRun * runs;
-  double* const probability_sums = confusion_counts + runs * cells;
-  double* const final_counts = probability_sums + static_cast<std::size_t>(n) * classes;
+  Evaluator evaluator(*s.agent, s.world, s.data, config.batch_robots, end - begin, s.precision, stop, on_batch);
   torch::Tensor probability_sum = torch::zeros({end - begin, classes}, torch::kDouble);
   for (int k = 0; k < runs; ++k) {
-    double* const figures = tally.data() + kPerRun * k;
     const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
     progress.run = k + 1;
-    const Pass pass = evaluator.run(sampling, seed_k, begin, end);
-    figures[0] = pass.correct;
-    figures[1] = pass.top2;
-    figures[2] = static_cast<double>(pass.revealed_px);
+    const Pass pass = evaluator.run(s.sampling, seed_k, begin, end);
+    tally.correct[k] = pass.correct;
+    tally.top2[k] = pass.top2;
+    tally.revealed_px[k] = static_cast<double>(pass.revealed_px);
     probability_sum += pass.log_probs.to(torch::kDouble).exp();
     const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
     const std::int64_t* p = predicted.data_ptr<std::int64_t>();
-    for (int i = begin; i < end; ++i) confusion_counts[k * cells + report.labels[i] * classes + p[i - begin]] += 1;
+    const std::span<double> confusion = tally.confusion_of_run(k);
+    for (int i = begin; i < end; ++i) confusion[s.data.set.labels[i] * classes + p[i - begin]] += 1;
     if (config.agent_only) continue;
-    figures[3] = evaluator.run(iid, core::derive_seed(seed_k, streams::kEvalIid), begin, end).correct;
+    tally.iid_correct[k] = evaluator.run(s.iid, core::derive_seed(seed_k, streams::kEvalIid), begin, end).correct;
     // Without a learned goal layer the baseline would only measure an untrained planner.
-    if (learned.goals)
-      figures[4] = evaluator.run(goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly), begin, end).correct;
+    if (s.learned.goals)
+      tally.goals_only_correct[k] =
+          evaluator.run(s.goals_only, core::derive_seed(seed_k, streams::kEvalGoalsOnly), begin, end).correct;
   }
   const torch::Tensor mine = probability_sum.contiguous();
-  std::copy_n(mine.data_ptr<double>(), mine.numel(), probability_sums + static_cast<std::size_t>(begin) * classes);
-  if (!config.agent_only) {
-    progress.run = 0;
-    final_counts[0] = evaluator.full_image_correct(begin, end);
-    final_counts[1] = evaluator.run(greedy, core::derive_seed(config.seed, streams::kEvalGreedy), begin, end).correct;
-  }
-  if (group) group->all_reduce_sum(std::span<double>(tally));
+  std::copy_n(mine.data_ptr<double>(), mine.numel(),
+              tally.probability_sums.begin() + static_cast<std::ptrdiff_t>(begin) * classes);
+  if (config.agent_only) return;
+  progress.run = 0;
+  *tally.full_image_correct = evaluator.full_image_correct(begin, end);
+  *tally.greedy_correct =
+      evaluator.run(s.greedy, core::derive_seed(config.seed, streams::kEvalGreedy), begin, end).correct;
+}
 
+// The figures of the summed counts.
+void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& tally, EvalReport& report) {
+  const int n = s.data.set.images.count, classes = s.state.config.network.classes, runs = config.runs;
   std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
   double revealed_px = 0;
   std::vector<long> row_counts(classes, 0);
   for (int label : report.labels) ++row_counts[label];
   for (int k = 0; k < runs; ++k) {
-    const double* const figures = tally.data() + kPerRun * k;
-    accuracy[k] = figures[0] / n;
-    top2[k] = figures[1] / n;
-    revealed_px += figures[2];
-    iid_accuracy[k] = figures[3] / n;
-    goals_only_accuracy[k] = learned.goals ? figures[4] / n : std::numeric_limits<double>::quiet_NaN();
+    accuracy[k] = tally.correct[k] / n;
+    top2[k] = tally.top2[k] / n;
+    revealed_px += tally.revealed_px[k];
+    iid_accuracy[k] = tally.iid_correct[k] / n;
+    goals_only_accuracy[k] =
+        s.learned.goals ? tally.goals_only_correct[k] / n : std::numeric_limits<double>::quiet_NaN();
     // This run's confusion counts, row-normalised; rows of absent labels stay 0.
+    const std::span<const double> counts = tally.confusion_of_run(k);
     for (int row = 0; row < classes; ++row)
       for (int col = 0; col < classes; ++col)
-        if (row_counts[row] > 0)
-          report.confusion[row][col] += confusion_counts[k * cells + row * classes + col] / row_counts[row] / runs;
+        if (row_counts[row] > 0) report.confusion[row][col] += counts[row * classes + col] / row_counts[row] / runs;
   }
   report.accuracy = mean_ci95(accuracy);
   report.top2 = mean_ci95(top2);
-  report.revealed_fraction = revealed_px / (static_cast<double>(n) * runs * data.frame.area_px());
+  report.revealed_fraction = revealed_px / (static_cast<double>(n) * runs * s.data.frame.area_px());
   if (config.agent_only) {
     constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
     report.iid_accuracy = report.goals_only_accuracy = report.full_image_accuracy = report.greedy_accuracy =
@@ -370,15 +349,53 @@ EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, Proce
   } else {
     report.iid_accuracy = mean_of(iid_accuracy);
     report.goals_only_accuracy = mean_of(goals_only_accuracy);
-    report.full_image_accuracy = final_counts[0] / n;
-    report.greedy_accuracy = final_counts[1] / n;
+    report.full_image_accuracy = *tally.full_image_correct / n;
+    report.greedy_accuracy = *tally.greedy_correct / n;
   }
   report.probabilities.resize(n);
   for (int i = 0; i < n; ++i) {
+    const std::span<const double> sums = tally.probability_sums.subspan(static_cast<std::size_t>(i) * classes, classes);
     report.probabilities[i].resize(classes);
-    for (int c = 0; c < classes; ++c)
-      report.probabilities[i][c] = probability_sums[static_cast<std::size_t>(i) * classes + c] / runs;
+    for (int c = 0; c < classes; ++c) report.probabilities[i][c] = sums[c] / runs;
   }
+}
+
+// What the report says of the task and the checkpoint, before any figure.
+EvalReport report_header(const EvalConfig& config, const EvalSetup& s) {
+  EvalReport report;
+  const int classes = s.state.config.network.classes;
+  report.runs = config.runs;
+  report.images = s.data.set.images.count;
+  report.checkpoint = config.checkpoint.string();
+  report.world = config.world_file && !config.world ? config.world_file->string() : s.world.file.string();
+  report.patch_px = s.world.camera.patch_px;
+  report.episodes = s.world.task.episodes;
+  report.steps = s.world.task.steps;
+  report.seed = config.seed;
+  report.learned_goals = s.learned.goals;
+  report.learned_actions = s.learned.actions;
+  report.precision = s.precision;
+  report.trained_precision = s.state.config.precision;
+  report.labels.assign(s.data.set.labels.begin(), s.data.set.labels.end());
+  report.confusion.assign(classes, std::vector<double>(classes, 0.0));
+  return report;
+}
+
+}  // namespace
+
+EvalReport evaluate(const EvalConfig& config, const core::StopToken& stop, ProcessGroup* group) {
+  const auto t0 = core::Clock::now();
+  EvalSetup setup = prepare(config);
+  set_torch_threads(config.threads);
+  torch::NoGradGuard no_grad;
+  setup.agent->eval();
+  EvalReport report = report_header(config, setup);
+  // In a group each process evaluates a contiguous share of the images.
+  const auto [begin, end] = share_of(report.images, group ? group->rank() : 0, group ? group->size() : 1);
+  EvalTally tally(config.runs, report.images, setup.state.config.network.classes);
+  count_passes(config, setup, begin, end, stop, tally, t0);
+  tally.sum_over(group);
+  summarise(config, setup, tally, report);
   report.seconds = core::seconds_since(t0);
   return report;
 }

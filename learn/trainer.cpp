@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/fault_injection.hpp"
 #include "core/files.hpp"
@@ -573,7 +574,7 @@ std::string agreement_text(const TrainConfig& config, const std::vector<fs::path
   c.erase("precision");
   parts["training"] = c;
   json data = json::array();
-  for (const fs::path& f : data_files) data.push_back(worlds::sha256_file(f));
+  for (const fs::path& f : data_files) data.push_back(core::sha256_hex(f));
   parts["data"] = data;
   return parts.dump();
 }

@@ -17,6 +17,8 @@ packages=(
   libeigen3-dev           # geometry
   libyaml-cpp-dev         # world files
   libcli11-dev libfmt-dev nlohmann-json3-dev zlib1g-dev libssl-dev
+  libboost-math-dev       # Student-t quantiles (learn/evaluation.cpp; header-only)
+  libarchive-dev          # reads npm's tarballs in-process (worlds/data_install.cpp)
   libgtest-dev            # tests
   python3 python3-numpy python3-matplotlib python3-pytest  # scout report's figures, Python tests (/usr/bin/python3)
   python3-dev pybind11-dev  # the Python package (python/)

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/fault_injection.hpp"
 #include "core/files.hpp"
@@ -163,7 +164,7 @@ nlohmann::ordered_json make_manifest(const std::vector<std::string>& argv, const
   m["libraries"] = libs;
   if (!world_yaml.empty()) m["world"] = world_yaml;
   nlohmann::ordered_json hashes = nlohmann::ordered_json::object();
-  for (const fs::path& f : data_files) hashes[fs::absolute(f).lexically_normal().string()] = worlds::sha256_file(f);
+  for (const fs::path& f : data_files) hashes[fs::absolute(f).lexically_normal().string()] = core::sha256_hex(f);
   m["data_sha256"] = hashes;
   return m;
 }
@@ -187,7 +188,7 @@ nlohmann::ordered_json eval_document(const std::string& report_json, const std::
                                      int world_size) {
   nlohmann::ordered_json j = nlohmann::ordered_json::parse(report_json);
   j["manifest"] = make_manifest(argv, "", {images, labels}, "");
-  j["manifest"]["checkpoint_sha256"] = worlds::sha256_file(learn::resolve_checkpoint(checkpoint));
+  j["manifest"]["checkpoint_sha256"] = core::sha256_hex(learn::resolve_checkpoint(checkpoint));
   j["manifest"]["world_size"] = world_size;
   return j;
 }

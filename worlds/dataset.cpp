@@ -18,7 +18,6 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "core/digest.hpp"
 #include "core/random.hpp"
 
 namespace scout::worlds {
@@ -232,12 +231,6 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
     parts.push_back(std::move(part));
   }
   return parts;
-}
-
-std::string sha256_file(const fs::path& file) {
-  std::string hex;
-  for (std::uint8_t byte : core::digest_file(file, core::DigestKind::Sha256)) hex += fmt::format("{:02x}", byte);
-  return hex;
 }
 
 }  // namespace scout::worlds

@@ -49,7 +49,4 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
 /// The fixed seed of the project's data split.
 inline constexpr std::uint64_t kSplitSeed = 20190708;
 
-/// SHA-256 of a file, lowercase hex (for manifests and data checks).
-std::string sha256_file(const std::filesystem::path& file);
-
 }  // namespace scout::worlds

@@ -191,7 +191,7 @@ TEST(Networks, GoalLogitsAreRowMajorAndSeeA7x7Neighbourhood) {
   // floor may change only the logits within 3 pixels of it, found at index y * W + x.
   torch::manual_seed(3);
   const NetworkConfig config;
-  GoalPlanner goal(config);
+  Planner goal(config, PlannerImpl::Head::GoalPixels);
   const int h = 9, w = 12, px = 8, py = 2;
   torch::NoGradGuard no_grad;
   const torch::Tensor u = torch::rand({1, 4, h, w}) - 0.5;

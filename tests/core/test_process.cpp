@@ -42,14 +42,14 @@ TEST(SpawnChild, BuildsTheChildsEnvironmentFolderOutputAndSignalMaskBeforeItStar
   sigaddset(&child_mask, SIGUSR1);
   ASSERT_EQ(sigprocmask(SIG_BLOCK, &blocked, &previous), 0);
   const fs::path log = temp.path() / "child.log";
-  const pid_t pid = spawn_child(
-      {.args = {"sh", "-c",
-                "echo kept=$SCOUT_SPAWN_TEST_KEPT; env | grep -c '^SCOUT_SPAWN_TEST_REPLACED='; "
-                "echo replaced=$SCOUT_SPAWN_TEST_REPLACED; echo new=$SCOUT_SPAWN_TEST_NEW; pwd; "
-                "echo to-stderr >&2; exit 7"},
-       .environment = {{"SCOUT_SPAWN_TEST_REPLACED", "new value"}, {"SCOUT_SPAWN_TEST_NEW", "x=y"}},
-       .cwd = temp.path(),
-       .output_log = log});
+  const pid_t pid =
+      spawn_child({.args = {"sh", "-c",
+                            "echo kept=$SCOUT_SPAWN_TEST_KEPT; env | grep -c '^SCOUT_SPAWN_TEST_REPLACED='; "
+                            "echo replaced=$SCOUT_SPAWN_TEST_REPLACED; echo new=$SCOUT_SPAWN_TEST_NEW; pwd; "
+                            "echo to-stderr >&2; exit 7"},
+                   .environment = {{"SCOUT_SPAWN_TEST_REPLACED", "new value"}, {"SCOUT_SPAWN_TEST_NEW", "x=y"}},
+                   .cwd = temp.path(),
+                   .output_log = log});
   // grep itself, not under a shell (dash clears the mask it was started with).
   const pid_t masked = spawn_child({.args = {"grep", "^SigBlk", "/proc/self/status"},
                                     .output_log = temp.path() / "mask.log",
@@ -82,15 +82,13 @@ TEST(SpawnChild, AProgramThatCannotStartIsOneLineNamingIt) {
   scout::testing::TempDir temp;
   const ProgramResult result = run_program({"scout-no-such-program", "x"}, temp.path(), temp.path() / "log");
   EXPECT_TRUE(result.failed());
-  EXPECT_EQ(result.describe("scout-no-such-program"),
-            "(cannot run scout-no-such-program: No such file or directory)");
+  EXPECT_EQ(result.describe("scout-no-such-program"), "(cannot run scout-no-such-program: No such file or directory)");
 }
 
 TEST(RunProgram, QuotesTheLastLineOfAFailingProgramsLog) {
   scout::testing::TempDir temp;
-  const ProgramResult result =
-      run_program({"sh", "-c", "echo first; echo '  the \x1b[31mreason\x1b[0m  ' >&2; exit 3"}, temp.path(),
-                  temp.path() / "log");
+  const ProgramResult result = run_program({"sh", "-c", "echo first; echo '  the \x1b[31mreason\x1b[0m  ' >&2; exit 3"},
+                                           temp.path(), temp.path() / "log");
   EXPECT_TRUE(result.exited);
   EXPECT_EQ(result.code, 3);
   EXPECT_EQ(result.describe("sh"), "(exit 3): the reason");

