@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <string>
@@ -16,6 +17,9 @@
 
 int main(int argc, char** argv) {
   scout::core::keep_freed_memory_for_reuse();  // before any tensor is allocated
+  // Past a file-size limit (ulimit -f) a write then fails with EFBIG and takes the one-line error
+  // path, instead of the default action of SIGXFSZ killing the process mid-write.
+  std::signal(SIGXFSZ, SIG_IGN);
   scout::tools::Context context{.argv = scout::tools::command_line(argc, argv)};
   CLI::App app{
       "Scout: a robot that sees a small patch of the floor learns where to drive to tell what the floor shows.",
