@@ -75,6 +75,25 @@ SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
 TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
 TSAN_TARGETS=(sim_tests render_tests env_tests tools_process_tests)
+# What each of those regexes must still find (a renamed test would otherwise drop out unseen).
+TSAN_FAMILIES=('^WorkerPool\.' '^RobotBatch\.' '^PatchCamera\.' '^CropPatch\.' '^BatchEnv\.' '^VectorEnvTest\.')
+TSAN_CI_NAMED=('^TrainDistributed\.TwoProcessesTrainTheSameWeightsAsOne$'
+  '^TrainDistributed\.ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes$'
+  '^TrainDistributed\.ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint$'
+  '^TrainDistributed\.EvalOverTwoProcessesGivesTheSameReport$')
+
+# Stops with one line when a pattern matches no test of the build folder.
+require_tests() {  # folder pattern...
+  local folder=$1 pattern count
+  shift
+  for pattern in "$@"; do
+    count=$(ctest --test-dir "$folder" -N -R "$pattern" | sed -n 's/^Total Tests: //p')
+    if [[ "${count:-0}" -eq 0 ]]; then
+      echo "sanitize: no test in $folder matches $pattern (renamed or removed? update scripts/sanitize.sh)" >&2
+      exit 1
+    fi
+  done
+}
 
 # Ninja for new build folders, as scripts/setup.sh.
 export CMAKE_GENERATOR=${CMAKE_GENERATOR:-Ninja}
@@ -142,7 +161,8 @@ thread() {  # build|test
     # others take seconds).
     local tests=$TSAN_TESTS
     [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
-    "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure -R "$tests"
+    require_tests build-tsan "${TSAN_FAMILIES[@]}" "${TSAN_CI_NAMED[@]}"
+    "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests"
   fi
   echo "sanitize: ThreadSanitizer: $1 of the worker pool, physics, camera, environment and multi-process tests done in $((SECONDS - start)) s"
 }
@@ -150,6 +170,14 @@ thread() {  # build|test
 if [[ -n "$step" ]]; then
   ${step#*-} "${step%-*}"
 else
-  if [[ "$which" == address || "$which" == all || "$which" == ci ]]; then address build && address test; fi
-  if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then thread build && thread test; fi
+  # Separate statements, not `build && test`: bash ignores errexit inside a function called on
+  # the left of &&, so a failed build would go unnoticed.
+  if [[ "$which" == address || "$which" == all || "$which" == ci ]]; then
+    address build
+    address test
+  fi
+  if [[ "$which" == thread || "$which" == all || "$which" == ci ]]; then
+    thread build
+    thread test
+  fi
 fi
