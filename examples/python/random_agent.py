@@ -25,14 +25,14 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     envs = scout.make_vec(args.world, args.num_envs, seed=args.seed)
-    rng = np.random.default_rng(args.seed)
+    envs.action_space.seed(args.seed)
     obs, info = envs.reset()
     uniform = np.zeros((envs.num_envs, envs.num_classes), np.float32)
     steps = args.runs * envs.episodes * envs.steps
     total_reward, revealed = 0.0, []
     start = time.perf_counter()
     for _ in range(steps):
-        action = {"move": envs.action_space["move"].sample(rng), "prediction": uniform}
+        action = {"move": envs.action_space["move"].sample(), "prediction": uniform}
         obs, reward, terminated, truncated, info = envs.step(action)
         total_reward += float(reward.sum())
         if terminated.any():

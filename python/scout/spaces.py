@@ -1,8 +1,25 @@
 """Scout's spaces. Where Gymnasium imports, they are `gymnasium.spaces` objects (an action's
 optional keys in an `ActionDict`, a `gymnasium.spaces.Dict`); without it, the small classes here
 stand in with Gymnasium's attribute names (shape, dtype, low, high, n, nvec, spaces, contains,
-sample), and `to_gymnasium()` converts them where Gymnasium is installed later."""
+`in`, seed, sample), and `to_gymnasium()` converts them where Gymnasium is installed later.
+`space.seed(s)` then `space.sample()` works with both; `sample(rng)` (a NumPy Generator) only here."""
 import numpy as np
+
+
+class _Space:
+    """seed() and the generator sample() draws from when it is given none, as Gymnasium's spaces."""
+    _rng = None
+
+    def seed(self, seed=None):
+        self._rng = np.random.default_rng(seed)
+        return [seed]
+
+    def _generator(self, rng):
+        if rng is not None:
+            return np.random.default_rng(rng)
+        if self._rng is None:
+            self._rng = np.random.default_rng()
+        return self._rng
 
 try:
     import gymnasium
@@ -12,7 +29,7 @@ except ImportError:  # Gymnasium is optional
 MOVES = 4  # 0 = +x, 1 = -x, 2 = +y, 3 = -y
 
 
-class Box:
+class Box(_Space):
     """An array of `shape` and `dtype` with every entry in [low, high]."""
 
     def __init__(self, low, high, shape, dtype):
@@ -29,7 +46,7 @@ class Box:
     __contains__ = contains
 
     def sample(self, rng=None):
-        rng = np.random.default_rng(rng)
+        rng = self._generator(rng)
         if self.dtype.kind == "f":
             low = np.where(np.isfinite(self.low), self.low, -1.0)
             high = np.where(np.isfinite(self.high), self.high, 1.0)
@@ -44,7 +61,7 @@ class Box:
         return f"Box({self.low.min()}, {self.high.max()}, {self.shape}, {self.dtype})"
 
 
-class Discrete:
+class Discrete(_Space):
     """One integer in 0 .. n - 1."""
 
     def __init__(self, n):
@@ -59,7 +76,7 @@ class Discrete:
     __contains__ = contains
 
     def sample(self, rng=None):
-        return np.int64(np.random.default_rng(rng).integers(self.n))
+        return np.int64(self._generator(rng).integers(self.n))
 
     def to_gymnasium(self):
         import gymnasium
@@ -69,7 +86,7 @@ class Discrete:
         return f"Discrete({self.n})"
 
 
-class MultiDiscrete:
+class MultiDiscrete(_Space):
     """An integer array, entry i in 0 .. nvec[i] - 1."""
 
     def __init__(self, nvec):
@@ -84,7 +101,7 @@ class MultiDiscrete:
     __contains__ = contains
 
     def sample(self, rng=None):
-        return np.random.default_rng(rng).integers(0, self.nvec).astype(np.int64)
+        return self._generator(rng).integers(0, self.nvec).astype(np.int64)
 
     def to_gymnasium(self):
         import gymnasium
@@ -94,7 +111,7 @@ class MultiDiscrete:
         return f"MultiDiscrete({self.nvec.tolist()})"
 
 
-class Dict:
+class Dict(_Space):
     """Named sub-spaces; the `optional` ones may be left out of a member."""
 
     def __init__(self, spaces, optional=()):
@@ -113,8 +130,14 @@ class Dict:
 
     __contains__ = contains
 
+    def seed(self, seed=None):
+        super().seed(seed)
+        for space in self.spaces.values():
+            space._rng = self._rng
+        return [seed]
+
     def sample(self, rng=None):
-        rng = np.random.default_rng(rng)
+        rng = self._generator(rng)
         return {k: s.sample(rng) for k, s in self.spaces.items()}
 
     def to_gymnasium(self):
