@@ -33,6 +33,9 @@ struct EnvTiming {
   double peak_speed_mps = 0;
 };
 
+/// The most robots a batch holds: what one camera draws.
+inline constexpr int kMaxRobots = render::kMaxCameraRobots;
+
 class BatchEnv {
  public:
   /// Buffers for up to `max_robots` robots on floors of `frame`, with the world's robot,

@@ -3,6 +3,7 @@
 #include <ATen/CPUGeneratorImpl.h>
 #include <fmt/format.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -169,28 +170,30 @@ bool optimizer_tensor_fits(const ArchiveTensor& t, const std::set<std::vector<st
          ((t.dtype == "Long" || t.dtype == "Float") && t.numel() <= 1);
 }
 
-// Holds the archive against what Scout's writer produces before LibTorch parses it: its structure
-// (learn/internal/archive.hpp), then its format number, its config, and each tensor's name,
-// shape and type against the agent that config describes. The agent is built only once the file
-// is known to hold that many weights, so that a crafted config cannot make Scout allocate more
-// than the file's own size.
-void check_archive(const std::string& bytes, const std::string& origin) {
-  ArchiveContents contents;
+// The non-tensor part of a checkpoint: its "progress" entry (the schedule's position, the epoch in
+// progress, the history, the run's processes and threads).
+void read_progress(const std::string& text, const std::string& origin, CheckpointState& state) {
   try {
-    contents = inspect_archive(bytes);
-  } catch (const std::runtime_error& e) {
-    throw InputError(origin + ": not a Scout checkpoint (" + e.what() + ")");
+    const json p = json::parse(text);
+    state.cursor = {p.at("stage").get<int>(), p.at("epoch").get<int>(), p.at("batch").get<int>()};
+    const json& q = p.at("partial");
+    state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
+                     q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
+                     q.at("batches").get<long>()};
+    state.history = history_from(p.at("history"), state.config.learning_rate);
+    state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
+    state.threads = p.contains("threads") ? p.at("threads").get<int>() : 0;
+  } catch (const std::exception& e) {
+    throw InputError(origin + ": progress: unreadable (" + one_line(e.what()) + ")");
   }
-  const auto format = contents.ints.find("scout_checkpoint_format");
-  if (format == contents.ints.end())
-    throw InputError(origin + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
-  if (format->second != kCheckpointFormat)
-    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", origin,
-                                 kCheckpointFormat, format->second));
-  const auto config_text = contents.strings.find("config");
-  if (config_text == contents.strings.end()) throw InputError(origin + ": config: missing from the checkpoint");
-  const TrainConfig config = TrainConfig::from_json(config_text->second, origin);
+  if (state.cursor.stage < 0 || state.cursor.stage > 4 || state.cursor.epoch < 0 || state.cursor.batch < 0)
+    throw InputError(origin + ": progress: the schedule position is out of range");
+}
 
+// Each tensor's name, shape and type against the agent the config describes; Adam's tensors must
+// have a parameter's shape. The agent is built only once the file is known to hold that many
+// weights, so that a crafted config cannot make Scout allocate more than the file's own size.
+void check_tensors(const ArchiveContents& contents, const agent::NetworkConfig& network, const std::string& origin) {
   const std::string agent_prefix = "agent.";
   std::map<std::string, const ArchiveTensor*> agent_tensors;
   std::int64_t agent_values = 0;
@@ -200,7 +203,7 @@ void check_archive(const std::string& bytes, const std::string& origin) {
     agent_values += t.numel();
   }
   const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
-  const std::int64_t parameters = agent::parameter_count(config.network);
+  const std::int64_t parameters = agent::parameter_count(network);
   if (agent_values < parameters)
     throw InputError(fmt::format("{}{}it gives {} parameters, the file holds {} values)", origin, mismatch, parameters,
                                  agent_values));
@@ -212,7 +215,7 @@ void check_archive(const std::string& bytes, const std::string& origin) {
     at::Tensor state = generator.get_state();
     ~GeneratorRestore() { generator.set_state(state); }
   } restore;
-  agent::Agent reference(config.network);
+  agent::Agent reference(network);
   std::set<std::vector<std::int64_t>> parameter_shapes;
   std::size_t expected = 0;
   const auto expect = [&](const std::string& name, const torch::Tensor& value) {
@@ -251,79 +254,30 @@ void check_archive(const std::string& bytes, const std::string& origin) {
                                  origin, optimizer_values, parameters));
 }
 
-torch::serialize::InputArchive open_archive_bytes(const std::string& bytes, const std::string& origin) {
-  check_archive(bytes, origin);
-  torch::serialize::InputArchive archive;
+// Holds the archive against what Scout's writer produces before LibTorch parses it: its structure
+// (learn/internal/archive.hpp), then its format number, its config and progress, and its tensors.
+// Every check has one place and one message. Returns the state the file holds.
+CheckpointState check_archive(const std::string& bytes, const std::string& origin) {
+  ArchiveContents contents;
   try {
-    archive.load_from(bytes.data(), bytes.size());
-  } catch (const std::exception& e) {
-    throw InputError(origin + ": not a Scout checkpoint (" + first_line(e.what()) + ")");
+    contents = inspect_archive(bytes);
+  } catch (const std::runtime_error& e) {
+    throw InputError(origin + ": not a Scout checkpoint (" + e.what() + ")");
   }
-  return archive;
-}
-
-torch::serialize::InputArchive open_archive(const fs::path& given) {
-  const fs::path file = resolve_checkpoint(given);
-  return open_archive_bytes(read_checkpoint_file(file), file.string());
-}
-
-CheckpointState read_state(torch::serialize::InputArchive& archive, const std::string& name);
-void load_weights(torch::serialize::InputArchive& archive, const std::string& name, agent::AgentImpl& agent,
-                  torch::optim::Optimizer* optimizer);
-
-}  // namespace
-
-CheckpointState read_checkpoint_state(const fs::path& file) {
-  torch::serialize::InputArchive archive = open_archive(file);
-  return read_state(archive, file.string());
-}
-
-CheckpointState read_checkpoint_state_bytes(const std::string& bytes, const std::string& origin) {
-  torch::serialize::InputArchive archive = open_archive_bytes(bytes, origin);
-  return read_state(archive, origin);
-}
-
-void load_checkpoint_weights(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) {
-  torch::serialize::InputArchive archive = open_archive(file);
-  load_weights(archive, file.string(), agent, optimizer);
-}
-
-void load_checkpoint_weights_bytes(const std::string& bytes, const std::string& origin, agent::AgentImpl& agent,
-                                   torch::optim::Optimizer* optimizer) {
-  torch::serialize::InputArchive archive = open_archive_bytes(bytes, origin);
-  load_weights(archive, origin, agent, optimizer);
-}
-
-namespace {
-
-CheckpointState read_state(torch::serialize::InputArchive& archive, const std::string& name) {
-  c10::IValue version, config, progress;
-  if (!archive.try_read("scout_checkpoint_format", version) || !version.isInt())
-    throw InputError(name + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
-  if (version.toInt() != kCheckpointFormat)
-    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", name,
-                                 kCheckpointFormat, version.toInt()));
-  if (!archive.try_read("config", config) || !config.isString())
-    throw InputError(name + ": config: missing from the checkpoint");
+  const auto format = contents.ints.find("scout_checkpoint_format");
+  if (format == contents.ints.end())
+    throw InputError(origin + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
+  if (format->second != kCheckpointFormat)
+    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", origin,
+                                 kCheckpointFormat, format->second));
+  const auto config = contents.strings.find("config");
+  if (config == contents.strings.end()) throw InputError(origin + ": config: missing from the checkpoint");
   CheckpointState state;
-  state.config = TrainConfig::from_json(config.toStringRef(), name);
-  if (!archive.try_read("progress", progress) || !progress.isString())
-    throw InputError(name + ": progress: missing from the checkpoint");
-  try {
-    const json p = json::parse(progress.toStringRef());
-    state.cursor = {p.at("stage").get<int>(), p.at("epoch").get<int>(), p.at("batch").get<int>()};
-    const json& q = p.at("partial");
-    state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
-                     q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
-                     q.at("batches").get<long>()};
-    state.history = history_from(p.at("history"), state.config.learning_rate);
-    state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
-    state.threads = p.contains("threads") ? p.at("threads").get<int>() : 0;
-  } catch (const std::exception& e) {
-    throw InputError(name + ": progress: unreadable (" + one_line(e.what()) + ")");
-  }
-  if (state.cursor.stage < 0 || state.cursor.stage > 4 || state.cursor.epoch < 0 || state.cursor.batch < 0)
-    throw InputError(name + ": progress: the schedule position is out of range");
+  state.config = TrainConfig::from_json(config->second, origin);
+  const auto progress = contents.strings.find("progress");
+  if (progress == contents.strings.end()) throw InputError(origin + ": progress: missing from the checkpoint");
+  read_progress(progress->second, origin, state);
+  check_tensors(contents, state.config.network, origin);
   return state;
 }
 
@@ -350,6 +304,13 @@ void load_weights(torch::serialize::InputArchive& archive, const std::string& or
       throw InputError(origin + mismatch + name + " is " + (t ? c10::str(t->sizes()) : std::string("missing")) +
                        ", the config gives " + c10::str(c10::IntArrayRef(shape)) + ")");
   }
+  // LibTorch's load makes each tensor share the archive's storage: give the agent its own, so that
+  // training one agent never changes what the opened checkpoint holds.
+  {
+    torch::NoGradGuard no_grad;
+    for (torch::Tensor& t : agent.parameters()) t.set_(t.clone());
+    for (torch::Tensor& t : agent.buffers()) t.set_(t.clone());
+  }
   if (optimizer) {
     try {
       torch::serialize::InputArchive optimizer_archive;
@@ -362,33 +323,62 @@ void load_weights(torch::serialize::InputArchive& archive, const std::string& or
   }
 }
 
+std::atomic<int> g_opened{0};
+
 }  // namespace
 
+int checkpoints_opened() { return g_opened.load(); }
+
+Checkpoint::Checkpoint(std::shared_ptr<const Contents> contents) : contents_(std::move(contents)) {}
+const fs::path& Checkpoint::file() const { return contents_->file; }
+const CheckpointInfo& Checkpoint::info() const { return contents_->info; }
+
+Checkpoint open_checkpoint_bytes(const std::string& bytes, const std::string& origin) {
+  ++g_opened;
+  auto contents = std::make_shared<Checkpoint::Contents>();
+  contents->file = origin;
+  contents->state = check_archive(bytes, origin);
+  try {
+    contents->archive.load_from(bytes.data(), bytes.size());
+  } catch (const std::exception& e) {
+    throw InputError(origin + ": not a Scout checkpoint (" + first_line(e.what()) + ")");
+  }
+  const CheckpointState& s = contents->state;
+  contents->info = {kCheckpointFormat, s.config, s.cursor, s.history, s.world_size};
+  return Checkpoint(std::move(contents));
+}
+
+Checkpoint open_checkpoint(const fs::path& path) {
+  const fs::path file = resolve_checkpoint(path);
+  return open_checkpoint_bytes(read_checkpoint_file(file), file.string());
+}
+
+void Checkpoint::Contents::load_into(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) const {
+  load_weights(archive, file.string(), agent, optimizer);
+}
+
+agent::Agent Checkpoint::Contents::networks() const {
+  if (model.is_empty()) {
+    agent::Agent built(state.config.network);
+    load_into(*built, nullptr);
+    built->eval();
+    model = built;
+  }
+  return model;
+}
+
+agent::Agent load_agent(const Checkpoint& checkpoint, CheckpointState* state) {
+  if (state) *state = checkpoint.contents().state;
+  return checkpoint.contents().networks();
+}
+
 agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
-  CheckpointState read = read_checkpoint_state(file);
-  agent::Agent agent(read.config.network);
-  load_checkpoint_weights(file, *agent, nullptr);
-  agent->eval();
-  if (state) *state = std::move(read);
-  return agent;
+  return load_agent(open_checkpoint(file), state);
 }
 
-CheckpointInfo export_model(const fs::path& checkpoint, const fs::path& model_file) {
-  CheckpointState state;
-  agent::Agent agent = load_agent(resolve_checkpoint(checkpoint), &state);
-  save_checkpoint(model_file, *agent, nullptr, state);
-  return {kCheckpointFormat, std::move(state.config), state.cursor, std::move(state.history), state.world_size};
-}
-
-CheckpointInfo read_checkpoint_info(const fs::path& file) {
-  CheckpointState state = read_checkpoint_state(file);
-  CheckpointInfo info;
-  info.format_version = kCheckpointFormat;
-  info.config = std::move(state.config);
-  info.cursor = state.cursor;
-  info.history = std::move(state.history);
-  info.world_size = state.world_size;
-  return info;
+CheckpointInfo export_model(const Checkpoint& checkpoint, const fs::path& model_file) {
+  save_checkpoint(model_file, *checkpoint.contents().networks(), nullptr, checkpoint.contents().state);
+  return checkpoint.info();
 }
 
 }  // namespace scout::learn

@@ -1,15 +1,16 @@
 #pragma once
-/// Checkpoint and model files from outside (torch-free, for the CLI): what a file says about
-/// itself, where a run keeps it, and exporting a model. Writing and loading weights is
+/// Checkpoint and model files from outside (torch-free, for the CLI): opening one once, what it
+/// says about itself, where a run keeps it, and exporting a model. Writing and loading weights is
 /// learn/internal/checkpoint.hpp's.
 #include <filesystem>
+#include <memory>
 #include <vector>
 
 #include "learn/trainer.hpp"
 
 namespace scout::learn {
 
-/// What a checkpoint file says about itself, without loading weights.
+/// What a checkpoint file says about itself.
 struct CheckpointInfo {
   int format_version = 0;
   TrainConfig config;
@@ -17,17 +18,37 @@ struct CheckpointInfo {
   std::vector<EpochMetrics> history;
   int world_size = 1;  ///< processes the run trained with
 };
-/// Reads a checkpoint's header; throws InputError with one line naming the file for anything
-/// that is not a Scout checkpoint of this format version.
-CheckpointInfo read_checkpoint_info(const std::filesystem::path& file);
+
+/// A checkpoint or model file read, checked and parsed once (open_checkpoint): what every reader
+/// takes — a resumed run, evaluation, the report, export, `scout run` and scout.Agent. Copies
+/// share the one opened file. Torch-free: its contents are learn/internal/checkpoint.hpp's.
+class Checkpoint {
+ public:
+  struct Contents;  ///< learn/internal/checkpoint.hpp: the state, the parsed archive, the networks
+  explicit Checkpoint(std::shared_ptr<const Contents> contents);
+  /// The file, as messages name it.
+  const std::filesystem::path& file() const;
+  const CheckpointInfo& info() const;
+  const Contents& contents() const { return *contents_; }
+
+ private:
+  std::shared_ptr<const Contents> contents_;
+};
+
+/// Opens RUN/checkpoint.pt (for a run folder) or a model file: reads it once, holds it against
+/// what Scout's writer makes (learn/internal/archive.hpp: the zip, the pickles, the tensor
+/// records; then the format number, the config, the progress, and every tensor against the
+/// networks the config describes), and has LibTorch parse it once. Throws InputError with one line
+/// naming the file for anything that is not a Scout checkpoint of this format version.
+Checkpoint open_checkpoint(const std::filesystem::path& path);
 
 /// The checkpoint file a path names: RUN/checkpoint.pt for a run folder, else the path itself.
 std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
 
 /// Writes a model file (what `scout run --checkpoint` and `scout eval` read): the checkpoint's
-/// weights, config and metrics history, without the optimizer's state. Atomic; throws InputError
-/// naming the checkpoint for anything that is not a Scout checkpoint. Returns what the model holds.
-CheckpointInfo export_model(const std::filesystem::path& checkpoint, const std::filesystem::path& model_file);
+/// weights, config and metrics history, without the optimizer's state. Atomic. Returns what the
+/// model holds.
+CheckpointInfo export_model(const Checkpoint& checkpoint, const std::filesystem::path& model_file);
 
 /// The checkpoint format this build writes and reads.
 inline constexpr int kCheckpointFormat = 1;

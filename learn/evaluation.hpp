@@ -12,6 +12,7 @@
 
 #include "agent/config.hpp"
 #include "core/stop.hpp"
+#include "learn/checkpoint.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -25,6 +26,7 @@ struct EvalProgress {
 
 struct EvalConfig {
   std::filesystem::path checkpoint;                     ///< RUN/checkpoint.pt or a model file
+  std::optional<Checkpoint> opened;                     ///< `checkpoint` already opened: not read again
   std::filesystem::path images, labels;                 ///< any IDX image and label files
   std::optional<std::filesystem::path> world_file;      ///< default: the checkpoint's world
   int runs = 20;                                        ///< R

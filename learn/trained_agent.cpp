@@ -38,6 +38,10 @@ TrainedAgent::TrainedAgent(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) 
 TrainedAgent::~TrainedAgent() = default;
 
 std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& checkpoint, agent::Precision precision) {
+  return load(open_checkpoint(checkpoint), precision);
+}
+
+std::unique_ptr<TrainedAgent> TrainedAgent::load(const Checkpoint& checkpoint, agent::Precision precision) {
   auto impl = std::make_unique<Impl>();
   impl->precision = agent::resolve_precision(precision);
   if (impl->precision == agent::Precision::BFloat16) {
@@ -45,7 +49,7 @@ std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& ch
   }
   impl->agent = load_agent(checkpoint, &impl->state);
   if (impl->state.config.network.image_channels != worlds::ImageSet::channels)
-    throw InputError(checkpoint.string() + ": network.image_channels: expected " +
+    throw InputError(checkpoint.file().string() + ": network.image_channels: expected " +
                      std::to_string(worlds::ImageSet::channels) + " (the floors' channels), got " +
                      std::to_string(impl->state.config.network.image_channels));
   impl->learned = learned_layers(impl->state.history);

@@ -7,6 +7,7 @@
 #include <span>
 #include <vector>
 
+#include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trainer.hpp"
 
@@ -26,6 +27,9 @@ class TrainedAgent {
   /// Loads RUN/checkpoint.pt or a model file; throws InputError naming the file. The networks run
   /// in `precision` (Auto: this CPU's best), whatever precision the checkpoint was trained in.
   static std::unique_ptr<TrainedAgent> load(const std::filesystem::path& checkpoint,
+                                            agent::Precision precision = agent::Precision::Auto);
+  /// The same from a checkpoint already opened (open_checkpoint): its networks are shared, not read again.
+  static std::unique_ptr<TrainedAgent> load(const Checkpoint& checkpoint,
                                             agent::Precision precision = agent::Precision::Auto);
   ~TrainedAgent();
 

@@ -167,6 +167,18 @@ struct Trainer::Impl {
     build_engine();
   }
 
+  // A checkpoint's weights, Adam's state and the schedule's position, into the networks and the
+  // optimizer that setup() built from its config.
+  void restore(const Checkpoint& checkpoint, const CheckpointState& state) {
+    checkpoint.contents().load_into(*agent, optimizer.get());
+    // Adam's stored state carries the rate it ran with; the config's (possibly new) rate wins.
+    for (torch::optim::OptimizerParamGroup& group : optimizer->param_groups())
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(config.learning_rate);
+    cursor = state.cursor;
+    history = state.history;
+    sums = state.partial;
+  }
+
   // Robots for this rank's share of a batch: B x N alone, ceil(B / ranks) x N in a group.
   void build_engine() {
     const int robots = (config.batch_images + ranks() - 1) / ranks() * config.rollouts;
@@ -507,9 +519,13 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool 
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const ResumeOptions& options) {
-  const fs::path file = run_dir / kCheckpointFile;
+  return resume(open_checkpoint(run_dir / kCheckpointFile), run_dir, threads, options);
+}
+
+std::unique_ptr<Trainer> Trainer::resume(const Checkpoint& checkpoint, const fs::path& run_dir, int threads,
+                                         const ResumeOptions& options) {
   auto impl = std::make_unique<Impl>();
-  CheckpointState state = read_checkpoint_state(file);
+  CheckpointState state = checkpoint.contents().state;
   const std::optional<std::array<int, 3>>& epochs = options.epochs;
   if (epochs) state.config.epochs = *epochs;
   if (options.data_folder) state.config.data_folder = fs::absolute(*options.data_folder);
@@ -521,12 +537,7 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
   // The run's own thread count unless another is asked for: LibTorch's sums depend on it, so
   // only the same count continues the run bit for bit.
   impl->setup(threads > 0 ? threads : state.threads, /*new_run=*/false);
-  load_checkpoint_weights(file, *impl->agent, impl->optimizer.get());
-  // Adam's stored state carries the rate it ran with; the config's (possibly new) rate wins.
-  for (torch::optim::OptimizerParamGroup& group : impl->optimizer->param_groups())
-    static_cast<torch::optim::AdamOptions&>(group.options()).lr(impl->config.learning_rate);
-  impl->cursor = state.cursor;
-  impl->history = state.history;
+  impl->restore(checkpoint, state);
   // A saved cursor has already skipped the stages with no epochs left; under a longer schedule,
   // continue right after the last epoch trained (run() skips finished stages again).
   if (epochs && !impl->history.empty()) {
@@ -547,7 +558,6 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
     const EpochMetrics& last = impl->history.back();
     impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};
   }
-  impl->sums = state.partial;
   // metrics.csv follows the checkpoint: a run killed between writing the one and the other gets
   // the rows its checkpoint holds.
   impl->write_metrics();
@@ -556,26 +566,18 @@ std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, c
 
 namespace {
 
-// What every rank of a data-parallel run must agree on, as JSON text in four parts: the world,
-// the networks (and their arithmetic), the training settings, and the data's SHA-256s. Paths are
-// left out: machines may keep the data in different folders.
-std::string agreement_text(const TrainConfig& config, const std::vector<fs::path>& data_files) {
-  json c = json::parse(config.to_json());
+// What every rank of a data-parallel run must agree on, as JSON text: each part of the config
+// that the schema table marks (learn/train_config.cpp: the world, the networks and their
+// arithmetic, the training settings), and the data's SHA-256s. Paths are left out: machines may
+// keep the data in different folders.
+constexpr Agreement kAgreed[] = {Agreement::World, Agreement::Networks, Agreement::Training};
+
+std::string agreement_json(const TrainConfig& config, const std::vector<fs::path>& data_files) {
   json parts;
-  parts["world"] = c["world_yaml"];
-  // The classes and image channels come from the data, compared below.
-  c["network"].erase("classes");
-  c["network"].erase("image_channels");
-  parts["networks"] = {{"network", c["network"]}, {"precision", c["precision"]}};
-  c.erase("world_yaml");
-  c.erase("world_file");
-  c.erase("data_folder");
-  c.erase("network");
-  c.erase("precision");
-  parts["training"] = c;
+  for (Agreement part : kAgreed) parts[to_string(part)] = agreement_text(config, part);
   json data = json::array();
   for (const fs::path& f : data_files) data.push_back(core::sha256_hex(f));
-  parts["data"] = data;
+  parts["data (SHA-256)"] = data;
   return parts.dump();
 }
 
@@ -620,29 +622,23 @@ std::unique_ptr<Trainer> Trainer::distribute(ProcessGroup& group, int threads,
     group.broadcast(payload);
     if (payload.empty() || payload[0] != 'S') throw LeaderFailed("rank 0 could not start the run (its error says why)");
     payload.erase(0, 1);
-    CheckpointState state = read_checkpoint_state_bytes(payload, origin);
+    const Checkpoint checkpoint = open_checkpoint_bytes(payload, origin);
+    CheckpointState state = checkpoint.contents().state;
     if (data_folder) state.config.data_folder = fs::absolute(*data_folder);
     auto impl = std::make_unique<Impl>();
     impl->config = state.config;
     impl->group = &group;
     impl->setup(threads, /*new_run=*/false);
-    load_checkpoint_weights_bytes(payload, origin, *impl->agent, impl->optimizer.get());
-    for (torch::optim::OptimizerParamGroup& g : impl->optimizer->param_groups())
-      static_cast<torch::optim::AdamOptions&>(g.options()).lr(impl->config.learning_rate);
-    impl->cursor = state.cursor;
-    impl->history = std::move(state.history);
-    impl->sums = state.partial;
+    impl->restore(checkpoint, state);
     trainer.reset(new Trainer(std::move(impl)));
   }
   // Every rank compares every rank with rank 0, so that all of them stop with the same line.
   const Impl& impl = *trainer->impl_;
   const std::vector<json> all =
-      gather_agreements(group, agreement_text(own_config.value_or(impl.config), impl.data_files));
-  const std::pair<const char*, const char*> parts[] = {
-      {"world", "world"}, {"networks", "networks"}, {"training", "training settings"}, {"data", "data (SHA-256)"}};
+      gather_agreements(group, agreement_json(own_config.value_or(impl.config), impl.data_files));
   for (int r = 1; r < group.size(); ++r)
-    for (const auto& [key, what] : parts)
-      if (all[r][key] != all[0][key])
+    for (const auto& [what, part] : all[0].items())
+      if (all[r][what] != part)
         throw InputError(
             fmt::format("rank {} asks for other {} than rank 0 (every process must run the same command "
                         "on the same data)",

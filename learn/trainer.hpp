@@ -18,6 +18,7 @@
 namespace scout::learn {
 
 class ProcessGroup;  // learn/distributed.hpp
+class Checkpoint;    // learn/checkpoint.hpp
 
 /// One row of metrics.csv.
 struct EpochMetrics {
@@ -112,6 +113,9 @@ class Trainer {
   /// checkpoint, or an option that contradicts the run.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
                                          const ResumeOptions& options = {});
+  /// The same from RUN/checkpoint.pt already opened (open_checkpoint): nothing is read again.
+  static std::unique_ptr<Trainer> resume(const Checkpoint& checkpoint, const std::filesystem::path& run_dir,
+                                         int threads, const ResumeOptions& options = {});
   /// Data-parallel training over `group` (learn/distributed.hpp); every rank calls this. Rank 0
   /// builds its trainer with `make_leader` (a new run or a resume, as above) and broadcasts its
   /// whole state (weights, Adam, config, schedule position, history); the other ranks load their

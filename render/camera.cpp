@@ -28,7 +28,6 @@ constexpr int kMaxFloorPx = 512;
 // World files are validated against these limits before a camera is ever made.
 static_assert(kMaxPatchPx == worlds::kMaxPatchPx && kMaxFloorPx == worlds::kMaxFloorPx,
               "the world-file limits must be the camera's");
-constexpr int kMaxRobots = 4096;
 
 // One vertex per robot: its pose as two ints, straight from the caller's PixelPose span.
 static_assert(sizeof(PixelPose) == 2 * sizeof(GLint), "PixelPose is uploaded as an ivec2");
@@ -336,8 +335,8 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
           "floor height must be 1.." + std::to_string(kMaxFloorPx) + " px, got " + std::to_string(floor_height_px));
   require(patch_px > 0 && patch_px <= kMaxPatchPx,
           "patch size must be 1.." + std::to_string(kMaxPatchPx) + " px, got " + std::to_string(patch_px));
-  require(max_robots > 0 && max_robots <= kMaxRobots,
-          "max_robots must be 1.." + std::to_string(kMaxRobots) + ", got " + std::to_string(max_robots));
+  require(max_robots > 0 && max_robots <= kMaxCameraRobots,
+          "max_robots must be 1.." + std::to_string(kMaxCameraRobots) + ", got " + std::to_string(max_robots));
   Impl& impl = *impl_;
   impl.floor_width_px = floor_width_px;
   impl.floor_height_px = floor_height_px;

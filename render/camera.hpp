@@ -7,6 +7,8 @@
 #include <span>
 #include <string>
 
+#include "render/limits.hpp"
+
 namespace scout::render {
 
 /// A robot's grid pose, in floor pixels (x = column, y = row).

@@ -20,6 +20,7 @@
 #include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"
 #include "render/camera.hpp"
+#include "sim/robots.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
@@ -47,11 +48,8 @@ struct TrainBenchOptions {
   std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
   std::string data_root;
   std::string json_out;
-  NetworkOptions net;
+  SettingOptions settings;  // the training settings bench train takes (the library's defaults: the paper preset)
   std::string modes = "i,ii,iii";
-  int batch = learn::TrainConfig{}.batch_images;  // the library's defaults (the paper preset)
-  int rollouts = learn::TrainConfig{}.rollouts;
-  bool baseline = learn::TrainConfig{}.leave_one_out;
   int batches = 5, warmup = 1, threads = 0;
   bool force = false;
   GroupFlags group;
@@ -75,141 +73,180 @@ std::vector<double> time_repeats(int repeats, F&& body) {
   return seconds;
 }
 
-void bench_sim(const BenchOptions& opt, const Context& context) {
-  if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
-  if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
-  check_output_file("--json", opt.json_out);
-  const worlds::World world = worlds::load_world(opt.world);
+// The batch bench sim drives: n different digits (or the world's one) and starts, as a training
+// batch would have.
+struct SimBatch {
+  worlds::World world;
+  worlds::FloorSet floors;
+  grid::FloorFrame frame;
+  int n = 0, moves_per_rollout = 0;
+  std::size_t area = 0;
+  std::vector<std::uint8_t> floor_pixels;
+  std::vector<grid::Cell> starts;
+};
+
+SimBatch gather_sim_batch(const BenchOptions& opt) {
+  SimBatch b;
+  b.world = worlds::load_world(opt.world);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
-  const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const grid::FloorFrame frame{
-      .width_px = floors.width_px(), .height_px = floors.height_px(), .pixel_size_m = world.floor.pixel_size_m};
-  const int n = opt.robots;
-  const int moves_per_rollout = world.task.episodes * world.task.steps;
-  const std::size_t area = static_cast<std::size_t>(frame.area_px());
-
-  // The batch: n different digits (or the world's one) and starts, as a training batch would have.
-  core::Rng rng(world.seed);
-  std::vector<std::uint8_t> batch_floors(area * n);
-  std::vector<grid::Cell> starts(n);
-  for (int i = 0; i < n; ++i) {
-    const int index = world.floor.index
-                          ? *world.floor.index
-                          : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(floors.size())));
-    std::copy_n(floors.images.image(index), area, batch_floors.data() + area * i);
-    starts[i] = env::draw_start(world, frame, rng);
+  b.floors = worlds::load_floors(b.world, data_root);
+  b.frame = {
+      .width_px = b.floors.width_px(), .height_px = b.floors.height_px(), .pixel_size_m = b.world.floor.pixel_size_m};
+  b.n = opt.robots;
+  b.moves_per_rollout = b.world.task.episodes * b.world.task.steps;
+  b.area = static_cast<std::size_t>(b.frame.area_px());
+  core::Rng rng(b.world.seed);
+  b.floor_pixels.resize(b.area * b.n);
+  b.starts.resize(b.n);
+  for (int i = 0; i < b.n; ++i) {
+    const int index = b.world.floor.index
+                          ? *b.world.floor.index
+                          : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(b.floors.size())));
+    std::copy_n(b.floors.images.image(index), b.area, b.floor_pixels.data() + b.area * i);
+    b.starts[i] = env::draw_start(b.world, b.frame, rng);
   }
-  auto seeds_for = [n](int repeat) {
-    std::vector<std::uint64_t> seeds(n);
-    for (int i = 0; i < n; ++i)
-      seeds[i] = core::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
-    return seeds;
-  };
+  return b;
+}
 
-  const auto engine_owner = make_engine(world, frame, n);
-  learn::RolloutEngine& engine = *engine_owner;
-  // One recorded batch gives the commands and poses that the physics-only and camera-only runs replay.
-  learn::RandomPolicy recorded_policy(seeds_for(-1));
-  const std::vector<learn::RolloutRecord> recorded = engine.run(batch_floors, starts, recorded_policy, true);
+std::vector<std::uint64_t> sim_seeds(int n, int repeat) {
+  std::vector<std::uint64_t> seeds(n);
+  for (int i = 0; i < n; ++i)
+    seeds[i] = core::derive_seed(static_cast<std::uint64_t>(repeat), static_cast<std::uint64_t>(i));
+  return seeds;
+}
+
+// What bench sim measured: medians per batch, seconds, and what the recorded batch's moves did.
+struct SimFigures {
+  double together = 0, physics = 0, camera = 0, crop = 0;
+  int threads = 0;
   long ticks = 0, driven_moves = 0, all_moves = 0;
   double peak_speed = 0;
+  std::string camera_description;
+};
+
+void count_moves(const std::vector<learn::RolloutRecord>& recorded, SimFigures& f) {
   for (const auto& rec : recorded)
     for (const auto& s : rec.steps) {
-      ticks += s.result.ticks;
-      all_moves += 1;
-      driven_moves += s.command != grid::Cell::Zero();
-      peak_speed = std::max(peak_speed, s.result.peak_speed_mps);
+      f.ticks += s.result.ticks;
+      f.all_moves += 1;
+      f.driven_moves += s.command != grid::Cell::Zero();
+      f.peak_speed = std::max(f.peak_speed, s.result.peak_speed_mps);
     }
+}
 
-  // Physics and camera together: whole rollouts of mode (i), nothing recorded. One line on
-  // stderr says the timing has begun (what a caller can wait for before signalling).
-  std::fprintf(stderr, "scout bench sim: timing %d repeats\n", opt.repeats);
-  engine.reset_timing();
-  const auto together = time_repeats(opt.repeats, [&](int r) {
-    learn::RandomPolicy policy(seeds_for(r));
-    engine.run(batch_floors, starts, policy, false);
-  });
-
+// Physics alone, camera alone and the CPU crop, replaying the commands and poses of `recorded`.
+void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vector<learn::RolloutRecord>& recorded,
+                    SimFigures& f) {
+  const int n = b.n, moves = b.moves_per_rollout;
   // Physics alone: the recorded commands replayed on a fresh batch of bodies.
-  sim::RobotBatch robots(frame, sim::RobotParams::from_world(world), n);
-  std::vector<std::vector<grid::Cell>> commands(moves_per_rollout, std::vector<grid::Cell>(n));
-  std::vector<std::vector<render::PixelPose>> poses(moves_per_rollout, std::vector<render::PixelPose>(n));
+  sim::RobotBatch robots(b.frame, sim::RobotParams::from_world(b.world), n);
+  std::vector<std::vector<grid::Cell>> commands(moves, std::vector<grid::Cell>(n));
+  std::vector<std::vector<render::PixelPose>> poses(moves, std::vector<render::PixelPose>(n));
   for (int i = 0; i < n; ++i)
-    for (int m = 0; m < moves_per_rollout; ++m) {
+    for (int m = 0; m < moves; ++m) {
       commands[m][i] = recorded[i].steps[m].command;
       poses[m][i] = {.x = recorded[i].steps[m].grid_pose.x(), .y = recorded[i].steps[m].grid_pose.y()};
     }
   std::vector<sim::MoveResult> results(n);
-  const auto physics = time_repeats(opt.repeats, [&](int) {
-    for (int i = 0; i < n; ++i) robots.place(i, starts[i]);
-    for (int m = 0; m < moves_per_rollout; ++m) robots.move(commands[m], results);
-  });
-
+  f.physics = median(time_repeats(opt.repeats, [&](int) {
+    for (int i = 0; i < n; ++i) robots.place(i, b.starts[i]);
+    for (int m = 0; m < moves; ++m) robots.move(commands[m], results);
+  }));
   // Camera alone: the recorded poses rendered and read back.
-  render::PatchCamera camera(frame.width_px, frame.height_px, world.camera.patch_px, n);
-  camera.load_floors(batch_floors, n);
-  std::vector<std::uint8_t> patches(static_cast<std::size_t>(n) * world.camera.patch_px * world.camera.patch_px);
-  const auto render_times = time_repeats(opt.repeats, [&](int) {
-    for (int m = 0; m < moves_per_rollout; ++m) camera.capture(poses[m], patches);
-  });
-
-  const int robots_threads = robots.threads();
+  const int patch = b.world.camera.patch_px;
+  render::PatchCamera camera(b.frame.width_px, b.frame.height_px, patch, n);
+  camera.load_floors(b.floor_pixels, n);
+  std::vector<std::uint8_t> patches(static_cast<std::size_t>(n) * patch * patch);
+  f.camera = median(time_repeats(opt.repeats, [&](int) {
+    for (int m = 0; m < moves; ++m) camera.capture(poses[m], patches);
+  }));
+  f.threads = robots.threads();
   // The CPU crop of the same windows: the floor any renderer is measured against.
-  const auto crop_times = time_repeats(opt.repeats, [&](int) {
-    const int m = world.camera.patch_px;
-    for (int k = 0; k < moves_per_rollout; ++k)
+  f.crop = median(time_repeats(opt.repeats, [&](int) {
+    for (int k = 0; k < moves; ++k)
       for (int i = 0; i < n; ++i)
-        render::crop_patch(batch_floors.data() + area * i, frame.width_px, frame.height_px, m, poses[k][i],
-                           patches.data() + static_cast<std::size_t>(i) * m * m);
-  });
+        render::crop_patch(b.floor_pixels.data() + b.area * i, b.frame.width_px, b.frame.height_px, patch, poses[k][i],
+                           patches.data() + static_cast<std::size_t>(i) * patch * patch);
+  }));
+}
 
-  const double steps = double(n) * moves_per_rollout;
-  const double t_all = median(together), t_phys = median(physics), t_cam = median(render_times),
-               t_crop = median(crop_times);
-  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} physics threads\n", n,
-             moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats,
-             robots_threads);
-  fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, frame.pixel_size_m,
+SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
+  SimFigures f;
+  const auto engine = make_engine(b.world, b.frame, b.n);
+  // One recorded batch gives the commands and poses that the physics-only and camera-only runs replay.
+  learn::RandomPolicy recorded_policy(sim_seeds(b.n, -1));
+  const std::vector<learn::RolloutRecord> recorded = engine->run(b.floor_pixels, b.starts, recorded_policy, true);
+  count_moves(recorded, f);
+  // Physics and camera together: whole rollouts of mode (i), nothing recorded. One line on
+  // stderr says the timing has begun (what a caller can wait for before signalling).
+  std::fprintf(stderr, "scout bench sim: timing %d repeats\n", opt.repeats);
+  engine->reset_timing();
+  f.together = median(time_repeats(opt.repeats, [&](int r) {
+    learn::RandomPolicy policy(sim_seeds(b.n, r));
+    engine->run(b.floor_pixels, b.starts, policy, false);
+  }));
+  time_sim_parts(opt, b, recorded, f);
+  f.camera_description = engine->camera_description();
+  return f;
+}
+
+void print_sim(const BenchOptions& opt, const SimBatch& b, const SimFigures& f) {
+  const worlds::World& world = b.world;
+  const double steps = double(b.n) * b.moves_per_rollout;
+  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} physics threads\n", b.n,
+             b.moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats, f.threads);
+  fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, b.frame.pixel_size_m,
              world.robot.max_speed_mps, world.physics.dt_s);
   fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
-  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics + camera", t_all * 1e3, steps / t_all);
-  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics alone", t_phys * 1e3, steps / t_phys);
-  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s)\n", "camera alone", t_cam * 1e3, steps / t_cam,
-             steps / t_cam);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics + camera", f.together * 1e3, steps / f.together);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics alone", f.physics * 1e3, steps / f.physics);
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s)\n", "camera alone", f.camera * 1e3, steps / f.camera,
+             steps / f.camera);
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}   (reference: the same patches cropped on the CPU)\n", "CPU crop",
-             t_crop * 1e3, steps / t_crop);
+             f.crop * 1e3, steps / f.crop);
   fmt::print("  ticks per move: {:.2f} over all moves, {:.2f} over moves that drive ({} of {} moves are no-ops)\n",
-             double(ticks) / all_moves, driven_moves ? double(ticks) / driven_moves : 0.0, all_moves - driven_moves,
-             all_moves);
-  fmt::print("  peak speed reached: {:.3f} m/s (limit {} m/s)\n", peak_speed, world.robot.max_speed_mps);
+             double(f.ticks) / f.all_moves, f.driven_moves ? double(f.ticks) / f.driven_moves : 0.0,
+             f.all_moves - f.driven_moves, f.all_moves);
+  fmt::print("  peak speed reached: {:.3f} m/s (limit {} m/s)\n", f.peak_speed, world.robot.max_speed_mps);
   // The project's targets (issue: world side), for the paper preset's batch of 240.
   constexpr double kTargetAgentSteps = 300'000, kTargetPatches = 2'000'000;
   fmt::print("  targets: physics + camera >= {:.0f} agent-steps/s: {}; camera >= {:.0f} patches/s: {}\n",
-             kTargetAgentSteps, steps / t_all >= kTargetAgentSteps ? "met" : "NOT met", kTargetPatches,
-             steps / t_cam >= kTargetPatches ? "met" : "NOT met");
-  fmt::print("  camera: {}\n", engine.camera_description());
+             kTargetAgentSteps, steps / f.together >= kTargetAgentSteps ? "met" : "NOT met", kTargetPatches,
+             steps / f.camera >= kTargetPatches ? "met" : "NOT met");
+  fmt::print("  camera: {}\n", f.camera_description);
   fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));
+}
 
-  if (!opt.json_out.empty()) {
-    nlohmann::ordered_json j;
-    j["robots"] = n;
-    j["moves_per_rollout"] = moves_per_rollout;
-    j["repeats"] = opt.repeats;
-    j["threads"] = robots_threads;
-    j["peak_resident_bytes"] = core::peak_resident_bytes();
-    j["median_ms"] = {{"physics_and_camera", t_all * 1e3},
-                      {"physics", t_phys * 1e3},
-                      {"camera", t_cam * 1e3},
-                      {"cpu_crop", t_crop * 1e3}};
-    j["agent_steps_per_s"] = {
-        {"physics_and_camera", steps / t_all}, {"physics", steps / t_phys}, {"camera", steps / t_cam}};
-    j["patches_per_s"] = steps / t_cam;
-    j["ticks_per_move"] = double(ticks) / all_moves;
-    j["ticks_per_driving_move"] = driven_moves ? double(ticks) / driven_moves : 0.0;
-    j["peak_speed_mps"] = peak_speed;
-    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
-    write_file_atomic(opt.json_out, j.dump(2) + "\n");
-  }
+void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures& f, const Context& context) {
+  const double steps = double(b.n) * b.moves_per_rollout;
+  nlohmann::ordered_json j;
+  j["robots"] = b.n;
+  j["moves_per_rollout"] = b.moves_per_rollout;
+  j["repeats"] = opt.repeats;
+  j["threads"] = f.threads;
+  j["peak_resident_bytes"] = core::peak_resident_bytes();
+  j["median_ms"] = {{"physics_and_camera", f.together * 1e3},
+                    {"physics", f.physics * 1e3},
+                    {"camera", f.camera * 1e3},
+                    {"cpu_crop", f.crop * 1e3}};
+  j["agent_steps_per_s"] = {
+      {"physics_and_camera", steps / f.together}, {"physics", steps / f.physics}, {"camera", steps / f.camera}};
+  j["patches_per_s"] = steps / f.camera;
+  j["ticks_per_move"] = double(f.ticks) / f.all_moves;
+  j["ticks_per_driving_move"] = f.driven_moves ? double(f.ticks) / f.driven_moves : 0.0;
+  j["peak_speed_mps"] = f.peak_speed;
+  j["manifest"] = make_manifest(context.argv, worlds::to_yaml(b.world), b.floors.files, f.camera_description);
+  write_file_atomic(opt.json_out, j.dump(2) + "\n");
+}
+
+void bench_sim(const BenchOptions& opt, const Context& context) {
+  if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
+  if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
+  check_output_file("--json", opt.json_out);
+  const SimBatch batch = gather_sim_batch(opt);
+  const SimFigures figures = time_sim(opt, batch);
+  print_sim(opt, batch, figures);
+  if (!opt.json_out.empty()) write_sim_json(opt, batch, figures, context);
 }
 
 std::vector<learn::Stage> parse_modes(const std::string& text) {
@@ -231,37 +268,30 @@ std::vector<learn::Stage> parse_modes(const std::string& text) {
   return modes;
 }
 
-void bench_train(const TrainBenchOptions& opt, const Context& context) {
-  check_output_file("--json", opt.json_out);
+// The training bench's config: the command line's settings over the library's defaults.
+learn::TrainBenchConfig bench_train_config(const TrainBenchOptions& opt) {
   learn::TrainBenchConfig config;
   config.modes = parse_modes(opt.modes);
   learn::TrainConfig& c = config.train;
+  c = opt.settings.applied_to(learn::TrainConfig{});
   c.world = worlds::load_world(opt.world);
   if (c.world.floor.dataset.empty())
     throw InputError(opt.world + ": floor.dataset: the training bench needs a data set (a PNG floor has no labels)");
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   c.data_folder = worlds::dataset_folder(c.world.floor.dataset, data_root);
-  c.network = opt.net.network();
-  c.precision = opt.net.arithmetic();
-  c.batch_images = opt.batch;
-  c.rollouts = opt.rollouts;
-  c.leave_one_out = opt.baseline;
+  c.precision = agent::resolve_precision(c.precision);
   c.seed = c.world.seed;
+  c.validate(setting_option);
   config.batches = opt.batches;
   config.warmup = opt.warmup;
   config.threads = opt.threads;
   config.force_memory = opt.force;
+  return config;
+}
 
-  // Data-parallel: every process drives its share of each batch; rank 0 prints.
-  std::unique_ptr<learn::ProcessGroup> group;
-  if (const std::optional<learn::GroupOptions> options = group_from_flags(opt.group)) {
-    set_rank(options->rank);
-    group = learn::ProcessGroup::connect(*options);
-    config.threads = threads_per_process(opt.threads);
-  }
-  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token(), group.get());
-  if (group && group->rank() != 0) return;
-  opt.net.announce_precision();
+void print_train_bench(const TrainBenchOptions& opt, const learn::TrainConfig& c,
+                       const learn::TrainBenchReport& report) {
+  opt.settings.announce_precision();
   const agent::NetworkConfig& n = c.network;
   fmt::print(
       "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {}{} LibTorch threads, "
@@ -302,48 +332,66 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
         kTargetModeIII, m.images_per_s >= kTargetModeIII ? "met" : "NOT met", 100 * kMaxSimulationShare,
         m.simulation_share() < kMaxSimulationShare ? "met" : "NOT met", 100 * m.simulation_share());
   }
+}
 
-  if (!opt.json_out.empty()) {
-    nlohmann::ordered_json j;
-    j["robots"] = report.robots;
-    j["rollouts"] = c.rollouts;
-    j["batch_images"] = c.batch_images;
-    j["threads"] = report.threads;
-    j["world_size"] = report.world_size;
-    j["all_reduce_bytes"] = report.all_reduce_bytes;
-    j["peak_resident_bytes"] = report.peak_bytes;
-    j["estimated_bytes"] = report.estimated_bytes;
-    j["precision"] = agent::to_string(c.precision);
-    j["batches"] = opt.batches;
-    j["warmup"] = opt.warmup;
-    j["network"] = {{"planner_width", n.planner_width},
-                    {"planner_depth", n.planner_depth},
-                    {"classifier", agent::to_string(n.classifier)},
-                    {"classifier_width", n.classifier_width},
-                    {"classifier_depth", n.classifier_depth}};
-    nlohmann::ordered_json modes = nlohmann::ordered_json::array();
-    for (const learn::ModeBench& m : report.modes) {
-      const double total = m.sum.total_s;
-      auto share = [total](double part) { return total > 0 ? part / total : 0.0; };
-      modes.push_back({{"mode", learn::to_string(m.mode)},
-                       {"images_per_s", m.images_per_s},
-                       {"median_step_s", m.median_step_s},
-                       {"share",
-                        {{"physics", share(m.sum.physics_s)},
-                         {"render", share(m.sum.render_s)},
-                         {"state", share(m.sum.state_s)},
-                         {"forward", share(m.sum.forward_s)},
-                         {"backward", share(m.sum.backward_s)},
-                         {"optimizer", share(m.sum.optimizer_s)},
-                         {"all_reduce", share(m.sum.all_reduce_s)}}},
-                       {"all_reduce_s_per_step", m.batches ? m.sum.all_reduce_s / m.batches : 0.0},
-                       {"simulation_share", m.simulation_share()},
-                       {"action_decisions_per_batch", m.action_decisions}});
-    }
-    j["modes"] = modes;
-    j["manifest"] = make_manifest(context.argv, worlds::to_yaml(c.world), report.data_files, "");
-    write_file_atomic(opt.json_out, j.dump(2) + "\n");
+void write_train_bench_json(const TrainBenchOptions& opt, const learn::TrainConfig& c,
+                            const learn::TrainBenchReport& report, const Context& context) {
+  const agent::NetworkConfig& n = c.network;
+  nlohmann::ordered_json j;
+  j["robots"] = report.robots;
+  j["rollouts"] = c.rollouts;
+  j["batch_images"] = c.batch_images;
+  j["threads"] = report.threads;
+  j["world_size"] = report.world_size;
+  j["all_reduce_bytes"] = report.all_reduce_bytes;
+  j["peak_resident_bytes"] = report.peak_bytes;
+  j["estimated_bytes"] = report.estimated_bytes;
+  j["precision"] = agent::to_string(c.precision);
+  j["batches"] = opt.batches;
+  j["warmup"] = opt.warmup;
+  j["network"] = {{"planner_width", n.planner_width},
+                  {"planner_depth", n.planner_depth},
+                  {"classifier", agent::to_string(n.classifier)},
+                  {"classifier_width", n.classifier_width},
+                  {"classifier_depth", n.classifier_depth}};
+  nlohmann::ordered_json modes = nlohmann::ordered_json::array();
+  for (const learn::ModeBench& m : report.modes) {
+    const double total = m.sum.total_s;
+    auto share = [total](double part) { return total > 0 ? part / total : 0.0; };
+    modes.push_back({{"mode", learn::to_string(m.mode)},
+                     {"images_per_s", m.images_per_s},
+                     {"median_step_s", m.median_step_s},
+                     {"share",
+                      {{"physics", share(m.sum.physics_s)},
+                       {"render", share(m.sum.render_s)},
+                       {"state", share(m.sum.state_s)},
+                       {"forward", share(m.sum.forward_s)},
+                       {"backward", share(m.sum.backward_s)},
+                       {"optimizer", share(m.sum.optimizer_s)},
+                       {"all_reduce", share(m.sum.all_reduce_s)}}},
+                     {"all_reduce_s_per_step", m.batches ? m.sum.all_reduce_s / m.batches : 0.0},
+                     {"simulation_share", m.simulation_share()},
+                     {"action_decisions_per_batch", m.action_decisions}});
   }
+  j["modes"] = modes;
+  j["manifest"] = make_manifest(context.argv, worlds::to_yaml(c.world), report.data_files, "");
+  write_file_atomic(opt.json_out, j.dump(2) + "\n");
+}
+
+void bench_train(const TrainBenchOptions& opt, const Context& context) {
+  check_output_file("--json", opt.json_out);
+  learn::TrainBenchConfig config = bench_train_config(opt);
+  // Data-parallel: every process drives its share of each batch; rank 0 prints.
+  std::unique_ptr<learn::ProcessGroup> group;
+  if (const std::optional<learn::GroupOptions> options = group_from_flags(opt.group)) {
+    set_rank(options->rank);
+    group = learn::ProcessGroup::connect(*options);
+    config.threads = threads_per_process(opt.threads);
+  }
+  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token(), group.get());
+  if (group && group->rank() != 0) return;
+  print_train_bench(opt, config.train, report);
+  if (!opt.json_out.empty()) write_train_bench_json(opt, config.train, report, context);
 }
 
 }  // namespace
@@ -359,7 +407,7 @@ void add_bench_command(CLI::App& app, const Context& context) {
   sim_cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
   sim_cmd->add_option("--robots", opt->robots, "Robots in the batch")
       ->capture_default_str()
-      ->check(decimal_in(1, 4096));
+      ->check(decimal_in(1, render::kMaxCameraRobots));
   sim_cmd->add_option("--repeats", opt->repeats, "Timed repetitions")
       ->capture_default_str()
       ->check(decimal_in(1, 10000));
@@ -376,17 +424,10 @@ void add_bench_command(CLI::App& app, const Context& context) {
       "and the share of a step spent in physics, rendering, state building, forward, backward and Adam.");
   train_cmd->add_option("--world", topt->world, "World file")->capture_default_str();
   train_cmd->add_option("--data", topt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
-  add_network_options(*train_cmd, topt->net);
+  topt->settings.add_to(*train_cmd, /*bench=*/true);
   train_cmd->add_option("--modes", topt->modes, "Modes to time: a comma-separated list of i, ii, iii")
       ->capture_default_str()
       ->check(parsed_by(parse_modes, "MODES"));
-  train_cmd->add_option("--batch", topt->batch, "B: images per mini-batch")
-      ->capture_default_str()
-      ->check(decimal_in(1, 4096));
-  train_cmd->add_option("--rollouts", topt->rollouts, "N: rollouts per image")
-      ->capture_default_str()
-      ->check(decimal_in(1, 64));
-  train_cmd->add_flag("--baseline", topt->baseline, "Leave-one-out baseline");
   train_cmd->add_option("--batches", topt->batches, "Timed batches per mode")
       ->capture_default_str()
       ->check(decimal_in(1, 10000));

@@ -103,8 +103,8 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   // Once the inputs are read and the first batch is about to run, one line on stderr (what a caller
   // can wait for before signalling) and what the networks run in: after the checks, so that a
   // refusal stays one line.
-  const agent::Precision trained =
-      leader ? learn::read_checkpoint_info(opt.checkpoint).config.precision : agent::Precision::Float32;
+  config.opened = learn::open_checkpoint(config.checkpoint);  // once: evaluate() reads it no more
+  const agent::Precision trained = config.opened->info().config.precision;
   bool started = !leader;
   const core::StopToken stop([&started, &opt, trained] {
     if (!started) {

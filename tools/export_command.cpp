@@ -34,7 +34,7 @@ void export_command(const ExportOptions& o) {
   const fs::path parent = fs::path(o.out).parent_path();
   if (!parent.empty() && !fs::is_directory(parent, ec))
     throw InputError("--out: " + o.out + ": the folder " + parent.string() + " does not exist");
-  const learn::CheckpointInfo info = learn::export_model(source, o.out);
+  const learn::CheckpointInfo info = learn::export_model(learn::open_checkpoint(source), o.out);
   fmt::print("model: {} ({} bytes; {} epoch(s) of training, from {})\n", o.out, fs::file_size(o.out),
              info.history.size(), source.string());
   const learn::TrainConfig& c = info.config;

@@ -10,62 +10,101 @@
 
 namespace scout::tools {
 
-namespace {
-
-// "Classifier: paper: METHOD.md's dense blocks at full resolution | strided: ... | resnet18: ...".
-std::string classifier_help() {
-  std::string help = "Classifier: ";
-  for (const agent::ClassifierVariant& variant : agent::kClassifierVariants) {
-    if (&variant != &agent::kClassifierVariants[0]) help += " | ";
-    help += std::string(variant.name) + ": " + variant.help;
-  }
-  return help;
-}
-
-}  // namespace
-
-std::string NetworkOptions::default_precision() { return agent::to_string(learn::TrainConfig{}.precision); }
-
 std::string precision_choices() { return "auto, bf16, fp32"; }
 
 namespace {
 
-// --precision's check: one of the names, and bf16 only where it can run at all.
+// --precision's check beyond its row's: bf16 only where it can run at all.
+std::string bf16_problem(const std::string& text) {
+  if (agent::parse_precision(text) != agent::Precision::BFloat16) return {};
+  const std::string why = agent::bf16_unavailable();
+  return why.empty() ? std::string() : "bf16: " + why;
+}
+
 CLI::Validator precision_validator() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        agent::Precision precision;
         try {
-          precision = agent::parse_precision(text);
+          agent::parse_precision(text);
         } catch (const std::invalid_argument&) {
           return "expected one of " + precision_choices() + ", got '" + one_line(text) + "'";
         }
-        if (precision == agent::Precision::BFloat16) {
-          const std::string why = agent::bf16_unavailable();
-          if (!why.empty()) return "bf16: " + why;
-        }
-        return {};
+        return bf16_problem(text);
       },
       "PRECISION");
 }
 
+// A setting's check: its row's (learn::set_setting), and bf16 only where it can run.
+CLI::Validator setting_validator(const learn::TrainSetting& setting) {
+  return CLI::Validator(
+      [&setting](std::string& text) -> std::string {
+        learn::TrainConfig scratch;
+        try {
+          learn::set_setting(scratch, setting, text);
+        } catch (const InputError& e) {
+          return e.what();
+        }
+        return setting.type == learn::SettingType::Precision ? bf16_problem(text) : std::string();
+      },
+      learn::setting_value_name(setting));
+}
+
+const char* type_name(const learn::TrainSetting& setting) {
+  switch (setting.type) {
+    case learn::SettingType::Integer:
+      return "INT";
+    case learn::SettingType::Number:
+      return "FLOAT";
+    default:
+      return "TEXT";
+  }
+}
+
 }  // namespace
 
-agent::NetworkConfig NetworkOptions::network() const {
-  agent::NetworkConfig n;
-  n.planner_width = planner_width;
-  n.planner_depth = planner_depth;
-  n.classifier = agent::parse_classifier_kind(classifier);  // checked by the option
-  n.classifier_width = classifier_width;
-  n.classifier_depth = classifier_depth;
-  return n;
+void SettingOptions::add_to(CLI::App& cmd, bool bench) {
+  cmd_ = &cmd;
+  const learn::TrainConfig defaults;  // the library's defaults are the command's
+  for (const learn::TrainSetting& s : learn::train_settings()) {
+    if (s.commands == learn::SettingCommands::None || (bench && s.commands != learn::SettingCommands::TrainAndBench))
+      continue;
+    const std::string key = learn::setting_key(s);
+    if (s.type == learn::SettingType::Flag) {
+      cmd.add_flag(std::string(s.option), flags_[key], learn::setting_help(s));
+      continue;
+    }
+    CLI::Option* option = cmd.add_option(std::string(s.option), texts_[key], learn::setting_help(s));
+    option->type_name(type_name(s))->check(setting_validator(s));
+    if (s.shows_default) option->default_str(learn::setting_text(defaults, s));
+  }
 }
 
-agent::Precision NetworkOptions::arithmetic() const {
-  return agent::resolve_precision(agent::parse_precision(precision));  // checked by the option
+bool SettingOptions::given(const learn::TrainSetting& setting) const {
+  if (setting.option.empty() || cmd_ == nullptr) return false;
+  const CLI::Option* option = cmd_->get_option_no_throw(std::string(setting.option));
+  return option != nullptr && option->count() > 0;
 }
 
-void NetworkOptions::announce_precision() const { announce_auto_precision(precision); }
+bool SettingOptions::given(std::string_view key) const { return given(learn::train_setting(key)); }
+
+learn::TrainConfig SettingOptions::applied_to(const learn::TrainConfig& base) const {
+  learn::TrainConfig config = base;
+  for (const learn::TrainSetting& s : learn::train_settings()) {
+    if (!given(s)) continue;
+    const std::string key = learn::setting_key(s);
+    learn::set_setting(config, s,
+                       s.type == learn::SettingType::Flag ? (flags_.at(key) ? "on" : "off") : texts_.at(key));
+  }
+  return config;
+}
+
+std::string SettingOptions::precision() const { return given("precision") ? texts_.at("precision") : "auto"; }
+
+void SettingOptions::announce_precision() const { announce_auto_precision(precision()); }
+
+std::string setting_option(const learn::TrainSetting& setting) {
+  return setting.option.empty() ? learn::setting_key(setting) : std::string(setting.option);
+}
 
 void announce_auto_precision(const std::string& requested) {
   // Training has no model yet: what it trains in is what it runs in.
@@ -93,29 +132,6 @@ void announce_model_precision(const std::string& requested, agent::Precision tra
                  "precision: bf16 as asked, emulated: this CPU has no native bf16, so the networks run several "
                  "times slower than in fp32 (--precision auto picks fp32 here)\n");
   }
-}
-
-void add_network_options(CLI::App& cmd, NetworkOptions& o) {
-  cmd.add_option("--planner-width", o.planner_width, "Channels each planner block adds (d)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxWidth));
-  cmd.add_option("--planner-depth", o.planner_depth, "Planner blocks (r)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxPlannerDepth));
-  cmd.add_option("--classifier", o.classifier, classifier_help())
-      ->capture_default_str()
-      ->check(one_of(agent::parse_classifier_kind, agent::classifier_choices(), "KIND"));
-  cmd.add_option("--classifier-width", o.classifier_width, "Classifier's first block width (doubles each block)")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxWidth));
-  cmd.add_option("--classifier-depth", o.classifier_depth, "Classifier blocks")
-      ->capture_default_str()
-      ->check(decimal_in(1, agent::kMaxClassifierDepth));
-  cmd.add_option("--precision", o.precision,
-                 "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 (bfloat16 "
-                 "convolutions, fp32 weights and optimizer) | fp32")
-      ->capture_default_str()
-      ->check(precision_validator());
 }
 
 }  // namespace scout::tools

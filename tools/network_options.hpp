@@ -1,11 +1,13 @@
 #pragma once
-// The networks' options that `scout train` and `scout bench train` share: widths, depths, the
-// classifier variant and the arithmetic, with one set of checks (their defaults are those of a
-// default-constructed agent::NetworkConfig and learn::TrainConfig); and --precision for the
-// commands that run a trained model (run, eval, report), with what each says about it.
+// The training settings' options that `scout train` and `scout bench train` share, made from
+// learn::train_settings() (the schema table in learn/train_config.cpp: one row per setting gives
+// its option, help, default, value check and what a resume does with it); and --precision for
+// the commands that run a trained model (run, eval, report), with what each says about it.
+#include <map>
 #include <string>
 
 #include "agent/config.hpp"
+#include "learn/train_config.hpp"
 
 namespace CLI {
 class App;
@@ -13,31 +15,32 @@ class App;
 
 namespace scout::tools {
 
-/// The library's defaults, read once (learn::TrainConfig holds a world, so it is not constexpr).
-inline constexpr agent::NetworkConfig kDefaultNetwork{};
-
-struct NetworkOptions {
-  int planner_width = kDefaultNetwork.planner_width;
-  int planner_depth = kDefaultNetwork.planner_depth;
-  std::string classifier = agent::to_string(kDefaultNetwork.classifier);
-  int classifier_width = kDefaultNetwork.classifier_width;
-  int classifier_depth = kDefaultNetwork.classifier_depth;
-  std::string precision = default_precision();
-
-  /// The options' values as a config (classes and channels keep their defaults).
-  agent::NetworkConfig network() const;
-  /// The requested arithmetic, `auto` resolved for this CPU.
-  agent::Precision arithmetic() const;
+/// The training settings a command line gave, one option per row of learn::train_settings().
+class SettingOptions {
+ public:
+  /// Adds an option for every setting `scout train` takes (`bench`: those `scout bench train`
+  /// takes), each checked by its row (a bad value is a usage error with the row's message).
+  void add_to(CLI::App& cmd, bool bench);
+  /// Whether the command line gave this setting (by its JSON key, e.g. "rollouts").
+  bool given(const learn::TrainSetting& setting) const;
+  bool given(std::string_view key) const;
+  /// `base` with every setting the command line gave set (checked by the options already).
+  learn::TrainConfig applied_to(const learn::TrainConfig& base) const;
+  /// The networks' arithmetic asked for, as given ("auto" when not).
+  std::string precision() const;
   /// With `auto`: prints what it chose and why, in one line on stderr; with bf16 where it is
   /// emulated, a warning. Called once the command's checks have passed, so that a refusal stays
   /// one line.
   void announce_precision() const;
-  /// learn::TrainConfig's default precision, as --precision spells it.
-  static std::string default_precision();
+
+ private:
+  const CLI::App* cmd_ = nullptr;
+  std::map<std::string, std::string> texts_;  ///< by JSON key, as given
+  std::map<std::string, bool> flags_;
 };
 
-/// Adds --planner-width/-depth, --classifier, --classifier-width/-depth and --precision.
-void add_network_options(CLI::App& cmd, NetworkOptions& o);
+/// Names a setting by its option in learn::TrainConfig::validate's messages ("--rollouts").
+std::string setting_option(const learn::TrainSetting& setting);
 
 /// Prints agent::auto_precision_note() on stderr when `requested` is "auto", and a warning when bf16
 /// is asked for on a CPU that would emulate it.

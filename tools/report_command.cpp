@@ -217,8 +217,9 @@ json history_json(const std::vector<learn::EpochMetrics>& history) {
 
 // The budget sweep: the same networks at other patch sizes m, and at other numbers of episodes E
 // (T as trained), on the first `digits` test digits.
-json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const worlds::World& trained,
-                  const fs::path& images, const fs::path& labels, std::uint64_t seed) {
+json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const fs::path& images,
+                  const fs::path& labels, std::uint64_t seed) {
+  const worlds::World& trained = checkpoint.info().config.world;
   struct Point {
     int patch, episodes;
     const char* kind;
@@ -241,7 +242,8 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
     world.camera.patch_px = p.patch;
     world.task.episodes = p.episodes;
     learn::EvalConfig config;
-    config.checkpoint = checkpoint;
+    config.checkpoint = checkpoint.file();
+    config.opened = checkpoint;  // every point runs the networks opened once
     config.images = images;
     config.labels = labels;
     config.world = world;
@@ -271,7 +273,7 @@ json budget_sweep(const ReportOptions& opt, const fs::path& checkpoint, const wo
 
 // Test episodes for the picture grid: the first test digits in order, driven by the agent with
 // its goal maps recorded; half right and half wrong where there are enough wrong ones.
-json test_episodes(const ReportOptions& opt, const fs::path& checkpoint, const worlds::ImageSet& images,
+json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const worlds::ImageSet& images,
                    const std::vector<std::uint8_t>& labels, std::uint64_t seed) {
   std::unique_ptr<learn::TrainedAgent> agent =
       learn::TrainedAgent::load(checkpoint, agent::parse_precision(opt.precision));
@@ -360,32 +362,28 @@ std::string python_interpreter() {
   return "/usr/bin/python3";  // Debian's, with python3-matplotlib (MEASURED.md: another python3 may lack it)
 }
 
-void report_command(const ReportOptions& opt, const Context& context) {
-  const auto t0 = core::Clock::now();
-  if (opt.episodes < 0 || opt.episodes > 64)
-    throw InputError(fmt::format("--episodes: expected 0..64, got {}", opt.episodes));
-  const fs::path model = opt.model;
-  const fs::path checkpoint = learn::resolve_checkpoint(model);
-  const learn::CheckpointInfo info = learn::read_checkpoint_info(checkpoint);
-  const std::uint64_t seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
-  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
-  const fs::path test_folder = worlds::dataset_folder("mnist", data_root);
-  const fs::path images = opt.images.empty() ? test_folder / "t10k-images-idx3-ubyte" : fs::path(opt.images);
-  const fs::path labels = opt.labels.empty() ? test_folder / "t10k-labels-idx1-ubyte" : fs::path(opt.labels);
-  if (opt.images.empty() != opt.labels.empty())
-    throw InputError("--images and --labels: expected both or neither (default: the official MNIST test set)");
-  const fs::path script = report_script();
-  std::error_code ec;
-  if (!fs::is_regular_file(script, ec))
-    throw InputError(
-        fmt::format("{}: the report's plotting script is missing (set SCOUT_REPORT_SCRIPT)", script.string()));
+// Another model's row in the table: LABEL=EVAL.json.
+struct Compared {
+  std::string label;
+  fs::path file;
+  json eval;
+};
 
-  // Every input is read and checked before minutes of work.
-  struct Compared {
-    std::string label;
-    fs::path file;
-    json eval;
-  };
+// Everything a report reads, read and checked before minutes of work.
+struct ReportInputs {
+  explicit ReportInputs(learn::Checkpoint model_checkpoint) : opened(std::move(model_checkpoint)) {}
+  learn::Checkpoint opened;  // the model, opened once for the evaluation, the sweep and the episodes
+  fs::path model, checkpoint;
+  std::string checkpoint_sha;
+  std::uint64_t seed = 1;
+  fs::path images, labels, script, eval_file;
+  std::vector<Compared> compared;
+  json eval;  // the model's evaluation; null: the report evaluates it
+  worlds::ImageSet test_images;
+  std::vector<std::uint8_t> test_labels;
+};
+
+std::vector<Compared> read_compared(const ReportOptions& opt) {
   std::vector<Compared> compared;
   for (const std::string& entry : opt.compare) {
     const std::size_t eq = entry.find('=');
@@ -396,93 +394,107 @@ void report_command(const ReportOptions& opt, const Context& context) {
     check_eval_json(c.eval, c.file);
     compared.push_back(std::move(c));
   }
-  fs::path eval_file = opt.eval_file;
-  if (eval_file.empty() && fs::is_regular_file(eval_beside(model), ec)) eval_file = eval_beside(model);
-  json eval;
-  if (!eval_file.empty()) {
-    eval = read_json_file(eval_file, "--eval");
-    check_eval_json(eval, eval_file);
-    const std::string model_sha = core::sha256_hex(checkpoint);
-    if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("checkpoint_sha256") &&
-        eval["manifest"]["checkpoint_sha256"] != model_sha)
-      throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
-                                   eval_file.string(), model_sha, checkpoint.string(),
-                                   eval["manifest"]["checkpoint_sha256"].dump()));
-    // The table says which digits its figures come from: an evaluation of other digits (the
-    // 10,000-digit set's test split, say) is refused rather than shown as the official test set.
-    const std::vector<std::string> evaluated = evaluated_data(eval);
-    for (const fs::path& file : {images, labels}) {
-      const std::string sha = core::sha256_hex(file);
-      if (std::find(evaluated.begin(), evaluated.end(), sha) == evaluated.end())
-        throw InputError(fmt::format(
-            "--eval: {}: manifest.data_sha256: expected an evaluation of {} (SHA-256 {}), got one of other digits "
-            "(evaluate again with scout eval, or give --images and --labels)",
-            eval_file.string(), file.string(), sha));
-    }
-  }
-  const worlds::ImageSet test_images = worlds::read_idx_images(images);
-  const std::vector<std::uint8_t> test_labels = worlds::read_idx_labels(labels);
-  if (test_images.count == 0) throw InputError(images.string() + ": expected at least one image, the file has none");
-  if (test_labels.size() != static_cast<std::size_t>(test_images.count))
-    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels.string(),
-                                 test_images.count, images.string(), test_labels.size()));
-  std::vector<fs::path> inputs = {model, checkpoint, images, labels};
-  if (!eval_file.empty()) inputs.push_back(eval_file);
-  for (const Compared& c : compared) inputs.push_back(c.file);
-  OutputDir out(opt.out, opt.overwrite, inputs);
+  return compared;
+}
 
-  fmt::print("scout report: {} -> {}\n", model.string(), opt.out);
+// The model's evaluation beside it (or --eval), held to the model and to the test digits.
+void read_model_eval(const ReportOptions& opt, ReportInputs& in) {
+  std::error_code ec;
+  in.eval_file = opt.eval_file;
+  if (in.eval_file.empty() && fs::is_regular_file(eval_beside(in.model), ec)) in.eval_file = eval_beside(in.model);
+  if (in.eval_file.empty()) return;
+  const fs::path& eval_file = in.eval_file;
+  json& eval = in.eval;
+  eval = read_json_file(eval_file, "--eval");
+  check_eval_json(eval, eval_file);
+  if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("checkpoint_sha256") &&
+      eval["manifest"]["checkpoint_sha256"] != in.checkpoint_sha)
+    throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
+                                 eval_file.string(), in.checkpoint_sha, in.checkpoint.string(),
+                                 eval["manifest"]["checkpoint_sha256"].dump()));
+  // The table says which digits its figures come from: an evaluation of other digits (the
+  // 10,000-digit set's test split, say) is refused rather than shown as the official test set.
+  const std::vector<std::string> evaluated = evaluated_data(eval);
+  for (const fs::path& file : {in.images, in.labels}) {
+    const std::string sha = core::sha256_hex(file);
+    if (std::find(evaluated.begin(), evaluated.end(), sha) == evaluated.end())
+      throw InputError(fmt::format(
+          "--eval: {}: manifest.data_sha256: expected an evaluation of {} (SHA-256 {}), got one of other digits "
+          "(evaluate again with scout eval, or give --images and --labels)",
+          eval_file.string(), file.string(), sha));
+  }
+}
+
+ReportInputs gather_report_inputs(const ReportOptions& opt) {
+  if (opt.episodes < 0 || opt.episodes > 64)
+    throw InputError(fmt::format("--episodes: expected 0..64, got {}", opt.episodes));
+  const fs::path checkpoint = learn::resolve_checkpoint(opt.model);
+  ReportInputs in(learn::open_checkpoint(checkpoint));
+  in.model = opt.model;
+  in.checkpoint = checkpoint;
+  in.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
+  const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
+  const fs::path test_folder = worlds::dataset_folder("mnist", data_root);
+  in.images = opt.images.empty() ? test_folder / "t10k-images-idx3-ubyte" : fs::path(opt.images);
+  in.labels = opt.labels.empty() ? test_folder / "t10k-labels-idx1-ubyte" : fs::path(opt.labels);
+  if (opt.images.empty() != opt.labels.empty())
+    throw InputError("--images and --labels: expected both or neither (default: the official MNIST test set)");
+  in.script = report_script();
+  std::error_code ec;
+  if (!fs::is_regular_file(in.script, ec))
+    throw InputError(
+        fmt::format("{}: the report's plotting script is missing (set SCOUT_REPORT_SCRIPT)", in.script.string()));
+  in.compared = read_compared(opt);
+  in.checkpoint_sha = core::sha256_hex(checkpoint);
+  read_model_eval(opt, in);
+  in.test_images = worlds::read_idx_images(in.images);
+  in.test_labels = worlds::read_idx_labels(in.labels);
+  if (in.test_images.count == 0)
+    throw InputError(in.images.string() + ": expected at least one image, the file has none");
+  if (in.test_labels.size() != static_cast<std::size_t>(in.test_images.count))
+    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", in.labels.string(),
+                                 in.test_images.count, in.images.string(), in.test_labels.size()));
+  return in;
+}
+
+// The model evaluated here (no evaluation beside it): eval.json in the report's folder.
+json evaluate_model(const ReportOptions& opt, const ReportInputs& in, const Context& context, const OutputDir& out) {
+  fmt::print("  evaluating on {} digits, {} runs (no evaluation beside the model)\n", in.test_images.count, opt.runs);
   std::fflush(stdout);
-  announce_model_precision(opt.precision, info.config.precision);
-  std::string eval_source;
-  if (eval.is_null()) {
-    fmt::print("  evaluating on {} digits, {} runs (no evaluation beside the model)\n", test_images.count, opt.runs);
-    std::fflush(stdout);
-    learn::EvalConfig config;
-    config.checkpoint = checkpoint;
-    config.images = images;
-    config.labels = labels;
-    config.runs = opt.runs;
-    config.seed = seed;
-    config.precision = agent::parse_precision(opt.precision);
-    ProgressLine progress("scout report", "rollouts");
-    config.on_progress = [&](const learn::EvalProgress& e) {
-      progress.update(e.run > 0 ? fmt::format("evaluating, run {} of {}", e.run, e.runs) : "evaluating, greedy run",
-                      e.rollouts_done, e.rollouts_total, e.seconds);
-    };
-    const learn::EvalReport r = learn::evaluate(config, interrupt_token());
-    eval = eval_document(learn::report_json(r), context.argv, checkpoint, images, labels, 1);
-    write_file_atomic(out.path() / "eval.json", eval.dump(2) + "\n");
-    eval_source = "eval.json (evaluated by this report)";
-  } else {
-    eval_source = eval_file.string();
-  }
+  learn::EvalConfig config;
+  config.checkpoint = in.checkpoint;
+  config.opened = in.opened;
+  config.images = in.images;
+  config.labels = in.labels;
+  config.runs = opt.runs;
+  config.seed = in.seed;
+  config.precision = agent::parse_precision(opt.precision);
+  ProgressLine progress("scout report", "rollouts");
+  config.on_progress = [&](const learn::EvalProgress& e) {
+    progress.update(e.run > 0 ? fmt::format("evaluating, run {} of {}", e.run, e.runs) : "evaluating, greedy run",
+                    e.rollouts_done, e.rollouts_total, e.seconds);
+  };
+  const learn::EvalReport r = learn::evaluate(config, interrupt_token());
+  json eval = eval_document(learn::report_json(r), context.argv, in.checkpoint, in.images, in.labels, 1);
+  write_file_atomic(out.path() / "eval.json", eval.dump(2) + "\n");
+  return eval;
+}
 
-  json data;
-  data["command"] = shell_line(json(context.argv));
-  data["cpu"] = cpu_name();
-  data["paper"] = {{"accuracy", kPaperAccuracy},
-                   {"ci95", kPaperCi95},
-                   {"top2", kPaperTop2},
-                   {"full_image", kPaperFullImage},
-                   {"transfer", kPaperTransfer},
-                   {"ram",
-                    {{"accuracy", kRamAccuracy},
-                     {"glimpses", kRamGlimpses},
-                     {"side", kRamSide},
-                     {"revealed_fraction", std::min(1.0, kRamGlimpses * kRamSide * kRamSide / 784.0)}}}};
-  json m;
-  m["label"] = fmt::format("Scout: {}", model.filename().string());
-  m["path"] = model.string();
-  m["eval"] = eval_summary(eval);
-  m["eval"]["data"] = fmt::format("{} ({} digits)", images.string(), eval.value("images", test_images.count));
-  m["eval_source"] = eval_source;
-  m["eval_command"] = eval_command_of(eval);
-  m["train_commands"] = training_commands(manifest_beside(model));
-  m["history"] = history_json(info.history);
-  m["revealed_fraction"] = eval.contains("revealed_fraction") ? eval["revealed_fraction"] : json(nullptr);
-  data["model"] = m;
-  data["compare"] = json::array();
+json paper_figures() {
+  return {{"accuracy", kPaperAccuracy},
+          {"ci95", kPaperCi95},
+          {"top2", kPaperTop2},
+          {"full_image", kPaperFullImage},
+          {"transfer", kPaperTransfer},
+          {"ram",
+           {{"accuracy", kRamAccuracy},
+            {"glimpses", kRamGlimpses},
+            {"side", kRamSide},
+            {"revealed_fraction", std::min(1.0, kRamGlimpses * kRamSide * kRamSide / 784.0)}}}};
+}
+
+json compared_rows(const std::vector<Compared>& compared) {
+  json rows = json::array();
   for (const Compared& c : compared) {
     json e;
     e["label"] = c.label;
@@ -497,42 +509,95 @@ void report_command(const ReportOptions& opt, const Context& context) {
       const fs::path model_path = fs::exists(given, exists) ? given : c.file.parent_path() / given.filename();
       e["train_commands"] = training_commands(manifest_beside(model_path));
     }
-    data["compare"].push_back(e);
+    rows.push_back(e);
   }
-  if (opt.sweep_digits > 0) {
-    fmt::print("  budget sweep: {} digits, {} runs per point\n", std::min(opt.sweep_digits, test_images.count),
-               opt.sweep_runs);
-    std::fflush(stdout);
-    data["sweep"] = budget_sweep(opt, checkpoint, info.config.world, images, labels, seed);
-    data["sweep"]["digits"] = std::min(opt.sweep_digits, test_images.count);
-    // The paper's task on the sweep's axis: its point sits where this model's m = 6, 4 x 5 does.
-    for (const json& p : data["sweep"]["points"])
-      if (p["patch_px"] == 6 && p["episodes"] == 4 && p["steps"] == 5)
-        data["paper"]["revealed_fraction"] = p["revealed_fraction"];
-    if (m["revealed_fraction"].is_null())
-      for (const json& p : data["sweep"]["points"])
-        if (p["patch_px"] == info.config.world.camera.patch_px && p["episodes"] == info.config.world.task.episodes)
-          data["model"]["revealed_fraction"] = p["revealed_fraction"];
-  }
-  data["episode_seed"] = seed;
-  data["episodes"] = opt.episodes > 0 ? test_episodes(opt, checkpoint, test_images, test_labels, seed) : json::array();
-  interrupt_token().throw_if_requested();
-  data["seconds"] = core::seconds_since(t0);
-  write_file_atomic(out.path() / "report-data.json", data.dump(1) + "\n");
+  return rows;
+}
 
+// The budget sweep into the report's data, and the paper's and this model's points on it.
+void add_sweep(const ReportOptions& opt, const ReportInputs& in, json& data) {
+  fmt::print("  budget sweep: {} digits, {} runs per point\n", std::min(opt.sweep_digits, in.test_images.count),
+             opt.sweep_runs);
+  std::fflush(stdout);
+  data["sweep"] = budget_sweep(opt, in.opened, in.images, in.labels, in.seed);
+  data["sweep"]["digits"] = std::min(opt.sweep_digits, in.test_images.count);
+  // The paper's task on the sweep's axis: its point sits where this model's m = 6, 4 x 5 does.
+  for (const json& p : data["sweep"]["points"])
+    if (p["patch_px"] == 6 && p["episodes"] == 4 && p["steps"] == 5)
+      data["paper"]["revealed_fraction"] = p["revealed_fraction"];
+  const worlds::World& world = in.opened.info().config.world;
+  if (data["model"]["revealed_fraction"].is_null())
+    for (const json& p : data["sweep"]["points"])
+      if (p["patch_px"] == world.camera.patch_px && p["episodes"] == world.task.episodes)
+        data["model"]["revealed_fraction"] = p["revealed_fraction"];
+}
+
+// What report-data.json holds: the paper's figures, this model's evaluation and history, the
+// compared rows, the budget sweep and the test episodes.
+json report_data(const ReportOptions& opt, const ReportInputs& in, const json& eval, const std::string& eval_source,
+                 const Context& context) {
+  json data;
+  data["command"] = shell_line(json(context.argv));
+  data["cpu"] = cpu_name();
+  data["paper"] = paper_figures();
+  json m;
+  m["label"] = fmt::format("Scout: {}", in.model.filename().string());
+  m["path"] = in.model.string();
+  m["eval"] = eval_summary(eval);
+  m["eval"]["data"] = fmt::format("{} ({} digits)", in.images.string(), eval.value("images", in.test_images.count));
+  m["eval_source"] = eval_source;
+  m["eval_command"] = eval_command_of(eval);
+  m["train_commands"] = training_commands(manifest_beside(in.model));
+  m["history"] = history_json(in.opened.info().history);
+  m["revealed_fraction"] = eval.contains("revealed_fraction") ? eval["revealed_fraction"] : json(nullptr);
+  data["model"] = m;
+  data["compare"] = compared_rows(in.compared);
+  if (opt.sweep_digits > 0) add_sweep(opt, in, data);
+  data["episode_seed"] = in.seed;
+  data["episodes"] =
+      opt.episodes > 0 ? test_episodes(opt, in.opened, in.test_images, in.test_labels, in.seed) : json::array();
+  return data;
+}
+
+// The figures and REPORT.md, drawn by the plotting script from report-data.json alone.
+void draw_figures(const ReportInputs& in, const OutputDir& out) {
   const core::ProgramResult plot = core::run_program(
-      {python_interpreter(), script.string(), (out.path() / "report-data.json").string(), out.path().string()},
+      {python_interpreter(), in.script.string(), (out.path() / "report-data.json").string(), out.path().string()},
       fs::current_path(), out.path() / ".plot.log");
   interrupt_token().throw_if_requested();  // a Ctrl-C reached the plotting script too
   if (plot.failed()) {
     const bool missing_module = plot.last_line.find("ModuleNotFoundError") != std::string::npos;
-    throw InputError(fmt::format("{} {} failed {}{}", python_interpreter(), script.string(),
+    throw InputError(fmt::format("{} {} failed {}{}", python_interpreter(), in.script.string(),
                                  plot.describe(python_interpreter()),
                                  missing_module ? "; install python3-matplotlib (./scripts/setup.sh)" : ""));
   }
+  std::error_code ec;
   fs::remove(out.path() / ".plot.log", ec);
-  json manifest = make_manifest(context.argv, worlds::to_yaml(info.config.world), {images, labels}, "");
-  manifest["checkpoint"] = {{"path", model.string()}, {"sha256", core::sha256_hex(checkpoint)}};
+}
+
+void report_command(const ReportOptions& opt, const Context& context) {
+  const auto t0 = core::Clock::now();
+  const ReportInputs in = gather_report_inputs(opt);
+  std::vector<fs::path> inputs = {in.model, in.checkpoint, in.images, in.labels};
+  if (!in.eval_file.empty()) inputs.push_back(in.eval_file);
+  for (const Compared& c : in.compared) inputs.push_back(c.file);
+  OutputDir out(opt.out, opt.overwrite, inputs);
+
+  fmt::print("scout report: {} -> {}\n", in.model.string(), opt.out);
+  std::fflush(stdout);
+  const learn::CheckpointInfo& info = in.opened.info();
+  announce_model_precision(opt.precision, info.config.precision);
+  const bool evaluate_here = in.eval.is_null();
+  const json eval = evaluate_here ? evaluate_model(opt, in, context, out) : in.eval;
+  const std::string eval_source = evaluate_here ? "eval.json (evaluated by this report)" : in.eval_file.string();
+
+  json data = report_data(opt, in, eval, eval_source, context);
+  interrupt_token().throw_if_requested();
+  data["seconds"] = core::seconds_since(t0);
+  write_file_atomic(out.path() / "report-data.json", data.dump(1) + "\n");
+  draw_figures(in, out);
+  json manifest = make_manifest(context.argv, worlds::to_yaml(info.config.world), {in.images, in.labels}, "");
+  manifest["checkpoint"] = {{"path", in.model.string()}, {"sha256", in.checkpoint_sha}};
   write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
   out.commit();
   fmt::print("report: {} ({:.0f} s)\n", (fs::path(out.target()) / "REPORT.md").string(), core::seconds_since(t0));

@@ -137,127 +137,132 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
   }
 }
 
-void run_command(const RunOptions& opt, const Context& context) {
-  if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
-  // A bad video path is refused before any work, like a bad --out.
-  if (!opt.video.empty()) {
-    render::check_video_path("--video", opt.video);
-    if (opt.fps > 50 && render::check_video_path("--video", opt.video) == render::VideoFormat::Gif)
-      throw InputError(
-          fmt::format("--fps: expected at most 50 for a GIF (browsers slow faster ones down), got {}", opt.fps));
-    // --out is replaced as a whole when it is committed: a video inside it would be lost.
-    std::error_code ec;
-    const fs::path video = fs::weakly_canonical(fs::absolute(opt.video), ec);
-    const fs::path out = fs::weakly_canonical(fs::absolute(opt.out), ec);
-    const auto [stop, _] = std::mismatch(out.begin(), out.end(), video.begin(), video.end());
-    if (!ec && stop == out.end())
-      throw InputError(fmt::format("--video: {}: expected a file outside --out's folder {} (written as a whole)",
-                                   opt.video, opt.out));
-  }
+// A bad video path is refused before any work, like a bad --out.
+void check_video_options(const RunOptions& opt) {
+  if (opt.video.empty()) return;
+  render::check_video_path("--video", opt.video);
+  if (opt.fps > 50 && render::check_video_path("--video", opt.video) == render::VideoFormat::Gif)
+    throw InputError(
+        fmt::format("--fps: expected at most 50 for a GIF (browsers slow faster ones down), got {}", opt.fps));
+  // --out is replaced as a whole when it is committed: a video inside it would be lost.
+  std::error_code ec;
+  const fs::path video = fs::weakly_canonical(fs::absolute(opt.video), ec);
+  const fs::path out = fs::weakly_canonical(fs::absolute(opt.out), ec);
+  const auto [stop, _] = std::mismatch(out.begin(), out.end(), video.begin(), video.end());
+  if (!ec && stop == out.end())
+    throw InputError(
+        fmt::format("--video: {}: expected a file outside --out's folder {} (written as a whole)", opt.video, opt.out));
+}
+
+// What scout run drives: the trained agent (none: mode (i)), the world and its floors.
+struct RunSetup {
   std::unique_ptr<learn::TrainedAgent> agent;
+  worlds::World world;
+  worlds::FloorSet floors;
+  grid::FloorFrame frame;
+};
+
+RunSetup gather_run(const RunOptions& opt) {
+  RunSetup setup;
   if (!opt.checkpoint.empty()) {
-    agent = learn::TrainedAgent::load(opt.checkpoint, agent::parse_precision(opt.precision));
-    if (opt.heat_map && !agent->learned().goals)
+    setup.agent = learn::TrainedAgent::load(opt.checkpoint, agent::parse_precision(opt.precision));
+    if (opt.heat_map && !setup.agent->learned().goals)
       throw InputError(opt.checkpoint +
                        ": --heat-map: expected a checkpoint with a learned goal layer (trained in mode (ii) or "
                        "(iii)); this one drives with i.i.d. goals");
-    announce_model_precision(opt.precision, agent->config().precision);
+    announce_model_precision(opt.precision, setup.agent->config().precision);
   }
-  worlds::World world = worlds::load_world(opt.world);
-  if (!opt.seed.empty()) world.seed = parse_seed(opt.seed);
+  setup.world = worlds::load_world(opt.world);
+  if (!opt.seed.empty()) setup.world.seed = parse_seed(opt.seed);
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
-  const worlds::FloorSet floors = worlds::load_floors(world, data_root);
-  const grid::FloorFrame frame{
-      .width_px = floors.width_px(), .height_px = floors.height_px(), .pixel_size_m = world.floor.pixel_size_m};
+  setup.floors = worlds::load_floors(setup.world, data_root);
+  setup.frame = {.width_px = setup.floors.width_px(),
+                 .height_px = setup.floors.height_px(),
+                 .pixel_size_m = setup.world.floor.pixel_size_m};
+  const grid::FloorFrame& frame = setup.frame;
   if (!opt.no_images && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
     throw InputError(
         fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
                     render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
                     frame.height_px, render::kMaxPictureSidePx, opt.scale));
-  std::vector<fs::path> inputs = floors.files;
-  inputs.push_back(opt.world);
-  if (agent) inputs.push_back(learn::resolve_checkpoint(opt.checkpoint));
-  OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
-  if (!opt.video.empty() && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
-    throw InputError(fmt::format("--scale: expected at most {} for a video of a {} x {} floor, got {}",
-                                 render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
-                                 frame.height_px, opt.scale));
+  return setup;
+}
+
+// Where each run goes as it is driven, and what the runs add up to.
+struct RunOutputs {
+  std::ofstream trajectory;  // streamed run by run, so memory does not grow with --count
   std::unique_ptr<render::VideoWriter> video;
-  if (!opt.video.empty()) video = std::make_unique<render::VideoWriter>(opt.video, opt.fps);
-
-  const auto t0 = core::Clock::now();
-  const std::vector<env::PlannedRun> runs = plan_runs(world, floors, frame, world.seed, opt.count);
-  const int batch_robots = std::min(opt.count, kBatchRobots);
-  const auto engine_owner = make_engine(world, frame, batch_robots);
-  learn::RolloutEngine& engine = *engine_owner;
-  const fs::path images_dir = out.path() / "images";
-  if (!opt.no_images) fs::create_directories(images_dir);
-
-  const std::size_t area = static_cast<std::size_t>(frame.area_px());
-  // trajectory.json is streamed run by run, so memory does not grow with --count; the whole
-  // folder is still only moved into place once complete.
-  const fs::path trajectory_file = out.path() / "trajectory.json";
-  std::ofstream trajectory(trajectory_file, std::ios::binary);
-  trajectory << "{\n \"world\": " << json(opt.world).dump() << ",\n \"seed\": " << world.seed << ",\n \"runs\": [";
+  fs::path images_dir;
   std::vector<std::string> images;
   long moves = 0, ticks = 0, revealed = 0;
-  for (int first = 0; first < opt.count; first += batch_robots) {
+};
+
+// One run's record into trajectory.json, the video and its pictures.
+void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRun& run, int run_number,
+              const learn::RolloutRecord& rec, const std::uint8_t* floor, std::span<const float> p, int robot,
+              RunOutputs& out) {
+  out.trajectory << (run_number == 0 ? "\n  " : ",\n  ") << run_json(run, rec, setup.floors, p);
+  for (const learn::StepRecord& s : rec.steps) out.ticks += s.result.ticks;
+  out.moves += static_cast<long>(rec.steps.size());
+  out.revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
+  const worlds::World& world = setup.world;
+  if (out.video) {
     interrupt_token().throw_if_requested();
-    const int n = std::min(batch_robots, opt.count - first);
-    std::vector<std::uint8_t> batch_floors(area * n);
-    std::vector<grid::Cell> starts(n);
-    std::vector<std::uint64_t> policy_seeds(n);
-    for (int i = 0; i < n; ++i) {
-      const env::PlannedRun& r = runs[first + i];
-      std::copy_n(floors.images.image(r.index), area, batch_floors.data() + area * i);
-      starts[i] = r.start;
-      policy_seeds[i] = r.policy_seed;
-    }
-    std::vector<learn::RolloutRecord> records;
-    std::vector<float> probabilities;  // n * D with a checkpoint
-    if (agent) {
-      agent->begin(frame, world.camera.patch_px, policy_seeds, opt.greedy, opt.heat_map && !opt.no_images);
-      records = engine.run(batch_floors, starts, agent->policy());
-      probabilities = agent->classify(engine.state(), n);
-    } else {
-      learn::RandomPolicy policy(policy_seeds);
-      records = engine.run(batch_floors, starts, policy);
-    }
-    const std::size_t classes = agent ? static_cast<std::size_t>(agent->classes()) : 0;
-    for (int i = 0; i < n; ++i) {
-      const learn::RolloutRecord& rec = records[i];
-      const std::span<const float> p =
-          agent ? std::span<const float>(probabilities.data() + classes * i, classes) : std::span<const float>();
-      trajectory << (first + i == 0 ? "\n  " : ",\n  ") << run_json(runs[first + i], rec, floors, p);
-      for (const learn::StepRecord& s : rec.steps) ticks += s.result.ticks;
-      moves += static_cast<long>(rec.steps.size());
-      revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
-      if (video) {
-        interrupt_token().throw_if_requested();
-        append_run_frames(*video, {.record = &rec,
-                                   .floor = batch_floors.data() + area * i,
-                                   .frame = frame,
+    append_run_frames(*out.video, {.record = &rec,
+                                   .floor = floor,
+                                   .frame = setup.frame,
                                    .patch_px = world.camera.patch_px,
                                    .robot_radius_px = world.robot.radius_m / world.floor.pixel_size_m,
                                    .scale = opt.scale,
                                    .class_probabilities = p,
                                    .fps = opt.fps});
-      }
-      if (!opt.no_images) {
-        interrupt_token().throw_if_requested();
-        const AgentOverlay overlay{.class_probabilities = p, .agent = opt.heat_map ? agent.get() : nullptr, .robot = i};
-        write_images(images_dir, first + i, rec, batch_floors.data() + area * i, frame, world.camera.patch_px,
-                     opt.scale, overlay, images);
-      }
-    }
   }
-  const double seconds = core::seconds_since(t0);
+  if (!opt.no_images) {
+    interrupt_token().throw_if_requested();
+    const AgentOverlay overlay{
+        .class_probabilities = p, .agent = opt.heat_map ? setup.agent.get() : nullptr, .robot = robot};
+    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale, overlay,
+                 out.images);
+  }
+}
 
-  trajectory << "\n ]\n}\n";
-  trajectory.close();
-  if (!trajectory) throw InputError(trajectory_file.string() + ": cannot write");
-  json manifest = make_manifest(context.argv, worlds::to_yaml(world), floors.files, engine.camera_description());
+// Runs first .. first + n - 1, driven together in one batch.
+void drive_batch(const RunOptions& opt, const RunSetup& setup, std::span<const env::PlannedRun> runs, int first,
+                 learn::RolloutEngine& engine, RunOutputs& out) {
+  const int n = static_cast<int>(runs.size());
+  const std::size_t area = static_cast<std::size_t>(setup.frame.area_px());
+  std::vector<std::uint8_t> batch_floors(area * n);
+  std::vector<grid::Cell> starts(n);
+  std::vector<std::uint64_t> policy_seeds(n);
+  for (int i = 0; i < n; ++i) {
+    std::copy_n(setup.floors.images.image(runs[i].index), area, batch_floors.data() + area * i);
+    starts[i] = runs[i].start;
+    policy_seeds[i] = runs[i].policy_seed;
+  }
+  learn::TrainedAgent* agent = setup.agent.get();
+  std::vector<learn::RolloutRecord> records;
+  std::vector<float> probabilities;  // n * D with a checkpoint
   if (agent) {
+    agent->begin(setup.frame, setup.world.camera.patch_px, policy_seeds, opt.greedy, opt.heat_map && !opt.no_images);
+    records = engine.run(batch_floors, starts, agent->policy());
+    probabilities = agent->classify(engine.state(), n);
+  } else {
+    learn::RandomPolicy policy(policy_seeds);
+    records = engine.run(batch_floors, starts, policy);
+  }
+  const std::size_t classes = agent ? static_cast<std::size_t>(agent->classes()) : 0;
+  for (int i = 0; i < n; ++i) {
+    const std::span<const float> p =
+        agent ? std::span<const float>(probabilities.data() + classes * i, classes) : std::span<const float>();
+    emit_run(opt, setup, runs[i], first + i, records[i], batch_floors.data() + area * i, p, i, out);
+  }
+}
+
+json run_manifest(const RunOptions& opt, const RunSetup& setup, const RunOutputs& out,
+                  const learn::RolloutEngine& engine, const Context& context) {
+  json manifest =
+      make_manifest(context.argv, worlds::to_yaml(setup.world), setup.floors.files, engine.camera_description());
+  if (const learn::TrainedAgent* agent = setup.agent.get()) {
     manifest["checkpoint"] = {{"path", opt.checkpoint},
                               {"sha256", core::sha256_hex(learn::resolve_checkpoint(opt.checkpoint))},
                               {"greedy", opt.greedy},
@@ -265,23 +270,66 @@ void run_command(const RunOptions& opt, const Context& context) {
                               {"learned_actions", agent->learned().actions},
                               {"precision", agent::to_string(agent->precision())}};
   }
-  manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", images}};
-  if (video) {
-    video->finish();
+  manifest["outputs"] = {{"trajectory", "trajectory.json"}, {"images", out.images}};
+  if (out.video)
     manifest["outputs"]["video"] = {
-        {"path", opt.video}, {"frames", video->frames()}, {"fps", opt.fps}, {"codec", video->codec()}};
-  }
-  write_file_atomic(out.path() / kManifestFile, manifest.dump(2) + "\n");
-  out.commit();
+        {"path", opt.video}, {"frames", out.video->frames()}, {"fps", opt.fps}, {"codec", out.video->codec()}};
+  return manifest;
+}
 
+void print_run_summary(const RunOptions& opt, const RunOutputs& out, const std::string& target, double seconds) {
   fmt::print("{} run{} of {} ({} moves, {:.1f} ticks per move, {:.1f} px revealed per run) in {:.2f} s\n", opt.count,
-             opt.count == 1 ? "" : "s", opt.world, moves, moves ? double(ticks) / moves : 0.0,
-             double(revealed) / opt.count, seconds);
-  fmt::print("trajectory: {}\n", (fs::path(out.target()) / "trajectory.json").string());
+             opt.count == 1 ? "" : "s", opt.world, out.moves, out.moves ? double(out.ticks) / out.moves : 0.0,
+             double(out.revealed) / opt.count, seconds);
+  fmt::print("trajectory: {}\n", (fs::path(target) / "trajectory.json").string());
   if (!opt.no_images)
-    fmt::print("images:     {} ({} PNG files)\n", (fs::path(out.target()) / "images").string(), images.size());
-  if (video)
-    fmt::print("video:      {} ({} frames at {} fps, {})\n", opt.video, video->frames(), opt.fps, video->codec());
+    fmt::print("images:     {} ({} PNG files)\n", (fs::path(target) / "images").string(), out.images.size());
+  if (out.video)
+    fmt::print("video:      {} ({} frames at {} fps, {})\n", opt.video, out.video->frames(), opt.fps,
+               out.video->codec());
+}
+
+void run_command(const RunOptions& opt, const Context& context) {
+  if (opt.count < 1) throw InputError("--count: expected a positive integer, got " + std::to_string(opt.count));
+  check_video_options(opt);
+  const RunSetup setup = gather_run(opt);
+  const grid::FloorFrame& frame = setup.frame;
+  std::vector<fs::path> inputs = setup.floors.files;
+  inputs.push_back(opt.world);
+  if (setup.agent) inputs.push_back(learn::resolve_checkpoint(opt.checkpoint));
+  OutputDir out(opt.out, opt.overwrite, inputs);  // refuses a bad --out before any work is done
+  if (!opt.video.empty() && std::max(frame.width_px, frame.height_px) * opt.scale > render::kMaxPictureSidePx)
+    throw InputError(fmt::format("--scale: expected at most {} for a video of a {} x {} floor, got {}",
+                                 render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
+                                 frame.height_px, opt.scale));
+  RunOutputs outputs;
+  if (!opt.video.empty()) outputs.video = std::make_unique<render::VideoWriter>(opt.video, opt.fps);
+
+  const auto t0 = core::Clock::now();
+  const std::vector<env::PlannedRun> runs = plan_runs(setup.world, setup.floors, frame, setup.world.seed, opt.count);
+  const int batch_robots = std::min(opt.count, kBatchRobots);
+  const auto engine = make_engine(setup.world, frame, batch_robots);
+  outputs.images_dir = out.path() / "images";
+  if (!opt.no_images) fs::create_directories(outputs.images_dir);
+  // The whole folder is still only moved into place once complete.
+  const fs::path trajectory_file = out.path() / "trajectory.json";
+  outputs.trajectory.open(trajectory_file, std::ios::binary);
+  outputs.trajectory << "{\n \"world\": " << json(opt.world).dump() << ",\n \"seed\": " << setup.world.seed
+                     << ",\n \"runs\": [";
+  for (int first = 0; first < opt.count; first += batch_robots) {
+    interrupt_token().throw_if_requested();
+    const int n = std::min(batch_robots, opt.count - first);
+    drive_batch(opt, setup, std::span<const env::PlannedRun>(runs).subspan(first, n), first, *engine, outputs);
+  }
+  const double seconds = core::seconds_since(t0);
+
+  outputs.trajectory << "\n ]\n}\n";
+  outputs.trajectory.close();
+  if (!outputs.trajectory) throw InputError(trajectory_file.string() + ": cannot write");
+  if (outputs.video) outputs.video->finish();
+  write_file_atomic(out.path() / kManifestFile, run_manifest(opt, setup, outputs, *engine, context).dump(2) + "\n");
+  out.commit();
+  print_run_summary(opt, outputs, out.target(), seconds);
 }
 
 }  // namespace

@@ -31,72 +31,18 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
-// The library's defaults are the command's: one definition, in learn::TrainConfig.
-const learn::TrainConfig& defaults() {
-  static const learn::TrainConfig config;
-  return config;
-}
-
-std::string epochs_text(const std::array<int, 3>& epochs) {
-  return fmt::format("{},{},{}", epochs[0], epochs[1], epochs[2]);
-}
-
 struct TrainOptions {
   std::string world;
   std::string out;
   std::string resume;
   std::string data_root;
-  std::string seed;
-  std::string epochs = epochs_text(defaults().epochs);
-  int pretrain_epochs = defaults().pretrain_epochs;
-  NetworkOptions net;
-  double lr = defaults().learning_rate;
-  int batch = defaults().batch_images;
-  int rollouts = defaults().rollouts;
-  bool baseline = defaults().leave_one_out;
-  double entropy_bonus = defaults().entropy_bonus;
-  std::string freeze;
-  int train_limit = defaults().train_limit;
-  int validation_limit = defaults().validation_limit;
+  SettingOptions settings;  // the training settings (learn::train_settings())
   int threads = 0;
   GroupFlags group;
   bool allow_nproc_change = false;
   bool force = false;
   double checkpoint_every_min = 5;
 };
-
-std::array<int, 3> parse_epochs(const std::string& text) {
-  std::array<int, 3> epochs{};
-  std::stringstream in(text);
-  std::string part;
-  int k = 0;
-  const std::string expected = "expected three counts i,ii,iii (e.g. 2,2,2), got '" + one_line(text) + "'";
-  while (std::getline(in, part, ',')) {
-    if (k >= 3 || part.empty() || part.size() > 6 || part.find_first_not_of("0123456789") != std::string::npos)
-      throw InputError(expected);
-    epochs[k++] = std::stoi(part);
-  }
-  if (k != 3 || text.back() == ',') throw InputError(expected);
-  return epochs;
-}
-
-std::array<bool, 3> parse_freeze(const std::string& text) {
-  std::array<bool, 3> frozen{};
-  if (text.empty()) return frozen;
-  std::stringstream in(text);
-  std::string part;
-  while (std::getline(in, part, ',')) {
-    if (part == "goal")
-      frozen[0] = true;
-    else if (part == "action")
-      frozen[1] = true;
-    else if (part == "classifier")
-      frozen[2] = true;
-    else
-      throw InputError("expected a comma-separated list of goal, action, classifier; got '" + one_line(text) + "'");
-  }
-  return frozen;
-}
 
 std::string duration(double seconds) {
   if (!(seconds >= 0) || seconds > 1e7) return "?";
@@ -137,49 +83,18 @@ class ProgressPrinter {
   std::chrono::steady_clock::time_point last_{};
 };
 
-// A resumed run keeps its config: an option given again must agree with it.
-void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const learn::TrainConfig& c,
+// A resumed run keeps its config: an option given again must agree with it (the settings the
+// schema table marks OnResume::Kept), and WORLD given again must be the run's world.
+void check_resume_options(const TrainOptions& o, const learn::TrainConfig& c, const learn::TrainConfig& asked,
                           const std::string& run) {
-  auto refuse = [&](const std::string& option, const std::string& stored, const std::string& asked) {
-    if (stored == asked) return;
-    throw InputError(
-        fmt::format("{}: the run at {} was trained with {}, the command line asks for {} (a resumed run "
-                    "keeps its config; start a new run to change it)",
-                    option, run, stored, asked));
-  };
-  auto given = [&](const char* name) { return cmd.get_option(name)->count() > 0; };
-  auto on_off = [](bool on) { return std::string(on ? "on" : "off"); };
-  auto number = [](auto value) { return fmt::format("{}", value); };
-  // An option given again must say what the run was trained with: {option, stored, asked}.
-  struct Kept {
-    const char* option;
-    std::string stored, asked;
-  };
-  const Kept kept[] = {
-      {.option = "--planner-width", .stored = number(c.network.planner_width), .asked = number(o.net.planner_width)},
-      {.option = "--planner-depth", .stored = number(c.network.planner_depth), .asked = number(o.net.planner_depth)},
-      {.option = "--classifier", .stored = agent::to_string(c.network.classifier), .asked = o.net.classifier},
-      {.option = "--classifier-width",
-       .stored = number(c.network.classifier_width),
-       .asked = number(o.net.classifier_width)},
-      {.option = "--classifier-depth",
-       .stored = number(c.network.classifier_depth),
-       .asked = number(o.net.classifier_depth)},
-      {.option = "--batch", .stored = number(c.batch_images), .asked = number(o.batch)},
-      {.option = "--rollouts", .stored = number(c.rollouts), .asked = number(o.rollouts)},
-      {.option = "--baseline", .stored = on_off(c.leave_one_out), .asked = on_off(o.baseline)},
-      {.option = "--entropy-bonus", .stored = number(c.entropy_bonus), .asked = number(o.entropy_bonus)},
-      {.option = "--pretrain-epochs", .stored = number(c.pretrain_epochs), .asked = number(o.pretrain_epochs)},
-      {.option = "--seed", .stored = number(c.seed), .asked = o.seed},
-      {.option = "--train-limit", .stored = number(c.train_limit), .asked = number(o.train_limit)},
-      {.option = "--validation-limit", .stored = number(c.validation_limit), .asked = number(o.validation_limit)},
-  };
-  for (const Kept& k : kept)
-    if (given(k.option)) refuse(k.option, k.stored, k.asked);
-  if (given("--freeze")) {
-    const auto f = parse_freeze(o.freeze);
-    if (f != c.frozen)
-      throw InputError("--freeze: differs from the run's frozen layers (a resumed run keeps its config)");
+  for (const learn::TrainSetting& s : learn::train_settings()) {
+    if (s.on_resume != learn::OnResume::Kept || !o.settings.given(s)) continue;
+    const std::string stored = learn::setting_text(c, s), wanted = learn::setting_text(asked, s);
+    if (stored != wanted)
+      throw InputError(
+          fmt::format("{}: the run at {} was trained with {}, the command line asks for {} (a resumed run "
+                      "keeps its config; start a new run to change it)",
+                      s.option, run, stored, wanted));
   }
   if (!o.world.empty()) {
     worlds::World w = worlds::load_world(o.world);
@@ -194,11 +109,11 @@ void check_resume_options(const CLI::App& cmd, const TrainOptions& o, const lear
 // except a bf16 run on a CPU without native bf16, where bf16 would be emulated several times
 // slower (and trains differently): that needs --precision, fp32 to continue in fp32 (no longer bit
 // for bit) or bf16 to continue emulated. --precision may always change it; auto is this CPU's.
-std::optional<agent::Precision> resume_precision(const CLI::App& cmd, const TrainOptions& o,
-                                                 const learn::TrainConfig& c, const std::string& run) {
-  if (cmd.get_option("--precision")->count() > 0) {
-    announce_auto_precision(o.net.precision);  // also warns when bf16 would be emulated
-    return agent::resolve_precision(agent::parse_precision(o.net.precision));
+std::optional<agent::Precision> resume_precision(const TrainOptions& o, const learn::TrainConfig& c,
+                                                 const std::string& run) {
+  if (o.settings.given("precision")) {
+    o.settings.announce_precision();  // also warns when bf16 would be emulated
+    return agent::resolve_precision(agent::parse_precision(o.settings.precision()));
   }
   const agent::NativeBf16 cpu = agent::native_bf16();
   if (c.precision == agent::Precision::BFloat16 && !cpu.any()) {
@@ -269,28 +184,19 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
 }
 
 // The config a new run's command line asks for (every rank of a group builds it, to compare).
-learn::TrainConfig new_run_config(const TrainOptions& o, const std::array<int, 3>& epochs) {
-  learn::TrainConfig config;
+// The library's defaults (learn::TrainConfig's) are the command's.
+learn::TrainConfig new_run_config(const TrainOptions& o) {
+  learn::TrainConfig config = o.settings.applied_to(learn::TrainConfig{});
   config.world = worlds::load_world(o.world);
-  if (!o.seed.empty()) config.world.seed = parse_seed(o.seed);
+  if (o.settings.given("seed")) config.world.seed = config.seed;  // --seed overrides the world file's
   config.seed = config.world.seed;
   if (config.world.floor.dataset.empty())
     throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
   const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
   config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
-  config.network = o.net.network();
-  config.pretrain_epochs = o.pretrain_epochs;
-  config.epochs = epochs;
-  config.rollouts = o.rollouts;
-  config.batch_images = o.batch;
-  config.learning_rate = o.lr;
-  config.leave_one_out = o.baseline;
-  config.entropy_bonus = o.entropy_bonus;
-  config.precision = o.net.arithmetic();
-  config.frozen = parse_freeze(o.freeze);
-  config.train_limit = o.train_limit;
-  config.validation_limit = o.validation_limit;
-  config.validate();
+  config.precision = agent::resolve_precision(config.precision);
+  config.validate(setting_option);
+  const std::array<int, 3>& epochs = config.epochs;
   if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)
     throw InputError("--epochs: nothing to train (every stage has 0 epochs); expected at least one epoch");
   return config;
@@ -306,15 +212,15 @@ void check_batch_split(int batch_images, int world_size) {
 }
 
 // Rank 0's (or a lone process's) trainer: a new run in a new folder, or the run resumed.
-std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOptions& o, const fs::path& run,
-                                             int threads, int world_size) {
-  const std::array<int, 3> epochs = parse_epochs(o.epochs);
-  const bool epochs_given = cmd.get_option("--epochs")->count() > 0;
+std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::path& run, int threads, int world_size) {
   if (!o.resume.empty()) {
     if (!fs::is_regular_file(run / learn::kCheckpointFile))
       throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
-    const learn::CheckpointInfo info = learn::read_checkpoint_info(run / learn::kCheckpointFile);
-    check_resume_options(cmd, o, info.config, o.resume);
+    // Opened once: read, checked and parsed here, and the trainer continues from it.
+    const learn::Checkpoint checkpoint = learn::open_checkpoint(run / learn::kCheckpointFile);
+    const learn::CheckpointInfo& info = checkpoint.info();
+    const learn::TrainConfig asked = o.settings.applied_to(info.config);
+    check_resume_options(o, info.config, asked, o.resume);
     if (info.world_size != world_size && !o.allow_nproc_change)
       throw InputError(fmt::format(
           "--nproc: the run at {} trained with {} process(es), this resume has {}; resume with --nproc {} to continue "
@@ -324,22 +230,23 @@ std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOpt
     check_batch_split(info.config.batch_images, world_size);
     const fs::path data_folder = resume_data_folder(o, info.config, run);
     // --lr on resume sets the rate from the next batch on (metrics.csv records each epoch's rate).
-    const bool lr_given = cmd.get_option("--lr")->count() > 0;
+    const bool lr_given = o.settings.given("learning_rate");
+    const double lr = asked.learning_rate;
     learn::ResumeOptions resume;
-    if (epochs_given) resume.epochs = epochs;
+    if (o.settings.given("epochs")) resume.epochs = asked.epochs;
     resume.data_folder = data_folder;
-    if (lr_given) resume.learning_rate = o.lr;
-    resume.precision = resume_precision(cmd, o, info.config, o.resume);
-    auto trainer = learn::Trainer::resume(run, threads, resume);
-    if (lr_given && o.lr != info.config.learning_rate && !trainer->finished())
-      fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, o.lr);
+    if (lr_given) resume.learning_rate = lr;
+    resume.precision = resume_precision(o, info.config, o.resume);
+    auto trainer = learn::Trainer::resume(checkpoint, run, threads, resume);
+    if (lr_given && lr != info.config.learning_rate && !trainer->finished())
+      fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, lr);
     if (resume.precision && *resume.precision != info.config.precision && !trainer->finished())
       fmt::print("precision {} -> {} from the next batch on (not bit for bit what {} would give)\n",
                  agent::to_string(info.config.precision), agent::to_string(*resume.precision),
                  agent::to_string(info.config.precision));
     return trainer;
   }
-  const learn::TrainConfig config = new_run_config(o, epochs);
+  const learn::TrainConfig config = new_run_config(o);
   check_batch_split(config.batch_images, world_size);
   std::error_code ec;
   if (fs::exists(run, ec))
@@ -353,7 +260,75 @@ std::unique_ptr<learn::Trainer> open_trainer(const CLI::App& cmd, const TrainOpt
   }
 }
 
-void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& context) {
+// A run's processes and trainer: one process, or this rank of a group (which holds the group).
+struct OpenedRun {
+  std::unique_ptr<learn::ProcessGroup> group;
+  std::unique_ptr<learn::Trainer> trainer;
+};
+
+// This rank's trainer in a data-parallel run: rank 0 opens the run, the others compare what their
+// own command line asks for with it; on a resume they take rank 0's config, and read the data
+// from --data or the run's own data path.
+OpenedRun open_group_run(const TrainOptions& o, const fs::path& run, const learn::GroupOptions& options) {
+  const bool resuming = !o.resume.empty();
+  OpenedRun opened;
+  set_rank(options.rank);
+  opened.group = learn::ProcessGroup::connect(options);
+  learn::ProcessGroup& group = *opened.group;
+  const int threads = threads_per_process(o.threads);
+  std::optional<learn::TrainConfig> own;
+  std::optional<fs::path> data_folder;
+  if (group.rank() != 0 && !resuming) {
+    own = new_run_config(o);
+    data_folder = own->data_folder;
+  } else if (group.rank() != 0 && !o.data_root.empty()) {
+    data_folder = fs::path(o.data_root);
+  }
+  const bool created = group.rank() == 0 && !resuming;
+  try {
+    opened.trainer = learn::Trainer::distribute(
+        group, threads, [&] { return open_trainer(o, run, threads, group.size()); }, own, data_folder);
+  } catch (const learn::LeaderFailed&) {
+    throw ExitStatus{1};  // rank 0 said why
+  } catch (...) {
+    // A new run that never started leaves no folder behind (rank 0 had created it).
+    std::error_code ec;
+    if (created && !fs::exists(run / learn::kCheckpointFile, ec)) fs::remove_all(run, ec);
+    throw;
+  }
+  return opened;
+}
+
+// What the leader prints before training: the run and its settings, and where a resume goes on.
+void print_run_header(const learn::Trainer& trainer, const fs::path& run, bool resuming) {
+  const learn::TrainConfig& c = trainer.config();
+  fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {}; N = {}, B = {}, lr {})\n",
+             c.world.file.string(), run.string(),
+             trainer.world_size() > 1 ? fmt::format("{} processes x ", trainer.world_size()) : "", trainer.threads(),
+             agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
+             agent::describe_classifier(c.network), c.rollouts, c.batch_images, c.learning_rate);
+  if (resuming) {
+    const learn::ScheduleCursor& k = trainer.cursor();
+    fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer.history().size(), k.stage,
+               k.epoch, k.batch);
+  }
+  std::fflush(stdout);
+}
+
+// One line per epoch. A baseline a mode does not have (learned goals before mode ii) is "-", as
+// metrics.csv leaves it empty; never a 0 that reads as a measurement.
+void print_epoch(const learn::EpochMetrics& m) {
+  const auto figure = [](const std::optional<double>& v) { return v ? fmt::format("{:.4f}", *v) : "-"; };
+  fmt::print(
+      "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {}, "
+      "goals only {}, full images {})  {:.1f} images/s  {:.1f} s\n",
+      learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
+      figure(m.validation_iid), figure(m.validation_goals_only), figure(m.validation_full_image), m.images_per_s,
+      m.seconds);
+  std::fflush(stdout);
+}
+
+void train_command(const TrainOptions& o, const Context& context) {
   const bool resuming = !o.resume.empty();
   if (resuming && !o.out.empty() && fs::path(o.out) != fs::path(o.resume))
     throw InputError("--out: a resumed run writes into its own folder (" + o.resume + "); leave --out out");
@@ -361,43 +336,18 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   if (!resuming && o.out.empty()) throw InputError("--out: a run folder is required (or --resume RUN)");
   const fs::path run = resuming ? fs::path(o.resume) : fs::path(o.out);
   const std::optional<learn::GroupOptions> group_options = group_from_flags(o.group);
+  OpenedRun opened;
+  if (group_options)
+    opened = open_group_run(o, run, *group_options);
+  else
+    opened.trainer = open_trainer(o, run, o.threads, 1);
+  learn::Trainer& trainer = *opened.trainer;
 
-  std::unique_ptr<learn::ProcessGroup> group;
-  std::unique_ptr<learn::Trainer> trainer;
-  if (!group_options) {
-    trainer = open_trainer(cmd, o, run, o.threads, 1);
-  } else {
-    set_rank(group_options->rank);
-    group = learn::ProcessGroup::connect(*group_options);
-    const int threads = threads_per_process(o.threads);
-    // The others compare what their own command line asks for with rank 0's run; on a resume
-    // they take rank 0's config, and read the data from --data or the run's own data path.
-    std::optional<learn::TrainConfig> own;
-    std::optional<fs::path> data_folder;
-    if (group->rank() != 0 && !resuming) {
-      own = new_run_config(o, parse_epochs(o.epochs));
-      data_folder = own->data_folder;
-    } else if (group->rank() != 0 && !o.data_root.empty()) {
-      data_folder = fs::path(o.data_root);
-    }
-    const bool created = group->rank() == 0 && !resuming;
-    try {
-      trainer = learn::Trainer::distribute(
-          *group, threads, [&] { return open_trainer(cmd, o, run, threads, group->size()); }, own, data_folder);
-    } catch (const learn::LeaderFailed&) {
-      throw ExitStatus{1};  // rank 0 said why
-    } catch (...) {
-      // A new run that never started leaves no folder behind (rank 0 had created it).
-      std::error_code ec;
-      if (created && !fs::exists(run / learn::kCheckpointFile, ec)) fs::remove_all(run, ec);
-      throw;
-    }
-  }
-  const bool leader = trainer->rank() == 0;
-  if (resuming && trainer->finished()) {
+  const bool leader = trainer.rank() == 0;
+  if (resuming && trainer.finished()) {
     if (leader)
       fmt::print("the run's schedule is complete after {} epoch(s); nothing to do (a longer --epochs continues it)\n",
-                 trainer->history().size());
+                 trainer.history().size());
     return;
   }
   ProgressPrinter progress;
@@ -405,36 +355,16 @@ void train_command(const CLI::App& cmd, const TrainOptions& o, const Context& co
   hooks.stop = interrupt_token();
   hooks.checkpoint_every = std::chrono::milliseconds(std::llround(o.checkpoint_every_min * 60000));
   if (leader) {
-    if (!resuming) o.net.announce_precision();
-    write_manifest(run, context, *trainer, resuming);
-    const learn::TrainConfig& c = trainer->config();
-    fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {}; N = {}, B = {}, lr {})\n",
-               c.world.file.string(), run.string(),
-               trainer->world_size() > 1 ? fmt::format("{} processes x ", trainer->world_size()) : "",
-               trainer->threads(), agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
-               agent::describe_classifier(c.network), c.rollouts, c.batch_images, c.learning_rate);
-    if (resuming) {
-      const learn::ScheduleCursor& k = trainer->cursor();
-      fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer->history().size(), k.stage,
-                 k.epoch, k.batch);
-    }
-    std::fflush(stdout);
+    if (!resuming) o.settings.announce_precision();
+    write_manifest(run, context, trainer, resuming);
+    print_run_header(trainer, run, resuming);
     hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
     hooks.on_epoch = [&](const learn::EpochMetrics& m) {
       progress.end_line();
-      // A baseline a mode does not have (learned goals before mode ii) is "-", as metrics.csv
-      // leaves it empty; never a 0 that reads as a measurement.
-      const auto figure = [](const std::optional<double>& v) { return v ? fmt::format("{:.4f}", *v) : "-"; };
-      fmt::print(
-          "mode {:<3} epoch {:>3}: reward {:.4f}  loss {:.4f}  train {:.4f}  validation {:.4f} (i.i.d. {}, "
-          "goals only {}, full images {})  {:.1f} images/s  {:.1f} s\n",
-          learn::to_string(m.stage), m.epoch, m.reward, m.loss, m.train_accuracy, m.validation_accuracy,
-          figure(m.validation_iid), figure(m.validation_goals_only), figure(m.validation_full_image), m.images_per_s,
-          m.seconds);
-      std::fflush(stdout);
+      print_epoch(m);
     };
   }
-  const learn::TrainResult result = trainer->run(hooks);
+  const learn::TrainResult result = trainer.run(hooks);
   progress.end_line();
   switch (result.outcome) {
     case learn::TrainOutcome::Finished:
@@ -461,29 +391,7 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("--data", o->data_root,
                   "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
                   "folder with train-*/t10k-* IDX files");
-  cmd->add_option("--epochs", o->epochs, "Epochs of modes i,ii,iii")
-      ->capture_default_str()
-      ->check(parsed_by(parse_epochs, "I,II,III"));
-  cmd->add_option("--pretrain-epochs", o->pretrain_epochs, "Epochs of the classifier on full images, first")
-      ->capture_default_str()
-      ->check(decimal_in(0, 100000));
-  cmd->add_option("--seed", o->seed, "Seed (overrides the world file's): init, data order, starts, sampling")
-      ->check(seed_validator());
-  add_network_options(*cmd, o->net);
-  cmd->add_option("--lr", o->lr, "Adam's learning rate")->capture_default_str();
-  cmd->add_option("--batch", o->batch, "B: images per mini-batch")->capture_default_str()->check(decimal_in(1, 4096));
-  cmd->add_option("--rollouts", o->rollouts, "N: rollouts per image")->capture_default_str()->check(decimal_in(1, 64));
-  cmd->add_flag("--baseline", o->baseline, "Leave-one-out baseline (beyond the paper; off in the paper preset)");
-  cmd->add_option("--entropy-bonus", o->entropy_bonus, "Entropy bonus beta (beyond the paper; 0 in the paper preset)")
-      ->capture_default_str();
-  cmd->add_option("--freeze", o->freeze, "Layers not updated in modes i-iii: goal,action,classifier")
-      ->check(parsed_by(parse_freeze, "LAYERS"));
-  cmd->add_option("--train-limit", o->train_limit, "Train on the first K training digits only (0: all)")
-      ->capture_default_str()
-      ->check(decimal_in(0, 100000000));
-  cmd->add_option("--validation-limit", o->validation_limit, "Validate on the first K validation digits (0: all)")
-      ->capture_default_str()
-      ->check(decimal_in(0, 100000000));
+  o->settings.add_to(*cmd, /*bench=*/false);
   cmd->add_option("--threads", o->threads,
                   "LibTorch threads per process (0: the cores divided among the processes; on --resume, the run's own, "
                   "which continues it bit for bit)")
@@ -500,10 +408,10 @@ void add_train_command(CLI::App& app, const Context& context) {
                 "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
                 "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");
-  cmd->callback([cmd, o, &context] {
+  cmd->callback([o, &context] {
     install_interrupt_handler();
     if (const std::optional<int> status = launch_local_group(o->group, context)) throw ExitStatus{*status};
-    train_command(*cmd, *o, context);
+    train_command(*o, context);
   });
 }
 

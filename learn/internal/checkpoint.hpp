@@ -41,20 +41,34 @@ void save_checkpoint(const std::filesystem::path& file, agent::AgentImpl& agent,
                      const CheckpointState& state);
 /// What save_checkpoint writes, in memory (rank 0 broadcasts it to the other ranks).
 std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer, const CheckpointState& state);
-/// The state and weights of checkpoint_bytes' output; `origin` names the source in errors.
-CheckpointState read_checkpoint_state_bytes(const std::string& bytes, const std::string& origin);
-void load_checkpoint_weights_bytes(const std::string& bytes, const std::string& origin, agent::AgentImpl& agent,
-                                   torch::optim::Optimizer* optimizer);
-/// Reads the non-tensor part; throws InputError ("FILE: not a Scout checkpoint ...", "FILE:
-/// checkpoint format N, this build reads M", "FILE: config: ...") with one line.
-CheckpointState read_checkpoint_state(const std::filesystem::path& file);
-/// Loads weights (and the optimizer's state when given and present) into an agent built from
-/// the checkpoint's config. Throws InputError naming the file.
-void load_checkpoint_weights(const std::filesystem::path& file, agent::AgentImpl& agent,
-                             torch::optim::Optimizer* optimizer);
 
-/// The agent stored in a checkpoint, built from its config and loaded, in eval mode.
-/// Throws InputError naming the file.
+/// An opened checkpoint (open_checkpoint): read, checked and parsed by LibTorch once.
+struct Checkpoint::Contents {
+  std::filesystem::path file;  ///< as messages name it
+  CheckpointState state;
+  CheckpointInfo info;
+  mutable torch::serialize::InputArchive archive;  ///< LibTorch's parse (its reads are not const)
+  mutable agent::Agent model{nullptr};             ///< networks(), once built
+
+  /// The checkpoint's networks, built from its config with its weights, in eval mode: built on
+  /// first use, then shared by every caller that runs the model (none of them trains it).
+  agent::Agent networks() const;
+  /// Loads the weights, and the optimizer's state when `optimizer` is given, into `agent` (a
+  /// resumed run's own, built from the same config). Throws InputError naming the file.
+  void load_into(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) const;
+};
+
+/// open_checkpoint for bytes already in memory (checkpoint_bytes' output, broadcast by rank 0);
+/// `origin` names them in errors.
+Checkpoint open_checkpoint_bytes(const std::string& bytes, const std::string& origin);
+
+/// An opened checkpoint's networks (Contents::networks), and its state when `state` is given.
+agent::Agent load_agent(const Checkpoint& checkpoint, CheckpointState* state = nullptr);
+/// The same for a file, opened once.
 agent::Agent load_agent(const std::filesystem::path& file, CheckpointState* state = nullptr);
+
+/// How many times open_checkpoint and open_checkpoint_bytes have run in this process (the tests
+/// hold each reader to one open).
+int checkpoints_opened();
 
 }  // namespace scout::learn

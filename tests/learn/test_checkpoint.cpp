@@ -14,7 +14,9 @@
 
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
+#include "learn/evaluation.hpp"
 #include "learn/internal/checkpoint.hpp"
+#include "learn/trained_agent.hpp"
 #include "learn/trainer.hpp"
 #include "tests/support/training_fixture.hpp"
 
@@ -46,7 +48,7 @@ TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
   // A future format version, otherwise well-formed.
   const fs::path future = run_dir("future");
   {
-    const CheckpointState state = read_checkpoint_state(good / kCheckpointFile);
+    const CheckpointState state = open_checkpoint(good / kCheckpointFile).contents().state;
     torch::serialize::OutputArchive archive;
     archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat + 1)));
     archive.write("config", c10::IValue(state.config.to_json()));
@@ -58,7 +60,7 @@ TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
   EXPECT_NE(line.find("format"), std::string::npos) << line;
   EXPECT_NE(line.find(std::to_string(kCheckpointFormat + 1)), std::string::npos) << line;
   try {
-    read_checkpoint_info(future / kCheckpointFile);
+    open_checkpoint(future / kCheckpointFile);
     ADD_FAILURE() << "a future format was read";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), line);
@@ -89,10 +91,11 @@ TEST_F(Resume, WeightsThatDoNotFitTheConfigAreRefused) {
   }
   const fs::path mismatched = run_dir("mismatched");
   {
-    CheckpointState state;
-    agent::Agent agent = load_agent(good / kCheckpointFile, &state);
+    const Checkpoint checkpoint = open_checkpoint(good / kCheckpointFile);
+    CheckpointState state = checkpoint.contents().state;
+    agent::Agent agent(state.config.network);
     torch::optim::Adam adam(agent->parameters(), torch::optim::AdamOptions(state.config.learning_rate));
-    load_checkpoint_weights(good / kCheckpointFile, *agent, &adam);
+    checkpoint.contents().load_into(*agent, &adam);
     state.config.network.planner_width *= 2;
     state.config.epochs = {1, 1, 0};
     save_checkpoint(mismatched / kCheckpointFile, *agent, &adam, state);
@@ -110,12 +113,57 @@ TEST_F(Resume, WeightsThatDoNotFitTheConfigAreRefused) {
   }
 }
 
+// Each reader opens a checkpoint once (issue 23: a resume read, checked and parsed it three times,
+// load_agent twice, scout report once per budget point): the file is read, checked and handed to
+// LibTorch by one open_checkpoint, and a reader given an opened checkpoint opens nothing.
+TEST_F(Resume, EachReaderOpensACheckpointOnce) {
+  train("run", {1, 0, 0});
+  const fs::path file = run_dir("run") / kCheckpointFile;
+  const auto opens = [](const auto& read) {
+    const int before = checkpoints_opened();
+    read();
+    return checkpoints_opened() - before;
+  };
+  EXPECT_EQ(opens([&] { Trainer::resume(run_dir("run"), kThreads); }), 1);
+  EXPECT_EQ(opens([&] { load_agent(file); }), 1);
+  EXPECT_EQ(opens([&] { TrainedAgent::load(file, agent::Precision::Float32); }), 1);
+  EXPECT_EQ(opens([&] { export_model(open_checkpoint(file), temp_.path() / "model.pt"); }), 1);
+  const Checkpoint opened = open_checkpoint(file);
+  EXPECT_EQ(opens([&] { Trainer::resume(opened, run_dir("run"), kThreads); }), 0);
+  EXPECT_EQ(opens([&] { TrainedAgent::load(opened, agent::Precision::Float32); }), 0);
+  // An evaluation given the opened checkpoint (scout report's budget sweep, point after point).
+  EvalConfig config;
+  config.checkpoint = file;
+  config.opened = opened;
+  config.images = data_ / "train-images-idx3-ubyte";
+  config.labels = data_ / "train-labels-idx1-ubyte";
+  config.runs = 2;
+  config.agent_only = true;
+  config.threads = kThreads;
+  double first = 0;
+  EXPECT_EQ(opens([&] { first = evaluate(config).accuracy.mean; }), 0);
+  EXPECT_EQ(opens([&] { EXPECT_EQ(evaluate(config).accuracy.mean, first); }), 0);
+  // The networks are shared by the readers that run them, and training a resumed run's own leaves
+  // what the opened checkpoint holds as it was.
+  EXPECT_EQ(opened.contents().networks().get(), opened.contents().networks().get());
+  agent::Agent before = load_agent(file);  // an independent open
+  agent::Agent trained(opened.info().config.network);
+  opened.contents().load_into(*trained, nullptr);
+  {
+    torch::NoGradGuard no_grad;
+    for (torch::Tensor& p : trained->parameters()) p.add_(1.0);
+  }
+  agent::Agent again(opened.info().config.network);
+  opened.contents().load_into(*again, nullptr);
+  expect_same_weights(*before, *again);
+}
+
 // Files written before this version still load (and later versions keep it so): the model that
 // shipped for the 8,000-digit set predates the per-epoch baselines, which read as absent and
 // leave their metrics.csv fields empty.
 TEST(OlderFiles, AModelWrittenBeforeTheValidationBaselinesStillLoads) {
   const std::filesystem::path model = std::filesystem::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.pt";
-  const CheckpointInfo info = read_checkpoint_info(model);
+  const CheckpointInfo info = open_checkpoint(model).info();
   ASSERT_EQ(info.history.size(), 52u);  // 5 full-image epochs, then 10 + 15 + 22 of modes i - iii
   for (const EpochMetrics& m : info.history) {
     EXPECT_FALSE(m.validation_iid.has_value());

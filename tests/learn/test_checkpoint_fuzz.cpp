@@ -146,14 +146,14 @@ struct Tally {
   int accepted = 0, refused = 0;
 };
 
-// Feeds one input to both readers a resumed run uses. Returns whether it was accepted; anything
-// but a one-line InputError naming the input fails the test.
+// Feeds one input to open_checkpoint_bytes and loads its weights, as a resumed run does. Returns whether it was
+// accepted; anything but a one-line InputError naming the input fails the test.
 bool feed(const std::string& bytes, Tally& tally) {
   const std::string origin = "fuzz.pt";
   try {
-    const CheckpointState state = read_checkpoint_state_bytes(bytes, origin);
-    agent::Agent agent(state.config.network);
-    load_checkpoint_weights_bytes(bytes, origin, *agent, nullptr);
+    const Checkpoint checkpoint = open_checkpoint_bytes(bytes, origin);
+    agent::Agent agent(checkpoint.contents().state.config.network);
+    checkpoint.contents().load_into(*agent, nullptr);
     ++tally.accepted;
     return true;
   } catch (const InputError& e) {
@@ -321,7 +321,7 @@ TEST_F(CheckpointFuzz, RefusalsNameWhatIsWrong) {
   const std::string original = checkpoint_of(agent::ClassifierKind::Paper, "paper");
   const auto refusal = [](const std::string& bytes) -> std::string {
     try {
-      read_checkpoint_state_bytes(bytes, "f.pt");
+      open_checkpoint_bytes(bytes, "f.pt");
     } catch (const InputError& e) {
       return e.what();
     }

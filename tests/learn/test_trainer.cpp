@@ -356,7 +356,7 @@ TEST_F(Resume, ALearningRateGivenOnResumeTakesEffectFromThereOn) {
   ASSERT_EQ(low.size(), 2u);
   EXPECT_EQ(low[0].learning_rate, stored);
   EXPECT_EQ(low[1].learning_rate, lower);
-  EXPECT_EQ(read_checkpoint_info(temp_.path() / "lower" / kCheckpointFile).config.learning_rate, lower);
+  EXPECT_EQ(open_checkpoint(temp_.path() / "lower" / kCheckpointFile).info().config.learning_rate, lower);
 
   auto distance = [&](const char* name) {
     const agent::Agent a = load_agent(temp_.path() / name / kCheckpointFile);
@@ -432,10 +432,11 @@ TEST_F(Resume, ANonFiniteLossStopsAndKeepsTheLastGoodCheckpoint) {
   const fs::path file = run / kCheckpointFile;
   {
     // The same checkpoint with one classifier weight NaN (optimizer state and schedule kept).
-    CheckpointState state;
-    agent::Agent agent = load_agent(file, &state);
+    const Checkpoint checkpoint = open_checkpoint(file);
+    CheckpointState state = checkpoint.contents().state;
+    agent::Agent agent(state.config.network);
     torch::optim::Adam adam(agent->parameters(), torch::optim::AdamOptions(state.config.learning_rate));
-    load_checkpoint_weights(file, *agent, &adam);
+    checkpoint.contents().load_into(*agent, &adam);
     {
       torch::NoGradGuard no_grad;
       agent->classifier->parameters().front().view(-1)[0].fill_(std::numeric_limits<float>::quiet_NaN());

@@ -18,10 +18,11 @@ int main(int argc, char** argv) {
   }
   try {
     const std::filesystem::path file = argv[1];
-    scout::learn::CheckpointState state;
-    scout::agent::Agent agent = scout::learn::load_agent(file, &state);
+    const scout::learn::Checkpoint checkpoint = scout::learn::open_checkpoint(file);
+    const scout::learn::CheckpointState& state = checkpoint.contents().state;
+    scout::agent::Agent agent(state.config.network);
     torch::optim::Adam adam(agent->parameters(), torch::optim::AdamOptions(state.config.learning_rate));
-    scout::learn::load_checkpoint_weights(file, *agent, &adam);
+    checkpoint.contents().load_into(*agent, &adam);
     {
       torch::NoGradGuard no_grad;
       agent->classifier->parameters().front().view(-1)[0].fill_(std::numeric_limits<float>::quiet_NaN());

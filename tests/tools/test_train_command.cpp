@@ -262,7 +262,24 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --freeze foo"), {"--freeze", "foo"}, 2);
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --precision fp16"), {"--precision", "fp16"},
                         2);
+  // Numbers are checked against the settings' table as the command line reads them.
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --lr 0"), {"--lr", "(0, 10)"}, 2);
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --entropy-bonus 100"),
+                        {"--entropy-bonus", "[0, 100)"}, 2);
+  // Settings that disagree name the options: the leave-one-out baseline needs two rollouts.
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --baseline --rollouts 1"),
+                        {"--baseline: the leave-one-out baseline needs --rollouts >= 2"});
   EXPECT_FALSE(fs::exists(path("o")));
+}
+
+// A batch of more robots than one camera draws (render::kMaxCameraRobots) is refused before
+// anything is read or made, with one line naming both options; so is the training bench's.
+TEST_F(TrainCli, ABatchTheCameraCannotDrawIsRefusedUpFront) {
+  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --batch 128 --rollouts 64"),
+                        {"--batch x --rollouts: expected at most 4096 robots (what one camera draws), got 128 x 64"});
+  EXPECT_FALSE(fs::exists(path("o")));
+  expect_one_line_error(run("bench train --world " + world() + " --batch 4096 --rollouts 2"),
+                        {"--batch x --rollouts", "4096 robots"});
 }
 
 // A resumed run reads only the data it was trained on: changed files are refused by their SHA-256.
@@ -393,14 +410,15 @@ TEST_F(TrainCli, CheckpointsInsideAnEpochSoThatAKillLosesMinutesNotAnEpoch) {
 // Requests that cannot fit are refused before they allocate, with the estimate; a user's cap
 // (SCOUT_MEMORY_LIMIT) counts as the machine's, and --force runs anyway.
 TEST_F(TrainCli, AnEstimateBeyondTheAvailableMemoryIsRefusedUnlessForced) {
-  // 256 x 64 robots (the most --batch x --rollouts allows) with 512-wide planners: about 90 GiB of
+  // 64 x 64 robots (the most one camera draws) with 16 planner blocks 512 wide: hundreds of GiB of
   // activations on these 12 x 12 floors.
-  const Result huge = run("train " + world() + " --out " + path("huge") +
-                          " --epochs 1,0,0 --batch 256 --rollouts 64 --planner-width 512 --threads 1");
+  const Result huge =
+      run("train " + world() + " --out " + path("huge") +
+          " --epochs 1,0,0 --batch 64 --rollouts 64 --planner-width 512 --planner-depth 16 --threads 1");
   EXPECT_EQ(huge.status, 1) << huge.err;
   EXPECT_EQ(std::count(huge.err.begin(), huge.err.end(), '\n'), 1) << huge.err;
   for (const char* part :
-       {"scout: error: training B x N = 256 x 64 robots", "needs about", "GiB of memory", "is available", "--force"})
+       {"scout: error: training B x N = 64 x 64 robots", "needs about", "GiB of memory", "is available", "--force"})
     EXPECT_NE(huge.err.find(part), std::string::npos) << part << " in " << huge.err;
   EXPECT_FALSE(fs::exists(path("huge")));  // nothing left behind
 
