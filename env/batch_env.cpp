@@ -6,6 +6,7 @@
 
 #include "core/timing.hpp"
 #include "render/camera.hpp"
+#include "sim/robots.hpp"
 
 namespace scout::env {
 
@@ -25,6 +26,7 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   patches_.resize(static_cast<std::size_t>(max_robots) * patch_px_ * patch_px_);
   pixel_poses_.resize(max_robots);
   moves_.resize(max_robots);
+  sim_results_.resize(max_robots);
   results_.resize(max_robots);
   ticks_.resize(max_robots);
 }
@@ -42,10 +44,11 @@ std::span<const std::uint8_t> BatchEnv::observed() const {
 }
 std::span<const grid::RevealMask> BatchEnv::seen() const { return {seen_.data(), static_cast<std::size_t>(count_)}; }
 std::span<const int> BatchEnv::moves() const { return {moves_.data(), static_cast<std::size_t>(count_)}; }
-std::span<const sim::MoveResult> BatchEnv::last_results() const {
+std::span<const MoveResult> BatchEnv::last_results() const {
   return {results_.data(), static_cast<std::size_t>(count_)};
 }
 Eigen::Vector2d BatchEnv::pose_m(int robot) const { return robots_->position_m(robot); }
+Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->position_px(robot); }
 
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
@@ -58,7 +61,8 @@ void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid:
   poses_[robot] = robots_->grid_pose(robot);
   seen_[robot].clear();
   moves_[robot] = 0;
-  results_[robot] = sim::MoveResult{};
+  sim_results_[robot] = sim::MoveResult{};
+  results_[robot] = MoveResult{};
 }
 
 void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts) {
@@ -111,11 +115,17 @@ void BatchEnv::step(std::span<const grid::Cell> commands) {
   auto t0 = Clock::now();
   if (tick_hook_) {
     for (int i = 0; i < count_; ++i) ticks_[i].clear();
-    robots_->move(commands, std::span(results_.data(), commands.size()), std::span(ticks_.data(), commands.size()));
+    robots_->move(commands, std::span(sim_results_.data(), commands.size()), std::span(ticks_.data(), commands.size()));
   } else {
-    robots_->move(commands, std::span(results_.data(), commands.size()));
+    robots_->move(commands, std::span(sim_results_.data(), commands.size()));
   }
   for (int i = 0; i < count_; ++i) {
+    const sim::MoveResult& r = sim_results_[i];
+    results_[i] = {.ticks = r.ticks,
+                   .settled = r.settled,
+                   .touched_wall = r.touched_wall,
+                   .peak_speed_mps = r.peak_speed_mps,
+                   .beyond_border_px = r.beyond_border_px};
     poses_[i] = robots_->grid_pose(i);
     ++moves_[i];
     timing_.ticks += results_[i].ticks;

@@ -12,11 +12,30 @@
 #include <vector>
 
 #include "grid/grid.hpp"
-#include "render/camera.hpp"
-#include "sim/robots.hpp"
+#include "render/limits.hpp"
 #include "worlds/world.hpp"
 
+// The physics and the camera stay behind this header: its users (learn/, tools/, python/) reach
+// the world only through env/.
+namespace scout::sim {
+class RobotBatch;
+struct MoveResult;
+}  // namespace scout::sim
+namespace scout::render {
+class PatchCamera;
+struct PixelPose;
+}  // namespace scout::render
+
 namespace scout::env {
+
+/// How one robot's last move went.
+struct MoveResult {
+  int ticks = 0;                  ///< physics ticks taken (0 for a no-op move already on target)
+  bool settled = false;           ///< ended within tolerance of the commanded cell's centre
+  bool touched_wall = false;      ///< touched a wall during the move
+  double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
+  double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
+};
 
 /// Sees every physics tick of a step: called once per robot after the step, in robot order, with
 /// the robot's centre (continuous floor pixels) after each tick of its move (none for a robot
@@ -72,15 +91,16 @@ class BatchEnv {
   std::span<const grid::Cell> poses() const;  ///< grid pose of each robot's actual position
   /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
   std::span<const std::uint8_t> observed() const;
-  std::span<const grid::RevealMask> seen() const;  ///< the pixels each robot has seen
-  std::span<const int> moves() const;              ///< step() calls since each robot's reset (a zero command counts)
-  std::span<const sim::MoveResult> last_results() const;  ///< how each robot's last move went
+  std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
+  std::span<const int> moves() const;                ///< step() calls since each robot's reset (a zero command counts)
+  std::span<const MoveResult> last_results() const;  ///< how each robot's last move went
   /// A robot's centre in metres (floor frame), continuous.
   Eigen::Vector2d pose_m(int robot) const;
+  /// A robot's centre in floor pixels, continuous (pixel (x, y) spans [x, x + 1) x [y, y + 1)).
+  Eigen::Vector2d position_px(int robot) const;
 
   const EnvTiming& timing() const { return timing_; }
   void reset_timing() { timing_ = {}; }
-  const sim::RobotBatch& robots() const { return *robots_; }
   /// The GL renderer in use (for manifests).
   std::string camera_description() const;
 
@@ -101,7 +121,8 @@ class BatchEnv {
   std::vector<std::uint8_t> patches_;
   std::vector<render::PixelPose> pixel_poses_;
   std::vector<int> moves_;
-  std::vector<sim::MoveResult> results_;
+  std::vector<sim::MoveResult> sim_results_;  // what the physics reports, copied into results_
+  std::vector<MoveResult> results_;
   TickHook tick_hook_;
   std::vector<std::vector<Eigen::Vector2d>> ticks_;  // per robot, the step's tick positions (hook only)
   EnvTiming timing_;

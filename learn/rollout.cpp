@@ -53,17 +53,8 @@ RolloutEngine::~RolloutEngine() = default;
 
 std::string RolloutEngine::camera_description() const { return env_->camera_description(); }
 int RolloutEngine::max_robots() const { return env_->max_robots(); }
-const sim::RobotBatch& RolloutEngine::robots() const { return env_->robots(); }
 
-RolloutTiming RolloutEngine::timing() const {
-  const env::EnvTiming& e = env_->timing();
-  return {.physics_s = e.physics_s,
-          .render_s = e.render_s,
-          .other_s = e.observe_s + other_s_,
-          .moves = e.moves,
-          .ticks = e.ticks,
-          .peak_speed_mps = e.peak_speed_mps};
-}
+RolloutTiming RolloutEngine::timing() const { return {.env = env_->timing(), .other_s = other_s_}; }
 
 void RolloutEngine::reset_timing() {
   env_->reset_timing();
@@ -119,7 +110,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       records[i].steps.reserve(static_cast<std::size_t>(E) * T);
       records[i].path.reserve(static_cast<std::size_t>(E) * T + 1);
       records[i].path.push_back(state_.pose[i]);
-      records[i].tick_path_px.push_back(env_->robots().position_px(i));
+      records[i].tick_path_px.push_back(env_->position_px(i));
     }
     // Every physics tick of every move goes into the run's records (animations).
     env_->set_tick_hook([&records](int robot, std::span<const Eigen::Vector2d> ticks) {
@@ -151,7 +142,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
 
       t0 = Clock::now();
       if (record) {
-        const std::span<const sim::MoveResult> results = env_->last_results();
+        const std::span<const env::MoveResult> results = env_->last_results();
         for (int i = 0; i < count; ++i) {
           StepRecord s;
           s.episode = e;

@@ -12,7 +12,6 @@
 #include "core/random.hpp"
 #include "env/batch_env.hpp"
 #include "grid/grid.hpp"
-#include "sim/robots.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::learn {
@@ -64,7 +63,7 @@ struct StepRecord {
   grid::Axis axis = grid::Axis::None;  ///< the axis moved along (None: at the goal, no move)
   bool sampled = false;                ///< the axis was chosen by the policy (chi = 1)
   grid::Cell command;                  ///< commanded move, pixels
-  sim::MoveResult result;              ///< ticks, settled, wall contact, peak speed
+  env::MoveResult result;              ///< ticks, settled, wall contact, peak speed
   Eigen::Vector2d pose_m;              ///< actual centre after the move, metres (floor frame)
   grid::Cell grid_pose;                ///< grid pose after the move
   int revealed_px = 0;                 ///< pixels seen so far, cumulative
@@ -90,14 +89,11 @@ struct RolloutRecord {
   std::vector<Eigen::Vector2d> tick_path_px;
 };
 
-/// Where a batch's time went, seconds.
+/// Where a batch's time went, seconds: the environment's (physics, camera, revealing) and the
+/// learner's own.
 struct RolloutTiming {
-  double physics_s = 0;
-  double render_s = 0;
-  double other_s = 0;
-  long moves = 0;  ///< agent-steps: moves x robots
-  long ticks = 0;  ///< Box2D ticks summed over robots
-  double peak_speed_mps = 0;
+  env::EnvTiming env;
+  double other_s = 0;  ///< the policy, the protocol, the records
 };
 
 /// Runs batches of rollouts: E episodes of T moves of the paper's protocol (env/protocol.hpp),
@@ -116,12 +112,10 @@ class RolloutEngine {
                                  Policy& policy, bool record = true);
 
   const BatchState& state() const { return state_; }
-  /// Where the time went: the environment's physics and camera, and everything else (the
-  /// policy, the protocol, the records) as other_s.
+  /// Where the time went.
   RolloutTiming timing() const;
   void reset_timing();
   int max_robots() const;
-  const sim::RobotBatch& robots() const;
   /// The GL renderer in use (for manifests).
   std::string camera_description() const;
 

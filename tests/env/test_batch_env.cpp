@@ -113,7 +113,7 @@ TEST(BatchEnv, TheTickHookSeesEveryTickOfEveryRobot) {
   EXPECT_EQ(calls, (std::vector<int>{1, 1}));
   EXPECT_EQ(seen_ticks[0], static_cast<std::size_t>(env.last_results()[0].ticks));
   EXPECT_EQ(seen_ticks[1], 0u);
-  EXPECT_LT((last[0] - env.robots().position_px(0)).norm(), 1e-9);
+  EXPECT_LT((last[0] - env.position_px(0)).norm(), 1e-9);
   env.set_tick_hook({});
   env.step(std::vector<grid::Cell>{{2, 0}, {0, 0}});
   EXPECT_EQ(calls, (std::vector<int>{1, 1}));
