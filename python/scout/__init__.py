@@ -91,7 +91,7 @@ else:
             return self
 
         def reset(self, *, seed=None, options=None):
-            if isinstance(seed, int):
+            if seed is not None:
                 self._np_random = np.random.default_rng(seed)
 
         def close(self):
@@ -126,10 +126,10 @@ class VectorEnv(_VectorBase):
         robot i runs its own seed's runs 0, 1, 2, ... (what SyncVectorEnv over single envs does);
         without, each robot its next run. options={"reset_mask": booleans} starts only those robots."""
         core = self._live("reset")
-        mask = _reset_mask(options, allow_mask=True)
-        if isinstance(seed, int) or seed is None:
-            super().reset(seed=seed)  # np_random
-        return core.reset(seed, mask)
+        result = core.reset(seed, _reset_mask(options, allow_mask=True))
+        if seed is None or isinstance(seed, numbers.Integral):
+            super().reset(seed=None if seed is None else int(seed))  # np_random, from an integer seed
+        return result
 
     def step(self, actions):
         """One move per robot; returns obs, reward, terminated, truncated, info."""
@@ -220,8 +220,8 @@ class Env(_EnvBase):
     def reset(self, *, seed=None, options=None):
         core = self._live("reset")
         _reset_mask(options, allow_mask=False)
-        super().reset(seed=seed)  # np_random
         obs, info = core.reset(seed)
+        super().reset(seed=int(seed) if isinstance(seed, numbers.Integral) else None)  # np_random
         return _first(obs, True), _first(info, False)
 
     def step(self, action):
