@@ -1,6 +1,7 @@
 // The vector environment behind the Python package, with real Box2D and OSMesa: runs dealt from
-// the seeded sequence, moves and the protocol's goal cut, episodes ending after E x T moves and
-// NEXT_STEP autoreset, dense and sparse rewards, and bad actions refused before anything moves.
+// the seeded sequence (or a seed per robot), moves and the protocol's move toward a goal, episodes
+// ending after E x T moves with NEXT_STEP autoreset or none (masked resets), dense and sparse
+// rewards, and bad actions refused before anything moves.
 #include <gtest/gtest.h>
 
 #include <cmath>
