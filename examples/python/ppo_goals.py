@@ -70,40 +70,58 @@ def make_envs(num_envs, seed):
     return gymnasium.wrappers.vector.NormalizeReward(envs, gamma=0.99)
 
 
+def rollout(envs, obs, net, classifier, run, rng):
+    """One run of every robot (they start and end together), moves sampled from `net` (uniform
+    random moves without one). Returns the transitions, the next observation, the runs' raw
+    returns (RecordEpisodeStatistics') and whether the classifier was right after each."""
+    steps = {"x": [], "move": [], "log_p": [], "value": [], "reward": [], "end": []}
+    returns, right = [], []
+    for _ in range(run):
+        state = planes(obs, run)
+        if net is None:
+            move = torch.from_numpy(rng.integers(0, MOVES, len(state)))
+        else:
+            with torch.no_grad():
+                logits, value = net(state)
+            dist = torch.distributions.Categorical(logits=logits)
+            move = dist.sample()
+            for key, item in (("x", state), ("move", move), ("log_p", dist.log_prob(move)), ("value", value)):
+                steps[key].append(item)
+        obs, reward, terminated, truncated, info = envs.step(
+            {"move": move.numpy(), "prediction": classifier.classify(obs)})
+        steps["reward"].append(torch.as_tensor(reward, dtype=torch.float32))
+        steps["end"].append(torch.as_tensor(terminated | truncated, dtype=torch.float32))
+        if "episode" in info:
+            returns.extend(info["episode"]["r"][info["_episode"]])
+        if "final_obs" in info:  # SAME_STEP: the run's last observation, before the next run began
+            done = np.flatnonzero(info["_final_obs"])
+            final = {k: np.stack([info["final_obs"][i][k] for i in done]) for k in ("pose", "seen", "revealed", "patch")}
+            right.extend(classifier.classify(final).argmax(1) == info["final_info"]["label"][done])
+    return steps, obs, returns, right
+
+
 def train(args, classifier):
     torch.manual_seed(args.seed)
+    rng = np.random.default_rng(args.seed)
     envs = make_envs(args.num_envs, args.seed)
     run = envs.unwrapped.episodes * envs.unwrapped.steps  # E x T moves
     height, width = envs.single_observation_space["seen"].shape
     net = ActorCritic(height, width)
     optimizer = torch.optim.Adam(net.parameters(), lr=args.lr)
     obs, _ = envs.reset(seed=args.seed)
+    # Random moves on the same kind of runs first: the curve's baseline.
+    baseline_returns, baseline_right = [], []
+    for _ in range(args.baseline_updates):
+        _, obs, returns, right = rollout(envs, obs, None, classifier, run, rng)
+        baseline_returns += returns
+        baseline_right += right
+    baseline = (float(np.mean(baseline_returns)), float(np.mean(baseline_right)))
     n = args.num_envs
     curve = []  # (seconds, runs so far, mean raw return, accuracy at the runs' end)
     start, runs = time.perf_counter(), 0
     while (len(curve) < args.updates) if args.updates else (time.perf_counter() - start < args.seconds):
-        x, moves, log_p, values, rewards, ends = [], [], [], [], [], []
-        returns, right = [], []
-        for _ in range(run):  # one run of every robot (they start and end together)
-            state = planes(obs, run)
-            with torch.no_grad():
-                logits, value = net(state)
-            dist = torch.distributions.Categorical(logits=logits)
-            move = dist.sample()
-            obs, reward, terminated, truncated, info = envs.step(
-                {"move": move.numpy(), "prediction": classifier.classify(obs)})
-            x.append(state)
-            moves.append(move)
-            log_p.append(dist.log_prob(move))
-            values.append(value)
-            rewards.append(torch.as_tensor(reward, dtype=torch.float32))
-            ends.append(torch.as_tensor(terminated | truncated, dtype=torch.float32))
-            if "episode" in info:
-                returns.extend(info["episode"]["r"][info["_episode"]])
-            if "final_obs" in info:
-                done = np.flatnonzero(info["_final_obs"])
-                final = {k: np.stack([info["final_obs"][i][k] for i in done]) for k in ("pose", "seen", "revealed", "patch")}
-                right.extend(classifier.classify(final).argmax(1) == info["final_info"]["label"][done])
+        steps, obs, returns, right = rollout(envs, obs, net, classifier, run, rng)
+        values, rewards, ends = steps["value"], steps["reward"], steps["end"]
         # GAE over the rollout; a state after a run's end has no value to bootstrap from.
         with torch.no_grad():
             next_value = net(planes(obs, run))[1]
@@ -113,7 +131,7 @@ def train(args, classifier):
             delta = rewards[t] + args.gamma * following * (1 - ends[t]) - values[t]
             gae = delta + args.gamma * args.lam * (1 - ends[t]) * gae
             advantages.insert(0, gae)
-        x, moves, old_log_p = torch.cat(x), torch.cat(moves), torch.cat(log_p)
+        x, moves, old_log_p = torch.cat(steps["x"]), torch.cat(steps["move"]), torch.cat(steps["log_p"])
         advantages = torch.cat(advantages)
         targets = advantages + torch.cat(values)
         for _ in range(args.epochs):
@@ -136,7 +154,7 @@ def train(args, classifier):
             print(f"{curve[-1][0]:6.0f} s  {runs:6d} runs  return {curve[-1][2]:7.2f}  accuracy {100 * curve[-1][3]:5.1f} %",
                   flush=True)
     envs.close()
-    return net, curve
+    return net, curve, baseline
 
 
 @torch.no_grad()
@@ -169,15 +187,15 @@ def plot(curve, random_accuracy, random_return, path):
     seconds, _, returns, accuracy = (np.array(c) for c in zip(*curve))
     smooth = lambda y: np.convolve(y, np.ones(5) / 5, mode="valid")  # noqa: E731
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
-    left.plot(seconds[4:], smooth(returns), label="PPO (training runs)")
-    left.axhline(random_return, color="grey", linestyle="--", label="random moves")
+    left.plot(seconds[4:], smooth(returns), label="PPO (training runs, mean of 5 updates)")
+    left.axhline(random_return, color="grey", linestyle="--", label="random moves (training runs)")
     left.set(xlabel="training time (s)", ylabel="return of a run (sum of log p(label))")
     left.legend()
-    right.plot(seconds[4:], 100 * smooth(accuracy), label="PPO (training runs)")
-    right.axhline(100 * random_accuracy, color="grey", linestyle="--", label="random moves")
+    right.plot(seconds[4:], 100 * smooth(accuracy), label="PPO (training runs, mean of 5 updates)")
+    right.axhline(100 * random_accuracy, color="grey", linestyle="--", label="random moves (training runs)")
     right.set(xlabel="training time (s)", ylabel="classifier accuracy after 20 moves (%)")
     right.legend()
-    fig.suptitle("PPO on gymnasium.make_vec(\"scout/MNIST-v0\"), fixed classifier (models/mnist.pt)")
+    fig.suptitle("PPO on gymnasium.make_vec(\"scout/MNIST-v0\", num_envs=64), fixed classifier (models/mnist.pt)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
@@ -196,6 +214,7 @@ def main(argv=None):
     parser.add_argument("--epochs", type=int, default=4)
     parser.add_argument("--minibatches", type=int, default=4)
     parser.add_argument("--eval-runs", type=int, default=2048, help="held-out runs per scoring")
+    parser.add_argument("--baseline-updates", type=int, default=8, help="rollouts of random moves for the curve's baseline")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--threads", type=int, default=1,
                         help="PyTorch's and the classifier's threads (1: the steadiest on a shared 2-core machine)")
@@ -203,16 +222,16 @@ def main(argv=None):
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     classifier = scout.Agent(args.model, threads=args.threads, precision="fp32")
-    net, curve = train(args, classifier)
+    net, curve, baseline = train(args, classifier)
     learned_accuracy, learned_log_p = score(net, classifier, args, np.random.default_rng(args.seed))
     random_accuracy, random_log_p = score(None, classifier, args, np.random.default_rng(args.seed))
-    # The random baseline's training return: log p(label) summed over a run with random moves.
-    print(f"trained {curve[-1][1]} runs ({len(curve)} PPO updates of {args.num_envs} robots) in {curve[-1][0]:.0f} s")
+    print(f"trained {curve[-1][1]} runs ({len(curve)} PPO updates of {args.num_envs} robots) in {curve[-1][0]:.0f} s; "
+          f"training runs' return {curve[-1][2]:.2f} (random moves {baseline[0]:.2f})")
     print(f"held-out accuracy after 20 moves: learned moves {100 * learned_accuracy:.1f} %, random moves "
           f"{100 * random_accuracy:.1f} % (gain {100 * (learned_accuracy - random_accuracy):.1f} points); "
           f"mean log p(label) {learned_log_p:.3f} vs {random_log_p:.3f}")
     if args.plot:
-        plot(curve, curve[0][3], curve[0][2], args.plot)
+        plot(curve, baseline[1], baseline[0], args.plot)
         print(f"curve: {args.plot}")
     return 0
 
