@@ -25,4 +25,13 @@ std::string one_line(std::string_view text) {
   return out;
 }
 
+std::string first_line(std::string_view what) {
+  std::string_view text = what.substr(0, what.find('\n'));
+  if (!text.empty() && text.front() == '[') {
+    const auto close = text.find("] ");
+    if (close != std::string_view::npos && close < 120) text.remove_prefix(close + 2);
+  }
+  return one_line(text.substr(0, 200));
+}
+
 }  // namespace scout

@@ -18,4 +18,8 @@ class InputError : public std::runtime_error {
 /// e.g. in a file name or a library's message) become visible escapes; other bytes pass through.
 std::string one_line(std::string_view text);
 
+/// A library's message fit for one line: its first line (LibTorch appends a backtrace), without
+/// the "[file.cpp:123] " prefix c10d puts in front, clipped to 200 bytes, then one_line().
+std::string first_line(std::string_view what);
+
 }  // namespace scout

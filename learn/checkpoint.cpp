@@ -26,12 +26,6 @@ using json = nlohmann::ordered_json;
 
 namespace {
 
-// The first line of a library's message (LibTorch appends a multi-line backtrace).
-std::string first_line(const char* what) {
-  std::string text(what);
-  return one_line(text.substr(0, std::min(text.find('\n'), std::size_t{200})));
-}
-
 json optional_json(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
 
 std::optional<double> optional_from(const json& row, const char* key) {
@@ -108,7 +102,7 @@ torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torc
                      {"loss", finite_or_zero(p.loss)},
                      {"train_seconds", p.train_seconds},
                      {"correct", p.correct},
-                     {"robots", p.robots},
+                     {"robots", p.rollouts},
                      {"images", p.images},
                      {"batches", p.batches}}},
                    {"history", history_json(state.history)},

@@ -33,16 +33,6 @@ namespace {
 using std::chrono::milliseconds;
 
 // The first line of a library's message (LibTorch appends backtraces and source locations).
-std::string first_line(const std::exception& e) {
-  std::string text(e.what());
-  text = text.substr(0, text.find('\n'));
-  // c10d prefixes messages with "[file.cpp:123] "; keep what follows.
-  if (!text.empty() && text.front() == '[') {
-    const auto close = text.find("] ");
-    if (close != std::string::npos && close < 120) text = text.substr(close + 2);
-  }
-  return one_line(text.substr(0, 200));
-}
 
 std::string seconds_text(milliseconds t) { return fmt::format("{:g} s", static_cast<double>(t.count()) / 1000); }
 
@@ -130,7 +120,7 @@ struct ProcessGroup::Impl {
   }
 
   [[noreturn]] void fail(const char* collective, const std::exception& e) {
-    const std::string cause = first_line(e);
+    const std::string cause = first_line(e.what());
     const std::vector<int> lost = options.world_size > 1 ? lost_ranks() : std::vector<int>{};
     if (lost.empty())
       throw GroupError(fmt::format("the {} across {} processes failed: {}", collective, options.world_size, cause));
@@ -181,11 +171,11 @@ std::unique_ptr<ProcessGroup> ProcessGroup::connect(const GroupOptions& options)
   try {
     impl->store = c10::make_intrusive<c10d::TCPStore>(options.master_addr, store_options);
   } catch (const std::exception& e) {
-    if (options.rank == 0) throw GroupError(not_all + ": " + first_line(e));
+    if (options.rank == 0) throw GroupError(not_all + ": " + first_line(e.what()));
     throw GroupError(
         fmt::format("cannot reach rank 0's store at {} within {} (is rank 0 running, with the same MASTER_ADDR and "
                     "MASTER_PORT?): {}",
-                    where, seconds_text(options.timeout), first_line(e)));
+                    where, seconds_text(options.timeout), first_line(e.what())));
   }
   try {
     auto gloo_options = c10d::ProcessGroupGloo::Options::create(options.timeout);
@@ -201,7 +191,7 @@ std::unique_ptr<ProcessGroup> ProcessGroup::connect(const GroupOptions& options)
     throw;
   } catch (const std::exception& e) {
     throw GroupError(not_all + (options.interface.empty() ? "" : " on interface " + options.interface) + ": " +
-                     first_line(e));
+                     first_line(e.what()));
   }
   return std::unique_ptr<ProcessGroup>(new ProcessGroup(std::move(impl)));
 }

@@ -109,10 +109,7 @@ struct Trainer::Impl {
   int rank() const { return group ? group->rank() : 0; }
   int ranks() const { return group ? group->size() : 1; }
   // This rank's contiguous share [first, end) of `count` items (shares differ by at most one).
-  std::pair<int, int> share(int count) const {
-    const auto part = [&](int r) { return static_cast<int>(static_cast<long>(count) * r / ranks()); };
-    return {part(rank()), part(rank() + 1)};
-  }
+  std::pair<int, int> share(int count) const { return share_of(count, rank(), ranks()); }
   // Sums a few figures over the ranks (each rank's own when alone).
   template <std::size_t N>
   void sum_over_ranks(std::array<double, N>& values) {
@@ -189,7 +186,7 @@ struct Trainer::Impl {
   }
 
   Stage stage() const { return kStages[cursor.stage]; }
-  bool finished() const { return cursor.stage >= static_cast<int>(kStages.size()); }
+  bool past_last_stage() const { return cursor.stage >= static_cast<int>(kStages.size()); }
   // True when no stage from the cursor on has an epoch left (without moving the cursor).
   bool schedule_done() const {
     const auto epochs = stage_epochs(config);
@@ -201,7 +198,7 @@ struct Trainer::Impl {
   // Skips stages with no epochs left.
   void normalise_cursor() {
     const auto epochs = stage_epochs(config);
-    while (!finished() && cursor.epoch >= epochs[cursor.stage]) {
+    while (!past_last_stage() && cursor.epoch >= epochs[cursor.stage]) {
       ++cursor.stage;
       cursor.epoch = 0;
       cursor.batch = 0;
@@ -314,7 +311,7 @@ struct Trainer::Impl {
   void add_figures(const std::array<double, 3>& figures) {
     sums.reward += figures[0];
     sums.correct += std::lround(figures[1]);
-    sums.robots += std::lround(figures[2]);
+    sums.rollouts += std::lround(figures[2]);
   }
 
   // The classifier on the full validation images (in a group, each rank classifies its share).
@@ -430,7 +427,7 @@ struct Trainer::Impl {
 
   TrainResult run(const TrainHooks& hooks) {
     normalise_cursor();
-    while (!finished()) {
+    while (!past_last_stage()) {
       const Stage s = stage();
       set_trainable(s);
       const auto epochs = stage_epochs(config);
@@ -476,7 +473,7 @@ struct Trainer::Impl {
           p.batch = b + 1;
           p.batches = batches;
           p.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
-          p.reward = sums.robots ? sums.reward / sums.robots : 0;
+          p.reward = sums.rollouts ? sums.reward / sums.rollouts : 0;
           const double left_this_epoch =
               static_cast<double>(train.images.count - std::min<long>(sums.images, train.images.count));
           p.eta_s = p.images_per_s > 0 ? (left_this_epoch + remaining_images_after_epoch()) / p.images_per_s : 0;
@@ -486,9 +483,9 @@ struct Trainer::Impl {
       EpochMetrics m;
       m.stage = s;
       m.epoch = cursor.epoch + 1;
-      m.reward = sums.robots ? sums.reward / sums.robots : 0;
+      m.reward = sums.rollouts ? sums.reward / sums.rollouts : 0;
       m.loss = sums.batches ? sums.loss / sums.batches : 0;
-      m.train_accuracy = sums.robots ? static_cast<double>(sums.correct) / sums.robots : 0;
+      m.train_accuracy = sums.rollouts ? static_cast<double>(sums.correct) / sums.rollouts : 0;
       m.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
       validate(m);
       // Wall time: this process's part of the epoch, plus the training time before a resume.

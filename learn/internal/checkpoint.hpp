@@ -20,7 +20,7 @@ struct EpochSums {
   double loss = 0;           ///< sum of the batches' -J-hat
   double train_seconds = 0;  ///< time in training steps (validation excluded)
   long correct = 0;          ///< rollouts classified right
-  long robots = 0;           ///< rollouts
+  long rollouts = 0;         ///< rollouts driven (stored under the key "robots", as ever)
   long images = 0;           ///< training images
   long batches = 0;          ///< batches
 };
