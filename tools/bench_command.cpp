@@ -21,7 +21,6 @@
 #include "learn/training_bench.hpp"
 #include "render/camera.hpp"
 #include "sim/robots.hpp"
-#include "sim/robots.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
