@@ -92,8 +92,7 @@ void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
   if (!which.robot_seeds.empty() && which.robot_seeds.size() != n)
     throw InputError(fmt::format("seed: expected one seed or a list of {} (one per robot), got a list of {}", n,
                                  which.robot_seeds.size()));
-  if (which.seed && !which.robot_seeds.empty())
-    throw InputError("seed: expected one seed or a list, not both");
+  if (which.seed && !which.robot_seeds.empty()) throw InputError("seed: expected one seed or a list, not both");
   std::vector<int> robots;
   for (int i = 0; i < num_envs_; ++i)
     if (which.mask.empty() || which.mask[i]) robots.push_back(i);

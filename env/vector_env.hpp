@@ -25,7 +25,7 @@ enum class Reward { Dense, Sparse };
 
 struct VectorEnvConfig {
   std::filesystem::path world_file;
-  std::int64_t num_envs = 1;  ///< 1 .. VectorEnv::kMaxEnvs
+  std::int64_t num_envs = 1;           ///< 1 .. VectorEnv::kMaxEnvs
   std::optional<std::uint64_t> seed;   ///< default: the world file's `seed`
   std::optional<worlds::Split> split;  ///< default: the world file's `floor.split`
   std::filesystem::path data_root;     ///< empty: worlds::default_data_root()
@@ -136,12 +136,12 @@ class VectorEnv {
   std::unique_ptr<BatchEnv> env_;
   std::vector<const RunSequence*> sequence_;  // each robot's sequence (null before the first reset)
   std::vector<std::uint64_t> stride_;         // and how far its next run is: num_envs, or 1 (own seed)
-  std::vector<std::uint64_t> run_;       // each robot's current run k
-  std::vector<PlannedRun> planned_;      // and what it is
-  std::vector<std::uint8_t> done_;       // its episode ended on the last step
-  std::vector<int> time_step_;           // moves made in its episode
-  std::vector<std::uint8_t> reset_now_;  // started its next run on this step
-  std::vector<std::int32_t> move_;       // the step's action, copied before it is checked
+  std::vector<std::uint64_t> run_;            // each robot's current run k
+  std::vector<PlannedRun> planned_;           // and what it is
+  std::vector<std::uint8_t> done_;            // its episode ended on the last step
+  std::vector<int> time_step_;                // moves made in its episode
+  std::vector<std::uint8_t> reset_now_;       // started its next run on this step
+  std::vector<std::int32_t> move_;            // the step's action, copied before it is checked
   std::vector<float> prediction_;
   std::vector<std::int32_t> goal_;
   std::vector<grid::Cell> commands_;

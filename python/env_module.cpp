@@ -116,8 +116,9 @@ Array<T> action_array(const py::dict& action, const char* key, const std::vector
     const bool fits = integers ? v >= std::numeric_limits<T>::min() && v <= std::numeric_limits<T>::max()
                                : !std::isfinite(v) || std::abs(v) <= std::numeric_limits<T>::max();
     if (!fits) {
-      const std::string where = shape.size() > 1 ? "[" + std::to_string(k / columns) + "][" + std::to_string(k % columns) + "]"
-                                                 : "[" + std::to_string(k) + "]";
+      const std::string where = shape.size() > 1
+                                    ? "[" + std::to_string(k / columns) + "][" + std::to_string(k % columns) + "]"
+                                    : "[" + std::to_string(k) + "]";
       throw py::value_error(name + where + ": expected " + (integers ? "an int32" : "a logit within float32's range") +
                             ", got " + py::str(py::cast(v)).cast<std::string>());
     }
@@ -235,15 +236,17 @@ class VectorEnvCore {
     const auto n = static_cast<std::size_t>(env_->num_envs());
     if (py::isinstance<py::list>(seed) || py::isinstance<py::tuple>(seed)) {
       for (const py::handle s : seed)
-        which.robot_seeds.push_back(s.is_none() ? std::nullopt
-                                                : std::optional(seed_value(s, "seed[" + std::to_string(which.robot_seeds.size()) + "]")));
+        which.robot_seeds.push_back(
+            s.is_none() ? std::nullopt
+                        : std::optional(seed_value(s, "seed[" + std::to_string(which.robot_seeds.size()) + "]")));
     } else if (!seed.is_none()) {
       which.seed = seed_value(seed, "seed");
     }
     if (!mask.is_none()) {
       const py::array m = py::array::ensure(mask);
       if (!m || m.dtype().kind() != 'b' || m.ndim() != 1)
-        throw py::type_error("reset_mask: expected a NumPy array of " + std::to_string(n) + " booleans, got " + text_of(mask));
+        throw py::type_error("reset_mask: expected a NumPy array of " + std::to_string(n) + " booleans, got " +
+                             text_of(mask));
       const auto flags = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>::ensure(m);
       which.mask.assign(flags.data(), flags.data() + flags.size());
     }
@@ -264,9 +267,8 @@ class VectorEnvCore {
   // action: {"move": (N,) integers, optional "prediction": (N, D) floats, optional "goal": (N, 2) integers}.
   py::tuple step(const py::object& action_object) {
     if (!py::isinstance<py::dict>(action_object))
-      throw py::type_error(
-          "action: expected a dict with 'move' (and optionally 'prediction', 'goal'), got " +
-          py::str(action_object.get_type().attr("__name__")).cast<std::string>());
+      throw py::type_error("action: expected a dict with 'move' (and optionally 'prediction', 'goal'), got " +
+                           py::str(action_object.get_type().attr("__name__")).cast<std::string>());
     const auto action = py::reinterpret_borrow<py::dict>(action_object);
     std::vector<std::string> unknown;
     for (const auto& [key, value] : action) {
@@ -301,7 +303,8 @@ class VectorEnvCore {
       env_->step(a, p);
       if (paths_)
         for (py::ssize_t i = 0; i < n; ++i)
-          goals_[i] = goal ? std::optional(render::PixelPose{goal->data()[2 * i], goal->data()[2 * i + 1]}) : std::nullopt;
+          goals_[i] =
+              goal ? std::optional(render::PixelPose{goal->data()[2 * i], goal->data()[2 * i + 1]}) : std::nullopt;
       track();
     }
     out.episodes(*env_);
@@ -333,7 +336,8 @@ class VectorEnvCore {
       s.scale = scale;
       const double pixel_m = e.world().floor.pixel_size_m;
       const Eigen::Vector2d body = e.batch().pose_m(robot) / pixel_m;
-      s.body = render::Snapshot::Body{.x_px = body.x(), .y_px = body.y(), .radius_px = e.world().robot.radius_m / pixel_m};
+      s.body =
+          render::Snapshot::Body{.x_px = body.x(), .y_px = body.y(), .radius_px = e.world().robot.radius_m / pixel_m};
       picture = render::draw_snapshot(s);
     }
     py::array_t<std::uint8_t> rgb({py::ssize_t{picture.height}, py::ssize_t{picture.width}, py::ssize_t{3}});

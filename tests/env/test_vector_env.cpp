@@ -163,7 +163,8 @@ TEST_F(VectorEnvTest, WithAGoalAMoveIsTheProtocolsAlongItsAxis) {
   // A goal to the left (or right at the edge) on this row, and a move pointing away from it: the
   // protocol moves toward the goal along the move's axis (grid::move_command), at most step_px.
   const int gx = x0 >= 3 ? x0 - 3 : x0 + 3;
-  env.step({.move = std::vector<std::int32_t>{gx < x0 ? 0 : 1}, .goal = std::vector<std::int32_t>{gx, y0}}, b.outputs());
+  env.step({.move = std::vector<std::int32_t>{gx < x0 ? 0 : 1}, .goal = std::vector<std::int32_t>{gx, y0}},
+           b.outputs());
   EXPECT_EQ(b.pose[0], x0 + (gx < x0 ? -2 : 2));
   EXPECT_EQ(b.pose[1], y0);
 }
