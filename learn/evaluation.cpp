@@ -42,16 +42,10 @@ struct Data {
 
 Data read_data(const EvalConfig& config, const worlds::World& world, int classes) {
   Data d;
-  d.set.images = worlds::read_idx_images(config.images);
-  d.set.labels = worlds::read_idx_labels(config.labels);
-  d.set.files = {config.images, config.labels};
   if (config.image_limit < 0)
     throw InputError(fmt::format("image_limit: expected 0 (all) or a positive count, got {}", config.image_limit));
+  d.set = worlds::read_labeled_idx(config.images, config.labels);
   const std::string images = config.images.string(), labels = config.labels.string();
-  if (d.set.images.count == 0) throw InputError(images + ": expected at least one image, the file has none");
-  if (d.set.labels.size() != static_cast<std::size_t>(d.set.images.count))
-    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels, d.set.images.count,
-                                 images, d.set.labels.size()));
   if (config.image_limit > 0 && config.image_limit < d.set.images.count) {
     d.set.images.count = config.image_limit;
     d.set.images.pixels.resize(static_cast<std::size_t>(config.image_limit) * d.set.images.rows * d.set.images.cols);

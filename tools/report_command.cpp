@@ -447,13 +447,9 @@ ReportInputs gather_report_inputs(const ReportOptions& opt) {
   in.compared = read_compared(opt);
   in.checkpoint_sha = core::sha256_hex(checkpoint);
   read_model_eval(opt, in);
-  in.test_images = worlds::read_idx_images(in.images);
-  in.test_labels = worlds::read_idx_labels(in.labels);
-  if (in.test_images.count == 0)
-    throw InputError(in.images.string() + ": expected at least one image, the file has none");
-  if (in.test_labels.size() != static_cast<std::size_t>(in.test_images.count))
-    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", in.labels.string(),
-                                 in.test_images.count, in.images.string(), in.test_labels.size()));
+  worlds::LabeledImages test = worlds::read_labeled_idx(in.images, in.labels);
+  in.test_images = std::move(test.images);
+  in.test_labels = std::move(test.labels);
   return in;
 }
 

@@ -233,4 +233,16 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
   return parts;
 }
 
+LabeledImages read_labeled_idx(const fs::path& images, const fs::path& labels) {
+  LabeledImages set;
+  set.images = read_idx_images(images);
+  set.labels = read_idx_labels(labels);
+  set.files = {images, labels};
+  if (set.images.count == 0) throw InputError(images.string() + ": expected at least one image, the file has none");
+  if (set.labels.size() != static_cast<std::size_t>(set.images.count))
+    throw InputError(fmt::format("{}: expected {} labels (one per image of {}), got {}", labels.string(),
+                                 set.images.count, images.string(), set.labels.size()));
+  return set;
+}
+
 }  // namespace scout::worlds

@@ -20,6 +20,10 @@ struct LabeledImages {
   std::vector<std::filesystem::path> files;  ///< the IDX files read (for manifests)
 };
 
+/// Any pair of IDX image and label files (".gz" or raw): at least one image, one label per image.
+/// Throws InputError naming the file for anything else (as read_idx_images does for a bad file).
+LabeledImages read_labeled_idx(const std::filesystem::path& images, const std::filesystem::path& labels);
+
 /// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
 std::filesystem::path default_data_root();
 
