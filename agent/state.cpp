@@ -19,7 +19,7 @@ void fill_window(const grid::Window& w, int width_px, float value, float* plane)
 void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, float* dst) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   // Unseen bytes may be anything (the caller need not clear them), so they must not be read into y.
-  for (std::size_t i = 0; i < n; ++i) dst[i] = view.seen[i] != 0 ? pixel_value(view.observed[i]) : 0.0f;
+  for (std::size_t i = 0; i < n; ++i) dst[i] = view.seen[i] != 0 ? pixel_value(view.revealed[i]) : 0.0f;
 }
 
 void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst) {

@@ -9,7 +9,7 @@ namespace scout::agent {
 
 /// One robot's view, all arrays H * W row-major (the floor frame).
 struct RobotView {
-  const std::uint8_t* observed = nullptr;  ///< the floor's bytes where seen (anything elsewhere)
+  const std::uint8_t* revealed = nullptr;  ///< the floor's bytes where seen (anything elsewhere)
   const std::uint8_t* seen = nullptr;      ///< 1 where seen so far, 0 elsewhere
   grid::Cell pose;                         ///< current grid pose
   const grid::Cell* goal = nullptr;        ///< goal for g_l; null: no goal yet (g_l all ones)
@@ -18,7 +18,7 @@ struct RobotView {
 /// A floor byte as the networks see it: p / 255 - 0.5 (METHOD.md § Symbols).
 inline float pixel_value(std::uint8_t p) { return static_cast<float>(p) / 255.0f - 0.5f; }
 
-/// y: pixel_value(observed) where seen, 0 elsewhere. Writes H * W floats (c = 1).
+/// y: pixel_value(revealed) where seen, 0 elsewhere. Writes H * W floats (c = 1).
 void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, float* dst);
 
 /// u = concat(y, l, h, g_l): writes 4 * H * W floats, channel-major.

@@ -21,7 +21,7 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
   poses_.resize(max_robots);
   seen_.assign(max_robots, grid::RevealMask(frame));
-  observed_.resize(area * max_robots);
+  revealed_.resize(area * max_robots);
   floors_.resize(area * max_robots);
   patches_.resize(static_cast<std::size_t>(max_robots) * patch_px_ * patch_px_);
   pixel_poses_.resize(max_robots);
@@ -39,8 +39,8 @@ std::span<const std::uint8_t> BatchEnv::patches() const {
   return {patches_.data(), static_cast<std::size_t>(count_) * patch_px_ * patch_px_};
 }
 std::span<const grid::Cell> BatchEnv::poses() const { return {poses_.data(), static_cast<std::size_t>(count_)}; }
-std::span<const std::uint8_t> BatchEnv::observed() const {
-  return {observed_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
+std::span<const std::uint8_t> BatchEnv::revealed() const {
+  return {revealed_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
 }
 std::span<const grid::RevealMask> BatchEnv::seen() const { return {seen_.data(), static_cast<std::size_t>(count_)}; }
 std::span<const int> BatchEnv::moves() const { return {moves_.data(), static_cast<std::size_t>(count_)}; }
@@ -56,7 +56,7 @@ void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
-  std::fill_n(observed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
   robots_->place(robot, start);
   poses_[robot] = robots_->grid_pose(robot);
   seen_[robot].clear();
@@ -154,7 +154,7 @@ void BatchEnv::observe() {
   for (int i = 0; i < count_; ++i) {
     const grid::Window w = grid::camera_window(poses_[i], m, frame_);
     seen_[i].reveal(w);
-    std::uint8_t* y = observed_.data() + static_cast<std::size_t>(i) * frame_.area_px();
+    std::uint8_t* y = revealed_.data() + static_cast<std::size_t>(i) * frame_.area_px();
     const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
     // The patch's (0, 0) is the window's unclipped corner (pose - m/2).
     const int px0 = poses_[i].x() - half, py0 = poses_[i].y() - half;

@@ -90,7 +90,7 @@ class BatchEnv {
   std::span<const std::uint8_t> patches() const;
   std::span<const grid::Cell> poses() const;  ///< grid pose of each robot's actual position
   /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
-  std::span<const std::uint8_t> observed() const;
+  std::span<const std::uint8_t> revealed() const;
   std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
   std::span<const int> moves() const;                ///< step() calls since each robot's reset (a zero command counts)
   std::span<const MoveResult> last_results() const;  ///< how each robot's last move went
@@ -116,7 +116,7 @@ class BatchEnv {
   std::unique_ptr<render::PatchCamera> camera_;
   std::vector<grid::Cell> poses_;
   std::vector<grid::RevealMask> seen_;
-  std::vector<std::uint8_t> observed_;
+  std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
   std::vector<std::uint8_t> patches_;
   std::vector<render::PixelPose> pixel_poses_;

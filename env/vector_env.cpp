@@ -234,12 +234,12 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
 void VectorEnv::write(const VectorOutputs& out) const {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   const std::span<const std::uint8_t> patches = env_->patches();
-  const std::span<const std::uint8_t> observed = env_->observed();
+  const std::span<const std::uint8_t> revealed = env_->revealed();
   constexpr float kScale = 1.0f / 255.0f;
   if (out.patch)
     for (std::size_t k = 0; k < patches.size(); ++k) out.patch[k] = patches[k] * kScale;
   if (out.revealed)
-    for (std::size_t k = 0; k < observed.size(); ++k) out.revealed[k] = observed[k] * kScale;
+    for (std::size_t k = 0; k < revealed.size(); ++k) out.revealed[k] = revealed[k] * kScale;
   for (int i = 0; i < num_envs_; ++i) {
     const grid::Cell pose = env_->poses()[i];
     if (out.pose) {

@@ -84,7 +84,7 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<g
   torch::Tensor input = torch::empty({count, channels, frame_.height_px, width});
   float* data = input.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
-    agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i],
+    agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i],
                           episode > 0 ? &state.goal[i] : nullptr};
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area);
   }
@@ -135,7 +135,7 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   float* data = input.data_ptr<float>();
   for (int r = 0; r < k; ++r) {
     const auto i = static_cast<std::size_t>(rows_[r]);
-    agent::RobotView view{state.observed_image(static_cast<int>(i)), state.seen[i].data().data(), state.pose[i],
+    agent::RobotView view{state.revealed_image(static_cast<int>(i)), state.seen[i].data().data(), state.pose[i],
                           &state.goal[i]};
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area);
   }
@@ -171,7 +171,7 @@ torch::Tensor revealed_images(const BatchState& state, int count) {
   torch::Tensor y = torch::empty({count, worlds::ImageSet::channels, frame.height_px, frame.width_px});
   float* data = y.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
-    agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i], nullptr};
+    agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i], nullptr};
     agent::write_revealed_image(frame, view, data + static_cast<std::size_t>(i) * frame.area_px());
   }
   return y;

@@ -66,7 +66,7 @@ void RolloutEngine::refresh_state() {
   state_.count = env_->count();
   state_.pose = env_->poses();
   state_.seen = env_->seen();
-  state_.observed = env_->observed();
+  state_.revealed = env_->revealed();
   state_.goal = std::span<const grid::Cell>(goals_.data(), static_cast<std::size_t>(state_.count));
 }
 

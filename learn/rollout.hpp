@@ -25,10 +25,10 @@ struct BatchState {
   std::span<const grid::Cell> pose;        ///< grid pose of the actual position, per robot
   std::span<const grid::Cell> goal;        ///< current goal per robot
   std::span<const grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
-  std::span<const std::uint8_t> observed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
+  std::span<const std::uint8_t> revealed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
 
-  const std::uint8_t* observed_image(int robot) const {
-    return observed.data() + static_cast<std::size_t>(robot) * frame.area_px();
+  const std::uint8_t* revealed_image(int robot) const {
+    return revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
   }
 };
 

@@ -169,8 +169,8 @@ struct Trainer::Impl {
   void restore(const Checkpoint& checkpoint, const CheckpointState& state) {
     checkpoint.contents().load_into(*agent, optimizer.get());
     // Adam's stored state carries the rate it ran with; the config's (possibly new) rate wins.
-    for (torch::optim::OptimizerParamGroup& group : optimizer->param_groups())
-      static_cast<torch::optim::AdamOptions&>(group.options()).lr(config.learning_rate);
+    for (torch::optim::OptimizerParamGroup& param_group : optimizer->param_groups())
+      static_cast<torch::optim::AdamOptions&>(param_group.options()).lr(config.learning_rate);
     cursor = state.cursor;
     history = state.history;
     sums = state.partial;

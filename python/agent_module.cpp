@@ -158,7 +158,7 @@ class AgentCore {
       goals_.assign(n, grid::Cell::Zero());
       need_.resize(n);
       axes_.resize(n);
-      observed_.resize(area * n);
+      revealed_.resize(area * n);
       begun_ = false;
     }
     for (int i = 0; i < n; ++i) {
@@ -168,14 +168,14 @@ class AgentCore {
       masks_[i].assign(std::span(obs.seen + area * i, area));
     }
     for (std::size_t k = 0; k < area * n; ++k)
-      observed_[k] = static_cast<std::uint8_t>(std::lround(std::clamp(obs.revealed[k], 0.0f, 1.0f) * 255.0f));
+      revealed_[k] = static_cast<std::uint8_t>(std::lround(std::clamp(obs.revealed[k], 0.0f, 1.0f) * 255.0f));
     state_.frame = frame;
     state_.patch_px = obs.patch_px;
     state_.count = n;
     state_.pose = poses_;
     state_.goal = goals_;
     state_.seen = masks_;
-    state_.observed = observed_;
+    state_.revealed = revealed_;
   }
 
   std::unique_ptr<learn::TrainedAgent> agent_;
@@ -185,7 +185,7 @@ class AgentCore {
   learn::BatchState state_;
   std::vector<grid::Cell> poses_, goals_;
   std::vector<grid::RevealMask> masks_;
-  std::vector<std::uint8_t> observed_;
+  std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
 };

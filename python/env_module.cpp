@@ -328,7 +328,7 @@ class VectorEnvCore {
       s.floor = e.floors().images.image(e.floor_index(robot));
       s.width_px = e.width();
       s.height_px = e.height();
-      s.revealed = e.batch().observed().data() + area * robot;
+      s.revealed = e.batch().revealed().data() + area * robot;
       s.patch_px = e.patch_px();
       s.robot = (*paths_)[robot].back();
       s.goal = goals_[robot];

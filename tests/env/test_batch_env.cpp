@@ -38,7 +38,7 @@ void expect_consistent(const BatchEnv& env, const std::vector<std::uint8_t>& flo
   std::vector<std::uint8_t> crop(static_cast<std::size_t>(m) * m);
   for (int i = 0; i < env.count(); ++i) {
     const std::uint8_t* floor = floor_bytes.data() + area * i;
-    const std::uint8_t* y = env.observed().data() + area * i;
+    const std::uint8_t* y = env.revealed().data() + area * i;
     for (int py = 0; py < kFloor.height_px; ++py)
       for (int px = 0; px < kFloor.width_px; ++px) {
         const std::size_t k = static_cast<std::size_t>(py) * kFloor.width_px + px;

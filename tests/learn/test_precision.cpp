@@ -67,7 +67,7 @@ std::pair<torch::Tensor, torch::Tensor> inputs_after_a_rollout(std::uint64_t see
   const int area = frame.area_px();
   torch::Tensor input = torch::empty({batch.count, 4, kSide, kSide});
   for (int i = 0; i < batch.count; ++i) {
-    agent::RobotView view{state.observed_image(i), state.seen[i].data().data(), state.pose[i], &state.goal[i]};
+    agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i], &state.goal[i]};
     agent::write_planner_input(frame, world.camera.patch_px, view,
                                input.data_ptr<float>() + static_cast<std::size_t>(i) * 4 * area);
   }

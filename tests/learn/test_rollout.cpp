@@ -79,7 +79,7 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
       // The physics run's seen pixels equal the model's, and y holds the floor exactly there.
       const auto& seen = engine.state().seen[i].data();
       ASSERT_EQ(seen, model.revealed().data());
-      const std::uint8_t* y = engine.state().observed_image(i);
+      const std::uint8_t* y = engine.state().revealed_image(i);
       const std::uint8_t* x = b.floors.data() + static_cast<std::size_t>(i) * kFloor.area_px();
       for (int p = 0; p < kFloor.area_px(); ++p) ASSERT_EQ(y[p], seen[p] ? x[p] : 0) << "pixel " << p;
     }
