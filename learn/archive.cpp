@@ -93,87 +93,96 @@ bool known_entry(std::string_view name) {
   return is_digits(code.substr(kMangled.size(), code.size() - kMangled.size() - 3));
 }
 
-ZipDirectory read_directory(const Bytes& b) {
+// Where the zip directory lies, from the end record (and the zip64 records LibTorch writes).
+struct DirectoryPlace {
+  std::uint64_t count = 0, offset = 0, size = 0;
+  std::uint64_t limit = 0;  // the directory ends by here: the zip64 end record, else the end record
+};
+
+DirectoryPlace find_directory(const Bytes& b) {
   if (b.size() < kEndRecordSize) fail(fmt::format("{} bytes: too short for a zip archive", b.size()));
   const std::uint64_t end = b.size() - kEndRecordSize;
   if (b.u32(end) != kEndRecord)
     fail("no zip end record at the end of the file (truncated, appended to, or not a LibTorch archive)");
   if (b.u16(end + 4) != 0 || b.u16(end + 6) != 0 || b.u16(end + 8) != b.u16(end + 10) || b.u16(end + 20) != 0)
     fail("a multi-part zip archive or one with a comment (Scout's writer makes neither)");
-  std::uint64_t count = b.u16(end + 10);
-  std::uint64_t directory_size = b.u32(end + 12);
-  std::uint64_t directory = b.u32(end + 16);
-  std::uint64_t directory_end_limit = end;
-  if (count == 0xffff || directory_size == 0xffffffff || directory == 0xffffffff) {
+  DirectoryPlace d{.count = b.u16(end + 10), .offset = b.u32(end + 16), .size = b.u32(end + 12), .limit = end};
+  if (d.count == 0xffff || d.size == 0xffffffff || d.offset == 0xffffffff) {
     // The zip64 end record, found through its locator just before the end record.
     if (end < 20 || b.u32(end - 20) != kZip64Locator) fail("a zip64 archive without its zip64 locator");
     const std::uint64_t record = b.u64(end - 20 + 8);
     if (record >= end - 20 || b.u32(record) != kZip64EndRecord)
       fail("the zip64 end record is not where its locator says");
-    count = b.u64(record + 32);
-    directory_size = b.u64(record + 40);
-    directory = b.u64(record + 48);
-    directory_end_limit = record;
+    d = {.count = b.u64(record + 32), .offset = b.u64(record + 48), .size = b.u64(record + 40), .limit = record};
   } else if (end >= 20 + 56 && b.u32(end - 20) == kZip64Locator) {
     // LibTorch writes the zip64 records even for small archives: the directory ends before them.
     const std::uint64_t record = b.u64(end - 20 + 8);
-    if (record < end - 20 && b.u32(record) == kZip64EndRecord) directory_end_limit = record;
+    if (record < end - 20 && b.u32(record) == kZip64EndRecord) d.limit = record;
   }
-  if (count == 0) fail("an empty zip archive");
-  if (count > kMaxArchiveEntries) fail(fmt::format("{} zip entries (at most {})", count, kMaxArchiveEntries));
-  if (directory > directory_end_limit || directory_size > directory_end_limit - directory)
-    fail("the zip directory lies outside the file");
+  if (d.count == 0) fail("an empty zip archive");
+  if (d.count > kMaxArchiveEntries) fail(fmt::format("{} zip entries (at most {})", d.count, kMaxArchiveEntries));
+  if (d.offset > d.limit || d.size > d.limit - d.offset) fail("the zip directory lies outside the file");
+  return d;
+}
 
+// Directory entry `i` at `at` (moved on to the next), checked against what Scout's writer makes
+// and against its local header. All entries lie in one folder: `folder`, set by the first.
+ZipEntry read_entry(const Bytes& b, std::uint64_t& at, std::uint64_t i, const DirectoryPlace& d, std::string& folder) {
+  const std::uint64_t directory_end = d.offset + d.size;
+  if (at + 46 > directory_end || b.u32(at) != kCentralHeader) fail(fmt::format("zip directory entry {} is damaged", i));
+  ZipEntry e;
+  const std::uint16_t flags = b.u16(at + 8);
+  e.method = b.u16(at + 10);
+  e.crc = b.u32(at + 16);
+  e.compressed = b.u32(at + 20);
+  e.size = b.u32(at + 24);
+  const std::uint16_t name_length = b.u16(at + 28);
+  const std::uint64_t next = at + 46 + name_length + b.u16(at + 30) + b.u16(at + 32);
+  e.header = b.u32(at + 42);
+  if (next > directory_end) fail(fmt::format("zip directory entry {} runs past the directory", i));
+  const std::string full(b.view(at + 46, name_length));
+  at = next;
+
+  const std::size_t slash = full.find('/');
+  if (slash == 0 || slash == std::string::npos || full.find('\0') != std::string::npos)
+    fail("zip entry '" + clipped(full) + "' is not inside the archive's folder");
+  const std::string entry_folder = full.substr(0, slash);
+  if (folder.empty()) folder = entry_folder;
+  if (entry_folder != folder)
+    fail("zip entries in two folders ('" + clipped(folder) + "', '" + clipped(entry_folder) + "')");
+  e.name = full.substr(slash + 1);
+  const std::string where = "entry " + clipped(full);
+  if (!known_entry(e.name)) fail(where + ": not an entry Scout's checkpoint writer makes");
+  if (flags & 0x41) fail(where + ": encrypted");
+  if (e.method != kStored && e.method != kDeflated)
+    fail(fmt::format("{}: compression method {} (expected 0, stored, or 8, deflated)", where, e.method));
+  if (e.compressed == 0xffffffff || e.size == 0xffffffff || e.header == 0xffffffff)
+    fail(where + ": larger than 4 GiB (zip64 entries are not written by Scout)");
+  if (e.method == kStored && e.compressed != e.size)
+    fail(fmt::format("{}: stored, but its sizes differ ({} and {} bytes)", where, e.compressed, e.size));
+  if (e.name.rfind("data/", 0) == 0 && e.method != kStored) fail(where + ": a tensor record must be stored");
+
+  // The local header must agree with the directory and its data must end before the directory.
+  if (b.u32(e.header) != kLocalHeader) fail(where + ": no local header at its offset");
+  const std::uint16_t local_name = b.u16(e.header + 26);
+  if (b.view(e.header + 30, local_name) != full) fail(where + ": its local header names another entry");
+  e.data = e.header + 30 + local_name + b.u16(e.header + 28);
+  if (e.data > d.offset || e.compressed > d.offset - e.data)
+    fail(fmt::format("{}: its {} bytes of data run into the zip directory", where, e.compressed));
+  return e;
+}
+
+ZipDirectory read_directory(const Bytes& b) {
+  const DirectoryPlace d = find_directory(b);
   ZipDirectory out;
   std::vector<ZipEntry> by_offset;
-  std::uint64_t at = directory;
-  const std::uint64_t directory_end = directory + directory_size;
-  for (std::uint64_t i = 0; i < count; ++i) {
-    if (at + 46 > directory_end || b.u32(at) != kCentralHeader)
-      fail(fmt::format("zip directory entry {} is damaged", i));
-    ZipEntry e;
-    const std::uint16_t flags = b.u16(at + 8);
-    e.method = b.u16(at + 10);
-    e.crc = b.u32(at + 16);
-    e.compressed = b.u32(at + 20);
-    e.size = b.u32(at + 24);
-    const std::uint16_t name_length = b.u16(at + 28);
-    const std::uint64_t next = at + 46 + name_length + b.u16(at + 30) + b.u16(at + 32);
-    e.header = b.u32(at + 42);
-    if (next > directory_end) fail(fmt::format("zip directory entry {} runs past the directory", i));
-    const std::string full(b.view(at + 46, name_length));
-    at = next;
-
-    const std::size_t slash = full.find('/');
-    if (slash == 0 || slash == std::string::npos || full.find('\0') != std::string::npos)
-      fail("zip entry '" + clipped(full) + "' is not inside the archive's folder");
-    const std::string folder = full.substr(0, slash);
-    if (out.folder.empty()) out.folder = folder;
-    if (folder != out.folder)
-      fail("zip entries in two folders ('" + clipped(out.folder) + "', '" + clipped(folder) + "')");
-    e.name = full.substr(slash + 1);
-    const std::string where = "entry " + clipped(full);
-    if (!known_entry(e.name)) fail(where + ": not an entry Scout's checkpoint writer makes");
-    if (flags & 0x41) fail(where + ": encrypted");
-    if (e.method != kStored && e.method != kDeflated)
-      fail(fmt::format("{}: compression method {} (expected 0, stored, or 8, deflated)", where, e.method));
-    if (e.compressed == 0xffffffff || e.size == 0xffffffff || e.header == 0xffffffff)
-      fail(where + ": larger than 4 GiB (zip64 entries are not written by Scout)");
-    if (e.method == kStored && e.compressed != e.size)
-      fail(fmt::format("{}: stored, but its sizes differ ({} and {} bytes)", where, e.compressed, e.size));
-    if (e.name.rfind("data/", 0) == 0 && e.method != kStored) fail(where + ": a tensor record must be stored");
-
-    // The local header must agree with the directory and its data must end before the directory.
-    if (b.u32(e.header) != kLocalHeader) fail(where + ": no local header at its offset");
-    const std::uint16_t local_name = b.u16(e.header + 26);
-    if (b.view(e.header + 30, local_name) != full) fail(where + ": its local header names another entry");
-    e.data = e.header + 30 + local_name + b.u16(e.header + 28);
-    if (e.data > directory || e.compressed > directory - e.data)
-      fail(fmt::format("{}: its {} bytes of data run into the zip directory", where, e.compressed));
-    if (!out.entries.emplace(e.name, e).second) fail(where + ": appears twice");
+  std::uint64_t at = d.offset;
+  for (std::uint64_t i = 0; i < d.count; ++i) {
+    const ZipEntry e = read_entry(b, at, i, d, out.folder);
+    if (!out.entries.emplace(e.name, e).second) fail("entry " + clipped(out.folder + "/" + e.name) + ": appears twice");
     by_offset.push_back(e);
   }
-  if (at != directory_end) fail("the zip directory's size does not match its entries");
+  if (at != d.offset + d.size) fail("the zip directory's size does not match its entries");
   std::sort(by_offset.begin(), by_offset.end(),
             [](const ZipEntry& x, const ZipEntry& y) { return x.header < y.header; });
   for (std::size_t i = 1; i < by_offset.size(); ++i)
@@ -293,114 +302,138 @@ class PickleMachine {
       if (pos_ >= code_.size()) error("ends without STOP");
       const unsigned char op = static_cast<unsigned char>(code_[pos_++]);
       if (++values_ > kMaxValues) error("too many values");
-      switch (op) {
-        case '(':
-          marks_.push_back(stack_.size());
-          break;
-        case ')':
-          push(make(Value::Kind::Tuple));
-          break;
-        case 't':
-          push(tuple(pop_mark()));
-          break;
-        case 0x85:
-          push(tuple(pop_n(1)));
-          break;
-        case 0x86:
-          push(tuple(pop_n(2)));
-          break;
-        case 0x87:
-          push(tuple(pop_n(3)));
-          break;
-        case ']':
-          push(make(Value::Kind::List));
-          break;
-        case 'a':
-          append(pop_n(1));
-          break;
-        case 'e':
-          append(pop_mark());
-          break;
-        case '}':
-          push(make(Value::Kind::Dict));
-          break;
-        case 's':
-          set_items(pop_n(2));
-          break;
-        case 'u':
-          set_items(pop_mark());
-          break;
-        case 'N':
-          push(make(Value::Kind::None));
-          break;
-        case 0x88:
-          push(boolean(true));
-          break;
-        case 0x89:
-          push(boolean(false));
-          break;
-        case 'J':
-          push(integer(static_cast<std::int32_t>(little(4))));
-          break;
-        case 'K':
-          push(integer(static_cast<std::int64_t>(little(1))));
-          break;
-        case 'M':
-          push(integer(static_cast<std::int64_t>(little(2))));
-          break;
-        case 0x8a:
-          push(long1());
-          break;
-        case 'G':
-          push(binfloat());
-          break;
-        case 'X':
-          push(string(take(little(4))));
-          break;
-        case 'c':
-          push(global());
-          break;
-        case 'q':
-          memo_put(little(1));
-          break;
-        case 'r':
-          memo_put(little(4));
-          break;
-        case 'h':
-          push(memo_get(little(1)));
-          break;
-        case 'j':
-          push(memo_get(little(4)));
-          break;
-        case 'Q':
-          push(persistent_id(pop()));
-          break;
-        case 'R': {
-          Ref args = pop();
-          push(reduce(pop(), args));
-          break;
-        }
-        case 0x81: {
-          Ref args = pop();
-          push(new_object(pop(), args));
-          break;
-        }
-        case 'b':
-          build(pop());
-          break;
-        case '.': {
-          if (pos_ != code_.size()) error("bytes after STOP");
-          if (!marks_.empty() || stack_.size() != 1) error("STOP with an unbalanced stack");
-          return stack_.back();
-        }
-        default:
-          error(fmt::format("opcode 0x{:02x} at byte {}, which Scout's writer never emits", op, pos_ - 1));
+      if (op == '.') {
+        if (pos_ != code_.size()) error("bytes after STOP");
+        if (!marks_.empty() || stack_.size() != 1) error("STOP with an unbalanced stack");
+        return stack_.back();
       }
+      if (!container_op(op) && !scalar_op(op) && !object_op(op))
+        error(fmt::format("opcode 0x{:02x} at byte {}, which Scout's writer never emits", op, pos_ - 1));
       if (stack_.size() > kMaxStack) error("stack deeper than " + std::to_string(kMaxStack));
     }
   }
 
  private:
+  // The opcodes, in three groups; each returns false for an opcode not its own.
+
+  // Marks, tuples, lists and dicts.
+  bool container_op(unsigned char op) {
+    switch (op) {
+      case '(':
+        marks_.push_back(stack_.size());
+        return true;
+      case ')':
+        push(make(Value::Kind::Tuple));
+        return true;
+      case 't':
+        push(tuple(pop_mark()));
+        return true;
+      case 0x85:
+        push(tuple(pop_n(1)));
+        return true;
+      case 0x86:
+        push(tuple(pop_n(2)));
+        return true;
+      case 0x87:
+        push(tuple(pop_n(3)));
+        return true;
+      case ']':
+        push(make(Value::Kind::List));
+        return true;
+      case 'a':
+        append(pop_n(1));
+        return true;
+      case 'e':
+        append(pop_mark());
+        return true;
+      case '}':
+        push(make(Value::Kind::Dict));
+        return true;
+      case 's':
+        set_items(pop_n(2));
+        return true;
+      case 'u':
+        set_items(pop_mark());
+        return true;
+      default:
+        return false;
+    }
+  }
+
+  // None, booleans, integers, floats and strings.
+  bool scalar_op(unsigned char op) {
+    switch (op) {
+      case 'N':
+        push(make(Value::Kind::None));
+        return true;
+      case 0x88:
+        push(boolean(true));
+        return true;
+      case 0x89:
+        push(boolean(false));
+        return true;
+      case 'J':
+        push(integer(static_cast<std::int32_t>(little(4))));
+        return true;
+      case 'K':
+        push(integer(static_cast<std::int64_t>(little(1))));
+        return true;
+      case 'M':
+        push(integer(static_cast<std::int64_t>(little(2))));
+        return true;
+      case 0x8a:
+        push(long1());
+        return true;
+      case 'G':
+        push(binfloat());
+        return true;
+      case 'X':
+        push(string(take(little(4))));
+        return true;
+      default:
+        return false;
+    }
+  }
+
+  // Globals, the memo, persistent ids (tensor records) and object construction.
+  bool object_op(unsigned char op) {
+    switch (op) {
+      case 'c':
+        push(global());
+        return true;
+      case 'q':
+        memo_put(little(1));
+        return true;
+      case 'r':
+        memo_put(little(4));
+        return true;
+      case 'h':
+        push(memo_get(little(1)));
+        return true;
+      case 'j':
+        push(memo_get(little(4)));
+        return true;
+      case 'Q':
+        push(persistent_id(pop()));
+        return true;
+      case 'R': {
+        Ref args = pop();
+        push(reduce(pop(), args));
+        return true;
+      }
+      case 0x81: {
+        Ref args = pop();
+        push(new_object(pop(), args));
+        return true;
+      }
+      case 'b':
+        build(pop());
+        return true;
+      default:
+        return false;
+    }
+  }
+
   static constexpr std::size_t kMaxValues = 1'000'000;
   static constexpr std::size_t kMaxStack = 100'000;
   static constexpr std::size_t kMaxRank = 8;
