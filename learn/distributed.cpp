@@ -32,8 +32,6 @@ namespace {
 
 using std::chrono::milliseconds;
 
-// The first line of a library's message (LibTorch appends backtraces and source locations).
-
 std::string seconds_text(milliseconds t) { return fmt::format("{:g} s", static_cast<double>(t.count()) / 1000); }
 
 std::optional<std::string> env(const char* name) {

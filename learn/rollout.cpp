@@ -70,11 +70,10 @@ void RolloutEngine::refresh_state() {
   state_.goal = std::span<const grid::Cell>(goals_.data(), static_cast<std::size_t>(state_.count));
 }
 
-std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
-                                              Policy& policy, bool record) {
-  const int count = static_cast<int>(starts.size());
+void RolloutEngine::check_inputs(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts) const {
+  const auto count = starts.size();
   const std::size_t area = static_cast<std::size_t>(state_.frame.area_px());
-  if (count <= 0 || count > env_->max_robots())
+  if (count == 0 || count > static_cast<std::size_t>(env_->max_robots()))
     throw std::invalid_argument("RolloutEngine::run: " + std::to_string(count) + " robots, at most " +
                                 std::to_string(env_->max_robots()));
   if (floors.size() != area * count)
@@ -82,7 +81,62 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
                                 " bytes, expected " + std::to_string(area * count));
   for (const grid::Cell& s : starts)
     if (!state_.frame.contains(s)) throw std::invalid_argument("RolloutEngine::run: a start cell is off the floor");
+}
 
+// Each robot's record opens with its start; every physics tick of every move goes into it
+// (animations) through the environment's tick hook, which run() clears on every way out.
+void RolloutEngine::open_records(std::vector<RolloutRecord>& records, std::span<const grid::Cell> starts) {
+  const std::size_t moves = static_cast<std::size_t>(task_.episodes) * task_.steps;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    records[i].start = starts[i];
+    records[i].steps.reserve(moves);
+    records[i].path.reserve(moves + 1);
+    records[i].path.push_back(state_.pose[i]);
+    records[i].tick_path_px.push_back(env_->position_px(static_cast<int>(i)));
+  }
+  env_->set_tick_hook([&records](int robot, std::span<const Eigen::Vector2d> ticks) {
+    std::vector<Eigen::Vector2d>& path = records[robot].tick_path_px;
+    path.insert(path.end(), ticks.begin(), ticks.end());
+  });
+}
+
+// The state a trajectory image shows, at the start of `episode` (E: the end).
+void RolloutEngine::record_snapshots(std::vector<RolloutRecord>& records, int episode, bool with_goal) const {
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    SnapshotRecord s;
+    s.episode = episode;
+    s.robot = state_.pose[i];
+    if (with_goal) s.goal = state_.goal[i];
+    s.seen = state_.seen[i].data();
+    s.path_length = records[i].path.size();
+    records[i].snapshots.push_back(std::move(s));
+  }
+}
+
+// Move t of episode e, as every robot made it.
+void RolloutEngine::record_moves(std::vector<RolloutRecord>& records, int e, int t) const {
+  const std::span<const env::MoveResult> results = env_->last_results();
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    StepRecord s;
+    s.episode = e;
+    s.step = t;
+    s.goal = state_.goal[i];
+    s.axis = axes_[i];
+    s.sampled = need_[i] != 0;
+    s.command = commands_[i];
+    s.result = results[i];
+    s.pose_m = env_->pose_m(static_cast<int>(i));
+    s.grid_pose = state_.pose[i];
+    s.revealed_px = state_.seen[i].count();
+    records[i].steps.push_back(s);
+    records[i].path.push_back(state_.pose[i]);
+  }
+}
+
+std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
+                                              Policy& policy, bool record) {
+  check_inputs(floors, starts);
+  const int count = static_cast<int>(starts.size());
   env_->reset(floors, starts);
   auto t0 = Clock::now();
   std::fill(goals_.begin(), goals_.begin() + count, grid::Cell::Zero());
@@ -92,32 +146,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
   axes_.assign(count, grid::Axis::None);
 
   std::vector<RolloutRecord> records(record ? count : 0);
-  const int E = task_.episodes, T = task_.steps;
-  auto snapshot = [&](int episode, bool with_goal) {
-    for (int i = 0; i < count; ++i) {
-      SnapshotRecord s;
-      s.episode = episode;
-      s.robot = state_.pose[i];
-      if (with_goal) s.goal = state_.goal[i];
-      s.seen = state_.seen[i].data();
-      s.path_length = records[i].path.size();
-      records[i].snapshots.push_back(std::move(s));
-    }
-  };
-  if (record) {
-    for (int i = 0; i < count; ++i) {
-      records[i].start = starts[i];
-      records[i].steps.reserve(static_cast<std::size_t>(E) * T);
-      records[i].path.reserve(static_cast<std::size_t>(E) * T + 1);
-      records[i].path.push_back(state_.pose[i]);
-      records[i].tick_path_px.push_back(env_->position_px(i));
-    }
-    // Every physics tick of every move goes into the run's records (animations).
-    env_->set_tick_hook([&records](int robot, std::span<const Eigen::Vector2d> ticks) {
-      std::vector<Eigen::Vector2d>& path = records[robot].tick_path_px;
-      path.insert(path.end(), ticks.begin(), ticks.end());
-    });
-  }
+  if (record) open_records(records, starts);
   // The hook points into this call's records: cleared on every way out.
   struct ClearHook {
     env::BatchEnv& env;
@@ -125,11 +154,12 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
   } clear_hook{*env_};
   other_s_ += seconds_since(t0);
 
+  const int E = task_.episodes, T = task_.steps;
   for (int e = 0; e < E; ++e) {
     t0 = Clock::now();
     policy.choose_goals(state_, e, std::span(goals_.data(), count));
     other_s_ += seconds_since(t0);
-    if (record) snapshot(e, true);
+    if (record) record_snapshots(records, e, true);
     for (int t = 0; t < T; ++t) {
       t0 = Clock::now();
       env::forced_axes(state_.pose, state_.goal, need_, axes_);
@@ -141,28 +171,11 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       refresh_state();
 
       t0 = Clock::now();
-      if (record) {
-        const std::span<const env::MoveResult> results = env_->last_results();
-        for (int i = 0; i < count; ++i) {
-          StepRecord s;
-          s.episode = e;
-          s.step = t;
-          s.goal = state_.goal[i];
-          s.axis = axes_[i];
-          s.sampled = need_[i] != 0;
-          s.command = commands_[i];
-          s.result = results[i];
-          s.pose_m = env_->pose_m(i);
-          s.grid_pose = state_.pose[i];
-          s.revealed_px = state_.seen[i].count();
-          records[i].steps.push_back(s);
-          records[i].path.push_back(state_.pose[i]);
-        }
-      }
+      if (record) record_moves(records, e, t);
       other_s_ += seconds_since(t0);
     }
   }
-  if (record) snapshot(E, false);
+  if (record) record_snapshots(records, E, false);
   return records;
 }
 

@@ -121,6 +121,10 @@ class RolloutEngine {
 
  private:
   void refresh_state();
+  void check_inputs(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts) const;
+  void open_records(std::vector<RolloutRecord>& records, std::span<const grid::Cell> starts);
+  void record_snapshots(std::vector<RolloutRecord>& records, int episode, bool with_goal) const;
+  void record_moves(std::vector<RolloutRecord>& records, int e, int t) const;
 
   worlds::TaskSpec task_;
   std::unique_ptr<env::BatchEnv> env_;

@@ -21,17 +21,8 @@ namespace scout::learn {
 namespace {
 
 using core::Clock;
+using core::median;
 using core::seconds_since;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-}  // namespace
-
-namespace {
 
 // What every mode's bench shares: the training digits, the floor, the networks' shape and
 // arithmetic, and this rank's share of every batch.

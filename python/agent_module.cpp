@@ -93,8 +93,8 @@ class AgentCore {
     const int n = obs.n;
     const std::int32_t* t = per_robot<std::int32_t>(time_step, n, "obs['time_step']");
     const std::uint64_t* seeds = per_robot<std::uint64_t>(policy_seed, n, "info['policy_seed']");
-    const std::int32_t* episodes = per_robot<std::int32_t>(episode, n, "info['episode']");
-    const bool* starts = per_robot<bool>(episode_start, n, "info['episode_start']");
+    const std::int32_t* episodes = per_robot<std::int32_t>(episode, n, "info['goal_episode']");
+    const bool* starts = per_robot<bool>(episode_start, n, "info['goal_episode_start']");
     Array<std::int32_t> moves(n);
     Array<std::int32_t> goals({static_cast<py::ssize_t>(n), py::ssize_t{2}});
     std::int32_t* move_out = moves.mutable_data();

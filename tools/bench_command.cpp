@@ -34,6 +34,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using core::Clock;
+using core::median;
 using core::seconds_since;
 
 struct BenchOptions {
@@ -54,12 +55,6 @@ struct TrainBenchOptions {
   bool force = false;
   GroupFlags group;
 };
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 template <typename F>
 std::vector<double> time_repeats(int repeats, F&& body) {

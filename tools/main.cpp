@@ -71,9 +71,7 @@ int main(int argc, char** argv) {
     return 1;
   } catch (const std::exception& e) {
     // The first line only: LibTorch appends a backtrace of dozens of lines.
-    const std::string what = e.what();
-    std::fprintf(stderr, "scout: %sinternal error: %s\n", who().c_str(),
-                 scout::one_line(what.substr(0, what.find('\n'))).c_str());
+    std::fprintf(stderr, "scout: %sinternal error: %s\n", who().c_str(), scout::first_line(e.what()).c_str());
     return 3;
   }
   return 0;

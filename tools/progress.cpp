@@ -8,16 +8,13 @@
 
 namespace scout::tools {
 
-namespace {
-
-std::string duration(double seconds) {
+std::string format_duration(double seconds) {
+  if (!(seconds >= 0) || seconds > 1e7) return "?";
   const auto s = static_cast<long>(std::lround(seconds));
   if (s < 60) return fmt::format("{} s", s);
   if (s < 3600) return fmt::format("{} min {} s", s / 60, s % 60);
   return fmt::format("{} h {} min", s / 3600, s % 3600 / 60);
 }
-
-}  // namespace
 
 ProgressLine::ProgressLine(std::string command, std::string unit, double every_s)
     : command_(std::move(command)), unit_(std::move(unit)), every_s_(every_s) {}
@@ -37,9 +34,9 @@ std::string ProgressLine::format(const std::string& command, const std::string& 
     const double rate = static_cast<double>(done) / seconds;
     line += fmt::format(", {:.0f} {}/s", rate, unit);
     if (done < total)
-      line += ", about " + duration(static_cast<double>(total - done) / rate) + " left";
+      line += ", about " + format_duration(static_cast<double>(total - done) / rate) + " left";
     else
-      line += ", " + duration(seconds);
+      line += ", " + format_duration(seconds);
   }
   return line;
 }

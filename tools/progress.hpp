@@ -6,6 +6,9 @@
 
 namespace scout::tools {
 
+/// "42 s", "4 min 30 s", "2 h 5 min"; "?" for a negative, non-finite or absurd (> 10^7 s) figure.
+std::string format_duration(double seconds);
+
 class ProgressLine {
  public:
   /// `command` prefixes every line ("scout eval"); `unit` names what is counted ("digits").

@@ -22,6 +22,7 @@
 #include "tools/group.hpp"
 #include "tools/network_options.hpp"
 #include "tools/output.hpp"
+#include "tools/progress.hpp"
 #include "worlds/dataset.hpp"
 
 namespace scout::tools {
@@ -44,14 +45,6 @@ struct TrainOptions {
   double checkpoint_every_min = 5;
 };
 
-std::string duration(double seconds) {
-  if (!(seconds >= 0) || seconds > 1e7) return "?";
-  const long s = static_cast<long>(seconds + 0.5);
-  if (s >= 3600) return fmt::format("{}h{:02d}m", s / 3600, s / 60 % 60);
-  if (s >= 60) return fmt::format("{}m{:02d}s", s / 60, s % 60);
-  return fmt::format("{}s", s);
-}
-
 // Prints progress on one line that overwrites itself on a terminal; elsewhere (logs, CI) one
 // line every 30 seconds, so logs stay readable.
 class ProgressPrinter {
@@ -63,7 +56,7 @@ class ProgressPrinter {
     last_ = now;
     const std::string line = fmt::format("mode {:<3} epoch {}/{}  batch {}/{}  {:.1f} images/s  reward {:.3f}  ETA {}",
                                          learn::to_string(p.stage), p.epoch, p.epochs, p.batch, p.batches,
-                                         p.images_per_s, p.reward, duration(p.eta_s));
+                                         p.images_per_s, p.reward, format_duration(p.eta_s));
     if (tty_) {
       std::fprintf(stderr, "\r%-90s", line.c_str());
       pending_ = true;

@@ -144,9 +144,10 @@ class VectorEnv(_VectorBase):
             for i in np.flatnonzero(terminated):
                 final_obs[i] = {k: v[i] for k, v in final.items()}
             final_info = dict(info)
-            for key in info:
-                final_info["_" + key] = terminated
-            new_info.update(final_obs=final_obs, _final_obs=terminated, final_info=final_info, _final_info=terminated)
+            for key in info:  # each mask its own copy: a wrapper may change one in place
+                final_info["_" + key] = terminated.copy()
+            new_info.update(final_obs=final_obs, _final_obs=terminated.copy(), final_info=final_info,
+                            _final_info=terminated.copy())
             info = new_info
         return obs, reward, terminated, truncated, info
 
