@@ -239,6 +239,10 @@ class Env(_EnvBase):
             raise ValueError('render: make the environment with render_mode="rgb_array"')
         return core.render(0)
 
+    @property
+    def closed(self):
+        return self._core is None
+
     def close(self):
         self._core = None
 
