@@ -143,7 +143,11 @@ class Dict(_Space):
     def to_gymnasium(self):
         import gymnasium
         spaces = {k: s.to_gymnasium() for k, s in self.spaces.items()}
-        return ActionDict(spaces, optional=self.optional) if self.optional else gymnasium.spaces.Dict(spaces)
+        if not self.optional:
+            return gymnasium.spaces.Dict(spaces)
+        if ActionDict is None:  # Gymnasium became importable after scout was imported
+            raise RuntimeError("to_gymnasium: Gymnasium could not be imported when scout was; import it first")
+        return ActionDict(spaces, optional=self.optional)
 
     def __repr__(self):
         return "Dict(" + ", ".join(f"{k!r}: {s!r}" for k, s in self.spaces.items()) + ")"
