@@ -11,6 +11,7 @@
 
 #include "core/error.hpp"
 #include "core/process.hpp"
+#include "tests/support/cli.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace scout::core {
@@ -18,10 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string read(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
+using scout::testing::read_file;
 
 // A signal set as /proc/PID/status prints it: "SigBlk:\t" and 16 hex digits, bit s - 1 for signal s.
 std::string sigblk_line(const sigset_t& set) {
@@ -72,18 +70,18 @@ TEST(SpawnChild, BuildsTheChildsEnvironmentFolderOutputAndSignalMaskBeforeItStar
   ::unsetenv("SCOUT_SPAWN_TEST_KEPT");
   ::unsetenv("SCOUT_SPAWN_TEST_REPLACED");
   EXPECT_EQ(wait_exit_code(pid), 7);
-  const std::string out = read(log);
+  const std::string out = read_file(log);
   EXPECT_NE(out.find("kept=inherited\n1\nreplaced=new value\nnew=x=y\n"), std::string::npos) << out;
   EXPECT_NE(out.find(fs::canonical(temp.path()).string() + "\n"), std::string::npos) << out;
   EXPECT_NE(out.find("to-stderr\n"), std::string::npos) << out;
   // SIGUSR1 is signal 10: bit 9 of the mask; the parent's SIGTERM (15: bit 14) is not passed on,
   // unless no mask is given.
   EXPECT_EQ(wait_exit_code(masked), 0);
-  EXPECT_EQ(read(temp.path() / "mask.log"), "SigBlk:\t0000000000000200\n");
+  EXPECT_EQ(read_file(temp.path() / "mask.log"), "SigBlk:\t0000000000000200\n");
   EXPECT_EQ(sigblk_line(child_mask), "SigBlk:\t0000000000000200\n");
   EXPECT_EQ(wait_exit_code(unmasked), 0);
   ASSERT_EQ(sigismember(&parents, SIGTERM), 1);
-  EXPECT_EQ(read(temp.path() / "inherited.log"), sigblk_line(parents));
+  EXPECT_EQ(read_file(temp.path() / "inherited.log"), sigblk_line(parents));
 }
 
 TEST(SpawnChild, AProgramThatCannotStartIsOneLineNamingIt) {
