@@ -173,6 +173,8 @@ TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   const std::string copy = copy_of_base("copy");
   const std::string checkpoint = read_text(copy + "/checkpoint.pt");
   expect_one_line_error(run("train --resume " + copy + " --planner-width 8"), {"--planner-width", copy, "4", "8"});
+  // A frozen layer is part of the run's config too (the schema table's resume column).
+  expect_one_line_error(run("train --resume " + copy + " --freeze goal"), {"--freeze", copy, "goal"});
   const std::string other = (temp_->path() / "other.yaml").string();
   expect_one_line_error(run("train " + other + " --resume " + copy), {other});
   expect_one_line_error(run("train --resume " + copy + " --out " + path("elsewhere")), {"--out"});
