@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <stdexcept>
@@ -149,6 +150,60 @@ LabeledImages load_split(const fs::path& folder, Split split) {
   return select(all, train);
 }
 
+namespace {
+
+constexpr int kSplitClasses = 256;
+
+// How many members of each class part `f` of `labels` takes, given what each class has `left`.
+std::array<std::int64_t, kSplitClasses> part_quotas(double f, std::size_t labels,
+                                                    const std::array<std::vector<int>, kSplitClasses>& by_class,
+                                                    const std::array<std::int64_t, kSplitClasses>& left) {
+  // Largest-remainder quotas: every class gets floor(f * n_c); the part's missing members
+  // (round(f * N) minus those floors) go one each to the classes with the largest remainders,
+  // ties to the lower class. Products are nudged by 1e-9 and remainders compared at 1e-9
+  // resolution so that 1/12 * 60000 counts as 5000 and equal remainders really tie.
+  const std::int64_t total = std::llround(f * static_cast<double>(labels));
+  std::array<std::int64_t, kSplitClasses> quota{};
+  struct Remainder {
+    std::int64_t key;
+    int cls;
+  };
+  std::vector<Remainder> order;
+  std::int64_t assigned = 0;
+  for (int c = 0; c < kSplitClasses; ++c) {
+    if (by_class[c].empty()) continue;
+    const double exact = f * static_cast<double>(by_class[c].size());
+    const auto floor_q = std::min(static_cast<std::int64_t>(std::floor(exact + 1e-9)), left[c]);
+    quota[c] = floor_q;
+    assigned += floor_q;
+    order.push_back({std::llround(std::max(0.0, exact - static_cast<double>(floor_q)) * 1e9), c});
+  }
+  std::sort(order.begin(), order.end(),
+            [](const Remainder& a, const Remainder& b) { return a.key != b.key ? a.key > b.key : a.cls < b.cls; });
+  std::int64_t missing = total - assigned;
+  // One pass is the largest-remainder rule. Only when earlier parts have used small classes up
+  // can members still be missing after it; further passes in the same order then take them
+  // from the classes that have some left.
+  for (bool progress = true; missing > 0 && progress;) {
+    progress = false;
+    for (const Remainder& r : order) {
+      if (missing == 0) break;
+      if (left[r.cls] - quota[r.cls] > 0) {
+        ++quota[r.cls];
+        --missing;
+        progress = true;
+      }
+    }
+  }
+  if (missing != 0)
+    throw std::invalid_argument(
+        fmt::format("stratified_split: cannot take {} of {} labels for fraction {}", total, labels, f));
+
+  return quota;
+}
+
+}  // namespace
+
 std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& labels,
                                                const std::vector<double>& fractions, std::uint64_t seed) {
   if (labels.size() > static_cast<std::size_t>(INT_MAX))
@@ -162,7 +217,7 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
   if (sum > 1.0 + 1e-9) throw std::invalid_argument(fmt::format("stratified_split: fractions sum to {} > 1", sum));
 
   // Each class's indices in source order, then shuffled: taking a prefix is a uniform draw.
-  constexpr int kClasses = 256;
+  constexpr int kClasses = kSplitClasses;
   std::array<std::vector<int>, kClasses> by_class;
   for (std::size_t i = 0; i < labels.size(); ++i) by_class[labels[i]].push_back(static_cast<int>(i));
   std::mt19937_64 rng(seed);
@@ -175,47 +230,8 @@ std::vector<std::vector<int>> stratified_split(const std::vector<std::uint8_t>& 
   std::vector<std::vector<int>> parts;
   parts.reserve(fractions.size());
   for (double f : fractions) {
-    // Largest-remainder quotas: every class gets floor(f * n_c); the part's missing members
-    // (round(f * N) minus those floors) go one each to the classes with the largest remainders,
-    // ties to the lower class. Products are nudged by 1e-9 and remainders compared at 1e-9
-    // resolution so that 1/12 * 60000 counts as 5000 and equal remainders really tie.
-    const std::int64_t total = std::llround(f * static_cast<double>(labels.size()));
-    std::array<std::int64_t, kClasses> quota{};
-    struct Remainder {
-      std::int64_t key;
-      int cls;
-    };
-    std::vector<Remainder> order;
-    std::int64_t assigned = 0;
-    for (int c = 0; c < kClasses; ++c) {
-      if (by_class[c].empty()) continue;
-      const double exact = f * static_cast<double>(by_class[c].size());
-      const auto floor_q = std::min(static_cast<std::int64_t>(std::floor(exact + 1e-9)), left[c]);
-      quota[c] = floor_q;
-      assigned += floor_q;
-      order.push_back({std::llround(std::max(0.0, exact - static_cast<double>(floor_q)) * 1e9), c});
-    }
-    std::sort(order.begin(), order.end(),
-              [](const Remainder& a, const Remainder& b) { return a.key != b.key ? a.key > b.key : a.cls < b.cls; });
-    std::int64_t missing = total - assigned;
-    // One pass is the largest-remainder rule. Only when earlier parts have used small classes up
-    // can members still be missing after it; further passes in the same order then take them
-    // from the classes that have some left.
-    for (bool progress = true; missing > 0 && progress;) {
-      progress = false;
-      for (const Remainder& r : order) {
-        if (missing == 0) break;
-        if (left[r.cls] - quota[r.cls] > 0) {
-          ++quota[r.cls];
-          --missing;
-          progress = true;
-        }
-      }
-    }
-    if (missing != 0)
-      throw std::invalid_argument(
-          fmt::format("stratified_split: cannot take {} of {} labels for fraction {}", total, labels.size(), f));
-
+    const std::array<std::int64_t, kClasses> quota = part_quotas(f, labels.size(), by_class, left);
+    const std::int64_t total = std::accumulate(quota.begin(), quota.end(), std::int64_t{0});
     std::vector<int> part;
     part.reserve(static_cast<std::size_t>(total));
     for (int c = 0; c < kClasses; ++c) {
