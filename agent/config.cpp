@@ -219,6 +219,15 @@ std::int64_t classifier(const NetworkConfig& c) {
         channels += w << k;
       }
       return n + conv(channels, c.classes, 1, true);
+    case ClassifierKind::PaperStrided:
+    case ClassifierKind::PaperStridedNorm: {
+      const bool norm = c.classifier == ClassifierKind::PaperStridedNorm;
+      for (int k = 0; k < c.classifier_depth; ++k) {
+        n += conv(channels, w << k, 3, !norm) + (norm ? 2 * (w << k) : 0);
+        channels += w << k;
+      }
+      return n + conv(channels, c.classes, 1, true);
+    }
     case ClassifierKind::Strided:
       for (int k = 0; k < c.classifier_depth; ++k) {
         const std::int64_t width = w << k;

@@ -10,6 +10,10 @@ namespace scout::agent {
 /// help) and one factory in agent/networks.cpp (checked at compile time).
 enum class ClassifierKind {
   Paper,     ///< METHOD.md: dense blocks at full resolution, width doubling each block, 1x1 head, GAP
+  /// METHOD.md's dense blocks read as ResNets downsample: a stride-2 step at each doubling (block
+  /// k >= 1), the concatenated skip average-pooled to match; no normalisation (the paper names none)
+  PaperStrided,
+  PaperStridedNorm,  ///< PaperStrided with GroupNorm after each convolution
   Strided,   ///< beyond the paper: each block halves the resolution (stride 2), width doubling
   ResNet18,  ///< the paper's transfer variant: ResNet-18 (BasicBlocks 2-2-2-2), base width = classifier_width
 };
@@ -33,6 +37,16 @@ inline constexpr ClassifierVariant kClassifierVariants[] = {
      .help = "METHOD.md's dense blocks at full resolution",
      .width_doubles = true,
      .uses_depth = true},
+    {.kind = ClassifierKind::PaperStrided,
+     .name = "paper-strided",
+     .help = "METHOD.md's dense blocks with a stride-2 step at each doubling (the ResNet reading)",
+     .width_doubles = true,
+     .uses_depth = true},
+    {.kind = ClassifierKind::PaperStridedNorm,
+     .name = "paper-strided-gn",
+     .help = "paper-strided with GroupNorm after each convolution",
+     .width_doubles = true,
+     .uses_depth = true},
     {.kind = ClassifierKind::Strided,
      .name = "strided",
      .help = "stride-2 blocks with GroupNorm (beyond the paper)",
@@ -53,7 +67,7 @@ struct NetworkConfig;
 std::string describe_classifier(const NetworkConfig& config);
 /// Parses a row's name; throws std::invalid_argument naming the choices.
 ClassifierKind parse_classifier_kind(const std::string& text);
-/// The names joined by `separator`: "paper, strided, resnet18".
+/// The names joined by `separator`: "paper, paper-strided, paper-strided-gn, strided, resnet18".
 std::string classifier_choices(const std::string& separator = ", ");
 
 /// The arithmetic the networks run in. Weights, gradients and the optimizer always stay fp32;

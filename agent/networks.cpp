@@ -99,6 +99,45 @@ class PaperClassifierImpl : public ClassifierImpl {
   nn::Conv2d head_{nullptr};
 };
 
+/// METHOD.md's classifier read as ResNets downsample: block 0 at full resolution, then a stride-2
+/// step at each doubling. A block's 3 x 3 convolution runs with stride 2 and its concatenated skip
+/// (everything before it) is average-pooled 2 x 2 to the same ceil(n / 2) grid, as DenseNet's
+/// transitions pool: 28 -> 14 -> 7 -> 4 -> 2. Receptive field of r blocks: 3, 7, 15, 31, ... px,
+/// where the full-resolution reading sees 2r + 1 px. With `normalise`, GroupNorm (per sample)
+/// follows each convolution; the paper names no normalisation, so both are variants.
+class PaperStridedClassifierImpl : public ClassifierImpl {
+ public:
+  PaperStridedClassifierImpl(const NetworkConfig& config, bool normalise) : in_channels_(config.image_channels) {
+    blocks_ = register_module("blocks", nn::ModuleList());
+    int channels = config.image_channels;
+    for (int k = 0; k < config.classifier_depth; ++k) {
+      const int width = config.classifier_width << k;
+      nn::Sequential block(conv3x3(channels, width, k == 0 ? 1 : 2, /*bias=*/!normalise));
+      if (normalise) block->push_back(group_norm(width));
+      block->push_back(nn::ReLU(nn::ReLUOptions(/*inplace=*/true)));
+      blocks_->push_back(block);
+      channels += width;
+    }
+    head_ = register_module("head", conv1x1(channels, config.classes));
+  }
+
+  torch::Tensor forward(torch::Tensor y) override {
+    check_input(y, in_channels_, "paper-strided classifier");
+    torch::Tensor x = y;
+    for (std::size_t k = 0; k < blocks_->size(); ++k) {
+      torch::Tensor added = blocks_[k]->as<nn::Sequential>()->forward(x);
+      if (k > 0) x = torch::avg_pool2d(x, 2, 2, /*padding=*/0, /*ceil_mode=*/true);
+      x = torch::cat({x, added}, 1);
+    }
+    return global_average(head_->forward(x));
+  }
+
+ private:
+  int in_channels_;
+  nn::ModuleList blocks_{nullptr};
+  nn::Conv2d head_{nullptr};
+};
+
 /// Beyond the paper: each block halves the resolution and doubles the width, so that the deeper
 /// layers see the whole digit at a cost the full-resolution dense blocks cannot afford. Each
 /// convolution is followed by GroupNorm, a per-sample normalisation (so one image's logits never
@@ -247,6 +286,14 @@ std::shared_ptr<ClassifierImpl> make_shared_classifier(const NetworkConfig& conf
 
 constexpr ClassifierFactory kClassifierFactories[] = {
     {.kind = ClassifierKind::Paper, .make = &make_shared_classifier<PaperClassifierImpl>},
+    {.kind = ClassifierKind::PaperStrided,
+     .make = [](const NetworkConfig& c) -> std::shared_ptr<ClassifierImpl> {
+       return std::make_shared<PaperStridedClassifierImpl>(c, /*normalise=*/false);
+     }},
+    {.kind = ClassifierKind::PaperStridedNorm,
+     .make = [](const NetworkConfig& c) -> std::shared_ptr<ClassifierImpl> {
+       return std::make_shared<PaperStridedClassifierImpl>(c, /*normalise=*/true);
+     }},
     {.kind = ClassifierKind::Strided, .make = &make_shared_classifier<StridedClassifierImpl>},
     {.kind = ClassifierKind::ResNet18, .make = &make_shared_classifier<ResNet18ClassifierImpl>},
 };

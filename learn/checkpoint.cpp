@@ -58,7 +58,7 @@ std::vector<EpochMetrics> history_from(const json& rows, double learning_rate) {
   for (const json& r : rows) {
     EpochMetrics m;
     const int stage = r.at("stage").get<int>();
-    if (stage < 0 || stage > 3) throw std::out_of_range("stage");
+    if (stage < 0 || stage >= kTrainingStages) throw std::out_of_range("stage");
     m.stage = static_cast<Stage>(stage);
     m.epoch = r.at("epoch").get<int>();
     m.reward = r.at("reward").get<double>();
@@ -94,7 +94,7 @@ torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torc
   archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat)));
   archive.write("config", c10::IValue(state.config.to_json()));
   const EpochSums& p = state.partial;
-  json progress = {{"stage", state.cursor.stage},
+  json progress = {{"stage", index(state.cursor.stage)},
                    {"epoch", state.cursor.epoch},
                    {"batch", state.cursor.batch},
                    {"partial",
@@ -167,9 +167,11 @@ bool optimizer_tensor_fits(const ArchiveTensor& t, const std::set<std::vector<st
 // The non-tensor part of a checkpoint: its "progress" entry (the schedule's position, the epoch in
 // progress, the history, the run's processes and threads).
 void read_progress(const std::string& text, const std::string& origin, CheckpointState& state) {
+  int stage = 0;
   try {
     const json p = json::parse(text);
-    state.cursor = {p.at("stage").get<int>(), p.at("epoch").get<int>(), p.at("batch").get<int>()};
+    stage = p.at("stage").get<int>();
+    state.cursor = {Stage::Done, p.at("epoch").get<int>(), p.at("batch").get<int>()};
     const json& q = p.at("partial");
     state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
                      q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
@@ -180,8 +182,9 @@ void read_progress(const std::string& text, const std::string& origin, Checkpoin
   } catch (const std::exception& e) {
     throw InputError(origin + ": progress: unreadable (" + one_line(e.what()) + ")");
   }
-  if (state.cursor.stage < 0 || state.cursor.stage > 4 || state.cursor.epoch < 0 || state.cursor.batch < 0)
+  if (stage < 0 || stage > index(Stage::Done) || state.cursor.epoch < 0 || state.cursor.batch < 0)
     throw InputError(origin + ": progress: the schedule position is out of range");
+  state.cursor.stage = static_cast<Stage>(stage);
 }
 
 // Each tensor's name, shape and type against the agent the config describes; Adam's tensors must

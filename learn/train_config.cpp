@@ -547,6 +547,8 @@ const char* to_string(Stage stage) {
       return "ii";
     case Stage::ModeIII:
       return "iii";
+    case Stage::Done:
+      return "done";
   }
   return "?";
 }
@@ -572,6 +574,20 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
         channels += width;
       }
       classifier = (classifier + channels + n.classes) * area;
+      break;
+    }
+    case agent::ClassifierKind::PaperStrided:
+    case agent::ClassifierKind::PaperStridedNorm: {
+      const double per_width = n.classifier == agent::ClassifierKind::PaperStridedNorm ? 3 : 2;
+      double channels = n.image_channels;
+      double pixels = area;
+      for (int k = 0; k < n.classifier_depth; ++k) {
+        if (k > 0) pixels = std::ceil(std::sqrt(pixels) / 2) * std::ceil(std::sqrt(pixels) / 2);
+        const double width = w * double(1 << k);
+        classifier += (channels + per_width * width) * pixels;  // input (pooled), convolution, [norm,] ReLU
+        channels += width;
+      }
+      classifier += (channels + n.classes) * pixels;
       break;
     }
     case agent::ClassifierKind::Strided: {

@@ -13,10 +13,16 @@
 
 namespace scout::learn {
 
-/// A stage of the schedule. Pretrain trains the classifier on full images (u_c = x), the
-/// transfer variant's first step; modes (i) - (iii) are METHOD.md's.
-enum class Stage { Pretrain = 0, ModeI = 1, ModeII = 2, ModeIII = 3 };
-const char* to_string(Stage stage);  ///< "full", "i", "ii", "iii"
+/// A stage of the schedule, in the order it runs. Pretrain trains the classifier on full images
+/// (u_c = x), the transfer variant's first step; modes (i) - (iii) are METHOD.md's; Done is where a
+/// finished schedule's cursor stands. The values are what checkpoints store.
+enum class Stage { Pretrain = 0, ModeI = 1, ModeII = 2, ModeIII = 3, Done = 4 };
+inline constexpr int kTrainingStages = 4;  ///< the stages before Done
+/// The stage's position in the schedule (0 .. kTrainingStages; Done is kTrainingStages).
+constexpr int index(Stage stage) { return static_cast<int>(stage); }
+/// The stage that follows `stage` (Done follows ModeIII and itself).
+constexpr Stage next(Stage stage) { return stage == Stage::Done ? Stage::Done : static_cast<Stage>(index(stage) + 1); }
+const char* to_string(Stage stage);  ///< "full", "i", "ii", "iii", "done"
 
 /// The layers, in the order of TrainConfig::frozen.
 enum class Layer { Goal = 0, Action = 1, Classifier = 2 };

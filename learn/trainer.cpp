@@ -37,13 +37,11 @@ using core::seconds_since;
 
 namespace {
 
-constexpr std::array<Stage, 4> kStages = {Stage::Pretrain, Stage::ModeI, Stage::ModeII, Stage::ModeIII};
-
-std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, int stage, int epoch) {
-  return core::derive_seed(core::derive_seed(core::derive_seed(seed, stream), stage), epoch);
+std::uint64_t stage_epoch_seed(std::uint64_t seed, std::uint64_t stream, Stage stage, int epoch) {
+  return core::derive_seed(core::derive_seed(core::derive_seed(seed, stream), index(stage)), epoch);
 }
 
-std::array<int, 4> stage_epochs(const TrainConfig& c) {
+std::array<int, kTrainingStages> stage_epochs(const TrainConfig& c) {
   return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
 }
 
@@ -185,21 +183,21 @@ struct Trainer::Impl {
     policy = std::make_unique<AgentPolicy>(*agent, frame, config.world.camera.patch_px, robots);
   }
 
-  Stage stage() const { return kStages[cursor.stage]; }
-  bool past_last_stage() const { return cursor.stage >= static_cast<int>(kStages.size()); }
+  Stage stage() const { return cursor.stage; }
+  bool past_last_stage() const { return cursor.stage == Stage::Done; }
   // True when no stage from the cursor on has an epoch left (without moving the cursor).
   bool schedule_done() const {
     const auto epochs = stage_epochs(config);
-    for (int st = cursor.stage; st < static_cast<int>(kStages.size()); ++st)
-      if ((st == cursor.stage ? cursor.epoch : 0) < epochs[st]) return false;
+    for (Stage st = cursor.stage; st != Stage::Done; st = next(st))
+      if ((st == cursor.stage ? cursor.epoch : 0) < epochs[index(st)]) return false;
     return true;
   }
 
   // Skips stages with no epochs left.
   void normalise_cursor() {
     const auto epochs = stage_epochs(config);
-    while (!past_last_stage() && cursor.epoch >= epochs[cursor.stage]) {
-      ++cursor.stage;
+    while (!past_last_stage() && cursor.epoch >= epochs[index(cursor.stage)]) {
+      cursor.stage = next(cursor.stage);
       cursor.epoch = 0;
       cursor.batch = 0;
     }
@@ -418,8 +416,8 @@ struct Trainer::Impl {
   double remaining_images_after_epoch() const {
     const auto epochs = stage_epochs(config);
     double images = 0;
-    for (int st = cursor.stage; st < static_cast<int>(kStages.size()); ++st) {
-      const int left = epochs[st] - (st == cursor.stage ? cursor.epoch + 1 : 0);
+    for (Stage st = cursor.stage; st != Stage::Done; st = next(st)) {
+      const int left = epochs[index(st)] - (st == cursor.stage ? cursor.epoch + 1 : 0);
       if (left > 0) images += static_cast<double>(left) * train.images.count;
     }
     return images;
@@ -469,7 +467,7 @@ struct Trainer::Impl {
           Progress p;
           p.stage = s;
           p.epoch = cursor.epoch + 1;
-          p.epochs = epochs[cursor.stage];
+          p.epochs = epochs[index(cursor.stage)];
           p.batch = b + 1;
           p.batches = batches;
           p.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
@@ -539,21 +537,22 @@ std::unique_ptr<Trainer> Trainer::resume(const Checkpoint& checkpoint, const fs:
   // continue right after the last epoch trained (run() skips finished stages again).
   if (epochs && !impl->history.empty()) {
     // A layer that has been learned never returns to i.i.d.: earlier stages cannot grow.
-    const int last_stage = static_cast<int>(impl->history.back().stage);
-    const std::array<int, 4> wanted = {state.config.pretrain_epochs, (*epochs)[0], (*epochs)[1], (*epochs)[2]};
-    for (int st = 0; st < last_stage; ++st) {
+    const Stage last_stage = impl->history.back().stage;
+    const std::array<int, kTrainingStages> wanted = {state.config.pretrain_epochs, (*epochs)[0], (*epochs)[1],
+                                                     (*epochs)[2]};
+    for (Stage st = Stage::Pretrain; st != last_stage; st = next(st)) {
       const auto done = std::count_if(impl->history.begin(), impl->history.end(),
-                                      [&](const EpochMetrics& m) { return static_cast<int>(m.stage) == st; });
-      if (wanted[st] > done)
+                                      [&](const EpochMetrics& m) { return m.stage == st; });
+      if (wanted[index(st)] > done)
         throw InputError(
             fmt::format("--epochs: the run has reached mode {}; mode {} cannot follow it (asked for {} "
                         "epochs of it, {} done)",
-                        to_string(kStages[last_stage]), to_string(kStages[st]), wanted[st], done));
+                        to_string(last_stage), to_string(st), wanted[index(st)], done));
     }
   }
   if (epochs && impl->cursor.batch == 0 && !impl->history.empty()) {
     const EpochMetrics& last = impl->history.back();
-    impl->cursor = {static_cast<int>(last.stage), last.epoch, 0};
+    impl->cursor = {last.stage, last.epoch, 0};
   }
   // metrics.csv follows the checkpoint: a run killed between writing the one and the other gets
   // the rows its checkpoint holds.

@@ -74,7 +74,7 @@ struct TrainResult {
 
 /// Where the schedule stands (stored in checkpoints).
 struct ScheduleCursor {
-  int stage = 0;  ///< index into the stages (Pretrain, ModeI, ModeII, ModeIII)
+  Stage stage = Stage::Pretrain;  ///< Done once the schedule has no epoch left
   int epoch = 0;  ///< epochs done within that stage
   int batch = 0;  ///< batches done within the next epoch (non-zero only after an interrupt)
 };

@@ -302,7 +302,8 @@ void print_run_header(const learn::Trainer& trainer, const fs::path& run, bool r
              agent::describe_classifier(c.network), c.rollouts, c.batch_images, c.learning_rate);
   if (resuming) {
     const learn::ScheduleCursor& k = trainer.cursor();
-    fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer.history().size(), k.stage,
+    fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer.history().size(),
+               learn::to_string(k.stage),
                k.epoch, k.batch);
   }
   std::fflush(stdout);

@@ -26,10 +26,12 @@ std::string validation_error(const NetworkConfig& config) {
 }
 
 TEST(ClassifierKind, NamesRoundTrip) {
-  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::Strided, ClassifierKind::ResNet18}) {
-    EXPECT_EQ(parse_classifier_kind(to_string(kind)), kind);
+  for (const ClassifierVariant& variant : kClassifierVariants) {
+    EXPECT_EQ(parse_classifier_kind(to_string(variant.kind)), variant.kind);
   }
   EXPECT_STREQ(to_string(ClassifierKind::Paper), "paper");
+  EXPECT_STREQ(to_string(ClassifierKind::PaperStrided), "paper-strided");
+  EXPECT_STREQ(to_string(ClassifierKind::PaperStridedNorm), "paper-strided-gn");
   EXPECT_STREQ(to_string(ClassifierKind::Strided), "strided");
   EXPECT_STREQ(to_string(ClassifierKind::ResNet18), "resnet18");
 }
@@ -134,7 +136,7 @@ TEST(ClassifierKind, ChoicesListEveryRegisteredNameOnce) {
     EXPECT_TRUE(names.insert(variant.name).second) << variant.name << " is registered twice";
     EXPECT_NE(classifier_choices().find(variant.name), std::string::npos) << classifier_choices();
   }
-  EXPECT_EQ(classifier_choices(), "paper, strided, resnet18");
+  EXPECT_EQ(classifier_choices(), "paper, paper-strided, paper-strided-gn, strided, resnet18");
   EXPECT_EQ(kClassifierVariants[0].kind, NetworkConfig{}.classifier) << "the first row is the default";
 }
 

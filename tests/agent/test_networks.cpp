@@ -20,7 +20,8 @@
 namespace scout::agent {
 namespace {
 
-const ClassifierKind kKinds[] = {ClassifierKind::Paper, ClassifierKind::Strided, ClassifierKind::ResNet18};
+const ClassifierKind kKinds[] = {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm,
+                                 ClassifierKind::Strided, ClassifierKind::ResNet18};
 
 // Floor sizes: MNIST's, smaller than a 6 x 6 patch, and non-square.
 const std::pair<int, int> kSizes[] = {{28, 28}, {4, 4}, {12, 9}};  // (H, W)
@@ -145,6 +146,38 @@ TEST(Networks, DenseBlocksGrowAsThePaperSays) {
   EXPECT_EQ(parameter(*agent, "classifier.head.weight").sizes(), (std::vector<std::int64_t>{10, 113, 1, 1}));
 }
 
+// The two readings of the paper's classifier differ in where they sample: at full resolution every
+// block keeps the grid, so moving a digit by one pixel inside the floor leaves the logits as they
+// were (global average pooling of a shifted map); the stride-2 reading samples every 2^(r-1)
+// pixels after r blocks, so one pixel changes them and 2^(r-1) = 4 pixels (one cell of its last
+// grid) does not. Padding stays out of it: the blob and everything it reaches are inside.
+TEST(Networks, TheStridedReadingSamplesEvery2ToTheRMinus1Pixels) {
+  torch::manual_seed(7);
+  const torch::Tensor blob = torch::rand({1, 1, 5, 5});
+  const auto floor_with_blob_at = [&](int x, int y) {
+    torch::Tensor floor = torch::zeros({1, 1, 28, 28});
+    floor.narrow(2, y, 5).narrow(3, x, 5).copy_(blob);
+    return floor;
+  };
+  const auto max_change = [](const torch::Tensor& a, const torch::Tensor& b) { return (a - b).abs().max().item<float>(); };
+  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm}) {
+    SCOPED_TRACE(to_string(kind));
+    NetworkConfig config = config_for(kind);
+    config.classifier_depth = 3;
+    const std::shared_ptr<ClassifierImpl> classifier = make_classifier(config);
+    torch::NoGradGuard no_grad;
+    const torch::Tensor at_8 = classifier->forward(floor_with_blob_at(8, 8));
+    const float by_one = max_change(at_8, classifier->forward(floor_with_blob_at(9, 8)));
+    const float by_four = max_change(at_8, classifier->forward(floor_with_blob_at(12, 12)));
+    EXPECT_LT(by_four, 1e-5);
+    if (kind == ClassifierKind::Paper) {
+      EXPECT_LT(by_one, 1e-5);
+    } else {
+      EXPECT_GT(by_one, 1e-4);
+    }
+  }
+}
+
 TEST(Networks, ResNet18AtWidth64HasResNet18sParameterCount) {
   // torchvision's resnet18 (3 channels, 1,000 classes) has 11,689,512 parameters; ours swaps the
   // 7 x 7 stem (3 * 64 * 49 weights) for a 3 x 3 one (3 * 64 * 9): 7,680 fewer.
@@ -211,7 +244,8 @@ TEST(Networks, GoalLogitsAreRowMajorAndSeeA7x7Neighbourhood) {
 
 TEST(Networks, PlannersAndPerSampleClassifiersAreBatchIndependent) {
   torch::manual_seed(5);
-  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::Strided}) {
+  for (const ClassifierKind kind :
+       {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm, ClassifierKind::Strided}) {
     SCOPED_TRACE(to_string(kind));
     const NetworkConfig config = config_for(kind);
     Agent agent(config);

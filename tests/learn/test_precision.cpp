@@ -108,7 +108,8 @@ class Precision : public ::testing::Test {
 TEST_F(Precision, Bf16GivesTheFp32DistributionsToWithinRounding) {
   if (const std::string why = agent::bf16_unavailable(); !why.empty()) GTEST_SKIP() << "bf16 cannot run here: " << why;
   for (const agent::ClassifierKind kind :
-       {agent::ClassifierKind::Paper, agent::ClassifierKind::Strided, agent::ClassifierKind::ResNet18}) {
+       {agent::ClassifierKind::Paper, agent::ClassifierKind::PaperStrided, agent::ClassifierKind::PaperStridedNorm,
+        agent::ClassifierKind::Strided, agent::ClassifierKind::ResNet18}) {
     agent::NetworkConfig config;
     config.classifier = kind;
     torch::manual_seed(5);

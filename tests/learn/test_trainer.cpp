@@ -547,7 +547,7 @@ void Resume::interrupted_run_resumed_is_the_uninterrupted_run() {
     } catch (const core::Stopped& e) {
       EXPECT_NE(std::string(e.what()).find("checkpoint saved"), std::string::npos) << e.what();
     }
-    EXPECT_EQ(trainer.cursor().stage, static_cast<int>(Stage::ModeI));
+    EXPECT_EQ(trainer.cursor().stage, Stage::ModeI);
     EXPECT_EQ(trainer.cursor().batch, 2);
   }
   for (const auto& [stop_after, stage] : {std::pair{8, Stage::ModeII}, std::pair{6, Stage::ModeIII}}) {
@@ -556,11 +556,11 @@ void Resume::interrupted_run_resumed_is_the_uninterrupted_run() {
     TrainHooks hooks;
     hooks.stop = core::StopToken([&] { return ++polls == stop_after + 1; });
     EXPECT_THROW(trainer->run(hooks), core::Stopped);
-    EXPECT_EQ(trainer->cursor().stage, static_cast<int>(stage));
+    EXPECT_EQ(trainer->cursor().stage, stage);
     EXPECT_EQ(trainer->cursor().batch, 4);
   }
   std::unique_ptr<Trainer> trainer = Trainer::resume(run, kThreads);
-  EXPECT_EQ(trainer->cursor().stage, static_cast<int>(Stage::ModeIII));
+  EXPECT_EQ(trainer->cursor().stage, Stage::ModeIII);
   EXPECT_GT(trainer->cursor().batch, 0);
   const TrainResult r = trainer->run({});
   ASSERT_EQ(r.outcome, TrainOutcome::Finished) << r.message;
