@@ -59,10 +59,11 @@ class Bytes {
 
 struct ZipEntry {
   std::string name;  ///< without the archive's folder
-  std::uint16_t method = 0;
+  std::uint16_t flags = 0, method = 0;
   std::uint32_t crc = 0;
   std::uint64_t compressed = 0, size = 0;
   std::uint64_t header = 0, data = 0;  ///< offsets of the local header and of the data
+  std::uint64_t end = 0;               ///< where the entry ends: after its data and its data descriptor
 };
 
 struct ZipDirectory {
@@ -99,6 +100,17 @@ struct DirectoryPlace {
   std::uint64_t limit = 0;  // the directory ends by here: the zip64 end record, else the end record
 };
 
+// LibTorch's writer puts a zip64 end record and its locator before the end record, even for a
+// small archive; `record` is where the locator says the zip64 end record lies.
+void check_zip64_record(const Bytes& b, std::uint64_t end, std::uint64_t record) {
+  constexpr std::uint64_t kZip64RecordSize = 56;
+  if (end < 20 + kZip64RecordSize || record != end - 20 - kZip64RecordSize || b.u32(record) != kZip64EndRecord ||
+      b.u64(record + 4) != kZip64RecordSize - 12)
+    fail("the zip64 end record is not where its locator says, just before it");
+  if (b.u32(record + 16) != 0 || b.u32(record + 20) != 0 || b.u64(record + 24) != b.u64(record + 32))
+    fail("a multi-part zip64 archive (Scout's writer makes none)");
+}
+
 DirectoryPlace find_directory(const Bytes& b) {
   if (b.size() < kEndRecordSize) fail(fmt::format("{} bytes: too short for a zip archive", b.size()));
   const std::uint64_t end = b.size() - kEndRecordSize;
@@ -107,22 +119,56 @@ DirectoryPlace find_directory(const Bytes& b) {
   if (b.u16(end + 4) != 0 || b.u16(end + 6) != 0 || b.u16(end + 8) != b.u16(end + 10) || b.u16(end + 20) != 0)
     fail("a multi-part zip archive or one with a comment (Scout's writer makes neither)");
   DirectoryPlace d{.count = b.u16(end + 10), .offset = b.u32(end + 16), .size = b.u32(end + 12), .limit = end};
+  const bool locator = end >= 20 && b.u32(end - 20) == kZip64Locator;
   if (d.count == 0xffff || d.size == 0xffffffff || d.offset == 0xffffffff) {
     // The zip64 end record, found through its locator just before the end record.
-    if (end < 20 || b.u32(end - 20) != kZip64Locator) fail("a zip64 archive without its zip64 locator");
+    if (!locator) fail("a zip64 archive without its zip64 locator");
     const std::uint64_t record = b.u64(end - 20 + 8);
-    if (record >= end - 20 || b.u32(record) != kZip64EndRecord)
-      fail("the zip64 end record is not where its locator says");
+    check_zip64_record(b, end, record);
     d = {.count = b.u64(record + 32), .offset = b.u64(record + 48), .size = b.u64(record + 40), .limit = record};
-  } else if (end >= 20 + 56 && b.u32(end - 20) == kZip64Locator) {
-    // LibTorch writes the zip64 records even for small archives: the directory ends before them.
+  } else if (locator) {
+    // The zip64 records of a small archive: the directory ends before them, and they agree.
     const std::uint64_t record = b.u64(end - 20 + 8);
-    if (record < end - 20 && b.u32(record) == kZip64EndRecord) d.limit = record;
+    check_zip64_record(b, end, record);
+    if (b.u64(record + 32) != d.count || b.u64(record + 40) != d.size || b.u64(record + 48) != d.offset)
+      fail("the zip64 end record and the end record describe different directories");
+    d.limit = record;
   }
   if (d.count == 0) fail("an empty zip archive");
   if (d.count > kMaxArchiveEntries) fail(fmt::format("{} zip entries (at most {})", d.count, kMaxArchiveEntries));
-  if (d.offset > d.limit || d.size > d.limit - d.offset) fail("the zip directory lies outside the file");
+  // The directory ends where the end records begin: no bytes between them.
+  if (d.offset > d.limit || d.size != d.limit - d.offset)
+    fail("the zip directory does not end where the end records begin (bytes between them, or outside the file)");
   return d;
+}
+
+// The entry's local header and data descriptor must repeat what the directory says: LibTorch's
+// reader takes the directory's word, other zip tools the local header's.
+void check_local_header(const Bytes& b, ZipEntry& e, const std::string& full, const std::string& where) {
+  constexpr std::uint32_t kDataDescriptor = 0x08074b50;
+  if (b.u32(e.header) != kLocalHeader) fail(where + ": no local header at its offset");
+  const std::uint16_t local_name = b.u16(e.header + 26);
+  if (b.view(e.header + 30, local_name) != full) fail(where + ": its local header names another entry");
+  if (b.u16(e.header + 6) != e.flags || b.u16(e.header + 8) != e.method)
+    fail(where + ": its local header gives another compression method or other flags than the zip directory");
+  e.data = e.header + 30 + local_name + b.u16(e.header + 28);
+  const bool descriptor = e.flags & 0x08;
+  // With a data descriptor (what miniz writes for LibTorch), the local header's CRC and sizes are
+  // zero and the descriptor after the data holds them; without one, the local header does.
+  const std::uint64_t local_crc = b.u32(e.header + 14), local_compressed = b.u32(e.header + 18),
+                      local_size = b.u32(e.header + 22);
+  if (descriptor ? (local_crc | local_compressed | local_size) != 0
+                 : local_crc != e.crc || local_compressed != e.compressed || local_size != e.size)
+    fail(where + ": its local header gives another CRC-32 or other sizes than the zip directory");
+  e.end = e.data + e.compressed;
+  if (e.end < e.data) fail(where + ": its data runs past the end of the file");
+  if (descriptor) {
+    b.view(e.end, 16);  // in bounds
+    if (b.u32(e.end) != kDataDescriptor || b.u32(e.end + 4) != e.crc || b.u32(e.end + 8) != e.compressed ||
+        b.u32(e.end + 12) != e.size)
+      fail(where + ": its data descriptor gives another CRC-32 or other sizes than the zip directory");
+    e.end += 16;
+  }
 }
 
 // Directory entry `i` at `at` (moved on to the next), checked against what Scout's writer makes
@@ -131,13 +177,14 @@ ZipEntry read_entry(const Bytes& b, std::uint64_t& at, std::uint64_t i, const Di
   const std::uint64_t directory_end = d.offset + d.size;
   if (at + 46 > directory_end || b.u32(at) != kCentralHeader) fail(fmt::format("zip directory entry {} is damaged", i));
   ZipEntry e;
-  const std::uint16_t flags = b.u16(at + 8);
+  e.flags = b.u16(at + 8);
   e.method = b.u16(at + 10);
   e.crc = b.u32(at + 16);
   e.compressed = b.u32(at + 20);
   e.size = b.u32(at + 24);
-  const std::uint16_t name_length = b.u16(at + 28);
-  const std::uint64_t next = at + 46 + name_length + b.u16(at + 30) + b.u16(at + 32);
+  const std::uint16_t name_length = b.u16(at + 28), extra_length = b.u16(at + 30), comment_length = b.u16(at + 32);
+  const std::uint64_t next = at + 46 + name_length + extra_length + comment_length;
+  const std::uint16_t disk = b.u16(at + 34);
   e.header = b.u32(at + 42);
   if (next > directory_end) fail(fmt::format("zip directory entry {} runs past the directory", i));
   const std::string full(b.view(at + 46, name_length));
@@ -153,7 +200,11 @@ ZipEntry read_entry(const Bytes& b, std::uint64_t& at, std::uint64_t i, const Di
   e.name = full.substr(slash + 1);
   const std::string where = "entry " + clipped(full);
   if (!known_entry(e.name)) fail(where + ": not an entry Scout's checkpoint writer makes");
-  if (flags & 0x41) fail(where + ": encrypted");
+  if (e.flags & 0x41) fail(where + ": encrypted");
+  // Bits 3 (a data descriptor follows the data) and 11 (UTF-8 names): what miniz sets for LibTorch.
+  if (e.flags & ~0x0808) fail(fmt::format("{}: zip flags 0x{:04x} (Scout's writer sets only 0x0808)", where, e.flags));
+  if (extra_length != 0 || comment_length != 0 || disk != 0)
+    fail(where + ": an extra field, a comment or a disk number in the zip directory (Scout's writer makes none)");
   if (e.method != kStored && e.method != kDeflated)
     fail(fmt::format("{}: compression method {} (expected 0, stored, or 8, deflated)", where, e.method));
   if (e.compressed == 0xffffffff || e.size == 0xffffffff || e.header == 0xffffffff)
@@ -161,14 +212,7 @@ ZipEntry read_entry(const Bytes& b, std::uint64_t& at, std::uint64_t i, const Di
   if (e.method == kStored && e.compressed != e.size)
     fail(fmt::format("{}: stored, but its sizes differ ({} and {} bytes)", where, e.compressed, e.size));
   if (e.name.rfind("data/", 0) == 0 && e.method != kStored) fail(where + ": a tensor record must be stored");
-
-  // The local header must agree with the directory and its data must end before the directory.
-  if (b.u32(e.header) != kLocalHeader) fail(where + ": no local header at its offset");
-  const std::uint16_t local_name = b.u16(e.header + 26);
-  if (b.view(e.header + 30, local_name) != full) fail(where + ": its local header names another entry");
-  e.data = e.header + 30 + local_name + b.u16(e.header + 28);
-  if (e.data > d.offset || e.compressed > d.offset - e.data)
-    fail(fmt::format("{}: its {} bytes of data run into the zip directory", where, e.compressed));
+  check_local_header(b, e, full, where);
   return e;
 }
 
@@ -183,11 +227,21 @@ ZipDirectory read_directory(const Bytes& b) {
     by_offset.push_back(e);
   }
   if (at != d.offset + d.size) fail("the zip directory's size does not match its entries");
+  // Every byte of the file belongs to an entry, the directory or the end records: the entries
+  // follow each other from the first byte (no prefix, gap or unlisted record between them) and
+  // the directory follows the last.
   std::sort(by_offset.begin(), by_offset.end(),
             [](const ZipEntry& x, const ZipEntry& y) { return x.header < y.header; });
-  for (std::size_t i = 1; i < by_offset.size(); ++i)
-    if (by_offset[i - 1].data + by_offset[i - 1].compressed > by_offset[i].header)
-      fail("zip entries " + clipped(by_offset[i - 1].name) + " and " + clipped(by_offset[i].name) + " overlap");
+  std::uint64_t expected = 0;
+  for (const ZipEntry& e : by_offset) {
+    if (e.header != expected)
+      fail(fmt::format("entry {}: starts at byte {}, where {} (expected the entries to follow each other from byte 0)",
+                       clipped(out.folder + "/" + e.name), e.header,
+                       expected == 0 ? "the file begins" : "the entry before it ends at " + std::to_string(expected)));
+    expected = e.end;
+  }
+  if (expected != d.offset)
+    fail(fmt::format("the zip directory starts at byte {}, the last entry ends at byte {}", d.offset, expected));
   for (const char* required : {"data.pkl", "constants.pkl", "version"})
     if (!out.entries.count(required)) fail(std::string("no ") + required + " entry");
   return out;
@@ -244,10 +298,11 @@ struct Value {
   Kind kind = Kind::None;
   std::int64_t number = 0;  ///< Bool, Int; Storage: numel
   double real = 0;
-  std::string text;        ///< String; Global: "module name"; Object: its class; Storage, Tensor: dtype
-  std::string key;         ///< Storage: the record's name under data/
-  std::vector<Ref> items;  ///< Tuple, List; Dict: key, value, key, value...; Tensor: its sizes as Ints
-  Ref state = nullptr;     ///< Object: its attributes (a Dict) once BUILD ran
+  std::string text;                        ///< String; Global: "module name"; Object: its class; Storage, Tensor: dtype
+  std::string key;                         ///< Storage: the record's name under data/
+  std::vector<Ref> items;                  ///< Tuple, List; Dict: key, value, key, value...; Tensor: its sizes as Ints
+  Ref state = nullptr;                     ///< Object: its attributes (a Dict) once BUILD ran
+  std::optional<std::int64_t> long_value;  ///< Tensor: a one-element Long tensor's value, read from its record
 };
 
 struct DtypeInfo {
@@ -291,8 +346,12 @@ enum class PickleKind { Data, Debug, Constants };
 
 class PickleMachine {
  public:
-  PickleMachine(std::string_view code, std::string where, PickleKind kind, const ZipDirectory& zip)
-      : code_(code), where_(std::move(where)), kind_(kind), zip_(zip) {}
+  /// `file`: the whole archive, where a one-element Long tensor's value is read from its record.
+  PickleMachine(std::string_view code, std::string where, PickleKind kind, const ZipDirectory& zip, const Bytes& file)
+      : code_(code), where_(std::move(where)), kind_(kind), zip_(zip), file_(file) {}
+
+  /// The storage records the tensors of a run() refer to (each by exactly one tensor).
+  const std::set<std::string>& records_used() const { return records_used_; }
 
   Ref run() {
     if (code_.size() < 2 || static_cast<unsigned char>(code_[0]) != 0x80 || code_[1] != 2)
@@ -305,6 +364,7 @@ class PickleMachine {
       if (op == '.') {
         if (pos_ != code_.size()) error("bytes after STOP");
         if (!marks_.empty() || stack_.size() != 1) error("STOP with an unbalanced stack");
+        check_nesting();
         return stack_.back();
       }
       if (!container_op(op) && !scalar_op(op) && !object_op(op))
@@ -434,7 +494,52 @@ class PickleMachine {
     }
   }
 
+  // How deeply values nest, over everything the pickle made (what the root holds and whatever
+  // sits in the memo): LibTorch's unpickler and its IValues recurse once per level, so 150,000
+  // one-element tuples overflow its stack. The writer nests a module's attributes two levels below
+  // it (the object, its dict), so kMaxNesting leaves room for collect()'s 64 modules. Iterative,
+  // each value visited once; a value that contains itself is refused as well.
+  void check_nesting() const {
+    std::unordered_map<const Value*, int> depth;  // finished values; -1 while on the path
+    struct Frame {
+      const Value* value;
+      std::size_t next;  // the next child to visit (items, then state)
+      int deepest;       // the deepest finished child
+    };
+    std::vector<Frame> path;
+    for (const auto& owned : arena_) {
+      if (depth.count(owned.get())) continue;
+      path.push_back({owned.get(), 0, 0});
+      depth[owned.get()] = -1;
+      while (!path.empty()) {
+        Frame& f = path.back();
+        const std::size_t children = f.value->items.size() + (f.value->state ? 1 : 0);
+        if (f.next == children) {
+          const int finished = f.deepest + 1;
+          if (finished > static_cast<int>(kMaxNesting))
+            error(fmt::format("values nested more than {} deep", kMaxNesting));
+          depth[f.value] = finished;
+          path.pop_back();
+          if (!path.empty()) path.back().deepest = std::max(path.back().deepest, finished);
+          continue;
+        }
+        const Value* child = f.next < f.value->items.size() ? f.value->items[f.next] : f.value->state;
+        ++f.next;
+        const auto seen = depth.find(child);
+        if (seen != depth.end() && seen->second < 0) error("a value that contains itself (the writer makes a tree)");
+        if (seen != depth.end()) {
+          f.deepest = std::max(f.deepest, seen->second);
+        } else {
+          if (path.size() >= kMaxNesting) error(fmt::format("values nested more than {} deep", kMaxNesting));
+          depth[child] = -1;
+          path.push_back({child, 0, 0});
+        }
+      }
+    }
+  }
+
   static constexpr std::size_t kMaxValues = 1'000'000;
+  static constexpr std::size_t kMaxNesting = 150;
   static constexpr std::size_t kMaxStack = 100'000;
   static constexpr std::size_t kMaxRank = 8;
 
@@ -591,9 +696,7 @@ class PickleMachine {
         static_cast<std::uint64_t>(numel) * dtype->bytes != record->second.size)
       error(fmt::format("storage {} declares {} {} elements, its record holds {} bytes", key, numel, dtype->name,
                         record->second.size));
-    const auto [seen, fresh] = storages_.emplace(key, std::make_pair(std::string(dtype->name), numel));
-    if (!fresh && seen->second != std::make_pair(std::string(dtype->name), numel))
-      error("storage " + key + " is declared twice, differently");
+    if (!storages_.insert(key).second) error("storage " + key + " is declared twice (the writer declares each once)");
     Ref v = make(Value::Kind::Storage);
     v->text = dtype->name;
     v->key = key;
@@ -619,43 +722,63 @@ class PickleMachine {
     error("REDUCE of '" + name + "'");
   }
 
-  // _rebuild_tensor_v2(storage, offset, sizes, strides, requires_grad, backward_hooks)
+  // _rebuild_tensor_v2(storage, offset, sizes, strides, requires_grad, backward_hooks), as the
+  // writer makes it: a storage of its own, taken whole from its first element, with the
+  // contiguous strides of its sizes. A stride of 0 (one element read as millions), an offset or a
+  // storage shared between tensors are what LibTorch accepts and Scout's writer never makes.
   Ref tensor(const std::vector<Ref>& a) {
     if (a.size() != 6 || !is(a[0], Value::Kind::Storage) || !is(a[1], Value::Kind::Int) ||
         !is(a[2], Value::Kind::Tuple) || !is(a[3], Value::Kind::Tuple) || !is(a[4], Value::Kind::Bool) ||
         !is(a[5], Value::Kind::Dict) || !a[5]->items.empty())
       error("a malformed tensor");
+    const Ref storage = a[0];
     const auto& sizes = a[2]->items;
     const auto& strides = a[3]->items;
     if (sizes.size() != strides.size() || sizes.size() > kMaxRank)
       error(fmt::format("a tensor with {} sizes and {} strides (at most {} of each, as many strides as sizes)",
                         sizes.size(), strides.size(), kMaxRank));
-    const std::int64_t offset = a[1]->number;
-    const std::int64_t numel = a[0]->number;
-    // The last element the tensor reaches must lie inside its storage (no element when a size is
-    // 0); checked arithmetic, as a crafted size times a crafted stride overflows 64 bits.
-    if (offset < 0) error("a tensor with a negative storage offset");
-    std::uint64_t last = static_cast<std::uint64_t>(offset);
-    bool empty = false, overflow = false;
+    if (a[1]->number != 0)
+      error(fmt::format("a tensor at offset {} of storage {} (the writer's start at 0)", a[1]->number, storage->key));
+    if (!records_used_.insert(storage->key).second)
+      error("storage " + storage->key + " is shared by two tensors (the writer gives each tensor its own)");
+    const std::int64_t elements = contiguous_elements(sizes, strides, storage->key);
+    if (elements != storage->number)
+      error(fmt::format("a tensor of {} elements in storage {} of {} (the writer's tensors fill their storage)",
+                        elements, storage->key, storage->number));
     Ref out = make(Value::Kind::Tensor);
-    for (std::size_t i = 0; i < sizes.size(); ++i) {
-      if (!is(sizes[i], Value::Kind::Int) || !is(strides[i], Value::Kind::Int) || sizes[i]->number < 0 ||
-          strides[i]->number < 0)
-        error("a tensor size or stride out of range");
-      if (sizes[i]->number == 0) {
-        empty = true;
-      } else {
-        std::uint64_t span = 0;
-        overflow |= __builtin_mul_overflow(static_cast<std::uint64_t>(sizes[i]->number - 1),
-                                           static_cast<std::uint64_t>(strides[i]->number), &span);
-        overflow |= __builtin_add_overflow(last, span, &last);
-      }
-      out->items.push_back(sizes[i]);
+    out->items = sizes;
+    out->text = storage->text;
+    out->key = storage->key;
+    out->number = elements;
+    if (out->text == "Long" && elements == 1) {
+      // Adam's "params/size" and "param_groups/size": counts LibTorch's reader loops over.
+      const std::string_view record = file_.view(zip_.entries.at("data/" + storage->key).data, 8);
+      std::uint64_t v = 0;
+      for (int i = 7; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(record[i]);
+      out->long_value = static_cast<std::int64_t>(v);
     }
-    if (!empty && (overflow || last >= static_cast<std::uint64_t>(numel)))
-      error(fmt::format("a tensor in storage {} reaches past its {} elements", a[0]->key, numel));
-    out->text = a[0]->text;
     return out;
+  }
+
+  // The product of `sizes`, overflow-checked, once `strides` are their contiguous strides: the
+  // last dimension's is 1, each other's the next one's times the next size (at least 1, as
+  // LibTorch computes them for an empty or a size-1 dimension).
+  std::int64_t contiguous_elements(const std::vector<Ref>& sizes, const std::vector<Ref>& strides,
+                                   const std::string& key) const {
+    std::int64_t elements = 1, expected = 1;
+    for (std::size_t i = sizes.size(); i-- > 0;) {
+      if (!is(sizes[i], Value::Kind::Int) || !is(strides[i], Value::Kind::Int) || sizes[i]->number < 0)
+        error("a tensor size or stride out of range");
+      if (strides[i]->number != expected)
+        error(
+            fmt::format("a tensor in storage {} with stride {} in dimension {} (the writer's contiguous stride is {})",
+                        key, strides[i]->number, i, expected));
+      const std::int64_t size = sizes[i]->number;
+      if (__builtin_mul_overflow(elements, size, &elements) ||
+          __builtin_mul_overflow(expected, std::max<std::int64_t>(size, 1), &expected))
+        error(fmt::format("a tensor in storage {} whose sizes multiply beyond 64 bits", key));
+    }
+    return elements;
   }
 
   Ref new_object(Ref cls, Ref args) {
@@ -683,37 +806,11 @@ class PickleMachine {
   std::vector<Ref> stack_;
   std::vector<std::size_t> marks_;
   std::unordered_map<std::uint64_t, Ref> memo_;
-  std::map<std::string, std::pair<std::string, std::int64_t>> storages_;
+  const Bytes& file_;
+  std::set<std::string> storages_;      // declared by a persistent id
+  std::set<std::string> records_used_;  // taken by a tensor
   std::vector<std::unique_ptr<Value>> arena_;
 };
-
-/// Collects the tensors under `object` with their dotted paths. The writer's modules form a tree:
-/// a module met twice (a crafted memo can make one its own attribute, or share it a billion
-/// times) is refused, which also bounds the walk.
-void collect(Ref object, const std::string& path, int depth, std::set<Ref>& seen, ArchiveContents& out,
-             const std::string& where) {
-  if (depth > 64) fail(where + ": modules nested more than 64 deep");
-  if (!seen.insert(object).second) fail(where + ": a module appears twice (the writer makes a tree)");
-  if (!object->state) fail(where + ": a module without attributes");
-  const auto& items = object->state->items;
-  for (std::size_t i = 0; i + 1 < items.size(); i += 2) {
-    const std::string name = path.empty() ? items[i]->text : path + "." + items[i]->text;
-    const Ref value = items[i + 1];
-    if (value->kind == Value::Kind::Object) {
-      collect(value, name, depth + 1, seen, out, where);
-    } else if (value->kind == Value::Kind::Tensor) {
-      ArchiveTensor t;
-      t.path = name;
-      t.dtype = value->text;
-      for (Ref size : value->items) t.sizes.push_back(size->number);
-      out.tensors.push_back(std::move(t));
-    } else if (depth == 0 && value->kind == Value::Kind::String) {
-      out.strings[name] = value->text;
-    } else if (depth == 0 && value->kind == Value::Kind::Int) {
-      out.ints[name] = value->number;
-    }
-  }
-}
 
 // ---------------------------------------------------------------------------------------------
 // code/*.py: the TorchScript class stubs the writer makes, e.g.
@@ -724,22 +821,32 @@ void collect(Ref object, const std::string& path, int depth, std::set<Ref>& seen
 //     __annotations__["0"] = __torch__.___torch_mangle_4.Module
 //     weight : Tensor
 
-bool quoted(std::string_view& s) {
+/// What a class stub declares: each attribute's type, and the attributes it lists as parameters
+/// or buffers.
+struct ClassStub {
+  std::map<std::string, std::string> types;  ///< "weight" -> "Tensor", "0" -> "__torch__.___torch_mangle_4.Module"
+  std::set<std::string> listed;              ///< in __parameters__ or __buffers__
+};
+
+bool quoted(std::string_view& s, std::string* out = nullptr) {
   if (s.empty() || s[0] != '"') return false;
   std::size_t i = 1;
   while (i < s.size() && (std::isalnum(static_cast<unsigned char>(s[i])) || s[i] == '_' || s[i] == '.' || s[i] == '/'))
     ++i;
   if (i == 1 || i >= s.size() || s[i] != '"') return false;
+  if (out) *out = s.substr(1, i - 1);
   s.remove_prefix(i + 1);
   return true;
 }
 
-bool name_list(std::string_view s) {
+bool name_list(std::string_view s, std::set<std::string>& names) {
   if (s == "[]") return true;
   if (s.empty() || s[0] != '[') return false;
   s.remove_prefix(1);
+  std::string name;
   while (!s.empty() && s[0] == '"') {
-    if (!quoted(s) || s.rfind(", ", 0) != 0) return false;
+    if (!quoted(s, &name) || s.rfind(", ", 0) != 0) return false;
+    names.insert(name);
     s.remove_prefix(2);
   }
   return s == "]";
@@ -761,43 +868,169 @@ bool identifier(std::string_view s) {
                      [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
 }
 
-bool stub_line(std::string_view line) {
+// One line of a stub into `stub`; false for a line the writer does not make, and for a second
+// declaration of a name.
+bool stub_line(std::string_view line, ClassStub& stub) {
   if (line.rfind("  ", 0) != 0) return false;
   line.remove_prefix(2);
   for (std::string_view list : {"__parameters__ = ", "__buffers__ = "})
-    if (line.rfind(list, 0) == 0) return name_list(line.substr(list.size()));
+    if (line.rfind(list, 0) == 0) return name_list(line.substr(list.size()), stub.listed);
   if (line == "__annotations__ = []") return true;
   constexpr std::string_view kAnnotation = "__annotations__[";
+  std::string name;
+  std::string_view type;
   if (line.rfind(kAnnotation, 0) == 0) {
     line.remove_prefix(kAnnotation.size());
-    if (!quoted(line) || line.rfind("] = ", 0) != 0) return false;
-    return known_type(line.substr(4));
+    if (!quoted(line, &name) || line.rfind("] = ", 0) != 0) return false;
+    type = line.substr(4);
+  } else {
+    const std::size_t colon = line.find(" : ");
+    if (colon == std::string_view::npos || !identifier(line.substr(0, colon))) return false;
+    name = line.substr(0, colon);
+    type = line.substr(colon + 3);
   }
-  const std::size_t colon = line.find(" : ");
-  return colon != std::string_view::npos && identifier(line.substr(0, colon)) && known_type(line.substr(colon + 3));
+  return known_type(type) && stub.types.emplace(name, std::string(type)).second;
 }
 
-void check_stub(std::string_view code, const std::string& where) {
+ClassStub read_stub(std::string_view code, const std::string& where) {
   constexpr std::string_view kHeader = "class Module(Module):\n";
   if (code.rfind(kHeader, 0) != 0) fail(where + ": not a class stub Scout's writer makes (first line)");
   code.remove_prefix(kHeader.size());
+  ClassStub stub;
   int line_no = 2;
   while (!code.empty()) {
     const std::size_t end = code.find('\n');
     if (end == std::string_view::npos) fail(fmt::format("{}:{}: the line does not end", where, line_no));
-    if (!stub_line(code.substr(0, end)))
+    if (!stub_line(code.substr(0, end), stub))
       fail(fmt::format("{}:{}: not a line of a class stub Scout's writer makes", where, line_no));
     code.remove_prefix(end + 1);
     ++line_no;
   }
+  for (const std::string& name : stub.listed) {
+    const auto type = stub.types.find(name);
+    if (type == stub.types.end() || type->second != "Tensor")
+      fail(where + ": lists '" + clipped(name) + "' as a parameter or buffer without declaring it a Tensor");
+  }
+  return stub;
 }
+
+// ---------------------------------------------------------------------------------------------
+// data.pkl's tree of modules, held against the class stubs.
+
+/// Whether `value` is what a stub's `type` declares.
+bool of_type(Ref value, const std::string& type) {
+  using K = Value::Kind;
+  if (type == "Tensor") return value->kind == K::Tensor;
+  if (type == "int") return value->kind == K::Int;
+  if (type == "float") return value->kind == K::Float;
+  if (type == "str") return value->kind == K::String;
+  if (type == "bool") return value->kind == K::Bool;
+  if (type == "Tuple[float, float]")
+    return value->kind == K::Tuple && value->items.size() == 2 && value->items[0]->kind == K::Float &&
+           value->items[1]->kind == K::Float;
+  // "__torch__.___torch_mangle_4.Module" is the class the pickle names "__torch__.___torch_mangle_4 Module".
+  const std::string global = type.substr(0, type.size() - 7) + " Module";
+  return value->kind == K::Object && value->text == global;
+}
+
+struct Collector {
+  const std::map<std::string, ClassStub>& stubs;
+  std::string where;
+  ArchiveContents& out;
+  std::set<Ref> seen;             // modules and tensors met
+  std::set<std::string> classes;  // the code entries of the classes met
+
+  /// Collects the tensors and plain values under `object` with their dotted paths, each
+  /// attribute as its class stub declares it: no attribute the stub does not declare, none of
+  /// another type, none missing (LibTorch would take the pickle's word for what the stub says).
+  /// The writer's modules form a tree: a module or tensor met twice (a crafted memo can make a
+  /// module its own attribute, or share it a billion times) is refused, which also bounds the walk.
+  void module(Ref object, const std::string& path, int depth) {
+    if (depth > 64) fail(where + ": modules nested more than 64 deep");
+    if (!seen.insert(object).second) fail(where + ": a module appears twice (the writer makes a tree)");
+    if (!object->state) fail(where + ": a module without attributes");
+    const std::string code = class_file(object->text);
+    classes.insert(code);
+    const ClassStub& stub = stubs.at(code);
+    const auto& items = object->state->items;
+    std::set<std::string> names;
+    for (std::size_t i = 0; i + 1 < items.size(); i += 2) {
+      const std::string& attribute = items[i]->text;
+      const std::string name = path.empty() ? attribute : path + "." + attribute;
+      if (!names.insert(attribute).second) fail(where + ": " + clipped(name) + " appears twice");
+      const auto declared = stub.types.find(attribute);
+      if (declared == stub.types.end())
+        fail(where + ": " + clipped(name) + " is not an attribute its class stub (" + code + ") declares");
+      if (!of_type(items[i + 1], declared->second))
+        fail(where + ": " + clipped(name) + " is not the " + declared->second + " its class stub (" + code +
+             ") declares");
+      value(items[i + 1], name, depth);
+    }
+    if (names.size() != stub.types.size())
+      fail(where + ": " + (path.empty() ? std::string("the root") : clipped(path)) +
+           " lacks attributes its class stub (" + code + ") declares");
+  }
+
+  void value(Ref v, const std::string& name, int depth) {
+    switch (v->kind) {
+      case Value::Kind::Object:
+        return module(v, name, depth + 1);
+      case Value::Kind::Tensor: {
+        if (!seen.insert(v).second)
+          fail(where + ": " + clipped(name) + " is a tensor met before (the writer makes a tree)");
+        ArchiveTensor t;
+        t.path = name;
+        t.dtype = v->text;
+        for (Ref size : v->items) t.sizes.push_back(size->number);
+        t.elements = v->number;
+        t.value = v->long_value;
+        out.tensors.push_back(std::move(t));
+        return;
+      }
+      case Value::Kind::String:
+        out.strings[name] = v->text;
+        return;
+      case Value::Kind::Int:
+        out.ints[name] = v->number;
+        return;
+      case Value::Kind::Float:
+        out.floats[name] = v->real;
+        return;
+      case Value::Kind::Bool:
+        out.bools[name] = v->number != 0;
+        return;
+      case Value::Kind::Tuple:  // Tuple[float, float], checked by of_type
+        out.float_pairs[name] = {v->items[0]->real, v->items[1]->real};
+        return;
+      default:
+        fail(where + ": " + clipped(name) + " holds a value Scout's writer never stores");
+    }
+  }
+};
 
 }  // namespace
 
-std::int64_t ArchiveTensor::numel() const {
-  std::int64_t n = 1;
-  for (std::int64_t s : sizes) n *= s;
-  return n;
+std::optional<std::size_t> json_nested_beyond(std::string_view text, int max_depth) {
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > max_depth) return i;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return std::nullopt;
 }
 
 ArchiveContents inspect_archive(std::string_view data) {
@@ -813,32 +1046,42 @@ ArchiveContents inspect_archive(std::string_view data) {
       (digits.size() != version.size() && digits.size() + 1 != version.size()))
     fail(where("version") + ": expected a format number from 1 to 10");
 
+  std::map<std::string, ClassStub> stubs;
   for (const auto& [name, e] : zip.entries) {
     if (name.rfind("data/", 0) == 0) {
       // Tensor records: stored (checked above); CRC-checked in place without a copy.
       if (crc32_of(b.view(e.data, e.compressed)) != e.crc)
         fail(where(name) + ": CRC-32 mismatch (the file is damaged)");
     } else if (name.size() > 3 && name.substr(name.size() - 3) == ".py") {
-      check_stub(entry_bytes(b, zip, e, kMaxSmallEntryBytes, budget), where(name));
+      stubs[name] = read_stub(entry_bytes(b, zip, e, kMaxSmallEntryBytes, budget), where(name));
+      if (!zip.entries.count(name + ".debug_pkl")) fail(where(name) + ": has no .debug_pkl beside it");
     } else if (name.size() > 10 && name.substr(name.size() - 10) == ".debug_pkl") {
-      PickleMachine(entry_bytes(b, zip, e, kMaxSmallEntryBytes, budget), where(name), PickleKind::Debug, zip).run();
+      if (!zip.entries.count(name.substr(0, name.size() - 10))) fail(where(name) + ": has no class stub beside it");
+      PickleMachine(entry_bytes(b, zip, e, kMaxSmallEntryBytes, budget), where(name), PickleKind::Debug, zip, b).run();
     }
   }
 
   const std::string constants_pickle = entry_bytes(b, zip, entry("constants.pkl"), kMaxSmallEntryBytes, budget);
-  PickleMachine constants_machine(constants_pickle, where("constants.pkl"), PickleKind::Constants, zip);
+  PickleMachine constants_machine(constants_pickle, where("constants.pkl"), PickleKind::Constants, zip, b);
   const Ref constants = constants_machine.run();
   if (constants->kind != Value::Kind::Tuple || !constants->items.empty())
     fail(where("constants.pkl") + ": expected no constants (Scout's writer stores none)");
 
   const std::string pickle = entry_bytes(b, zip, entry("data.pkl"), kMaxPickleBytes, budget);
-  PickleMachine machine(pickle, where("data.pkl"), PickleKind::Data, zip);
+  PickleMachine machine(pickle, where("data.pkl"), PickleKind::Data, zip, b);
   const Ref root = machine.run();
   if (root->kind != Value::Kind::Object || root->text != "__torch__ Module")
     fail(where("data.pkl") + ": the root is not a module");
   ArchiveContents out;
-  std::set<Ref> seen;
-  collect(root, "", 0, seen, out, where("data.pkl"));
+  Collector collector{stubs, where("data.pkl"), out, {}, {}};
+  collector.module(root, "", 0);
+  // Nothing in the archive that the tree does not use: every record is a tensor's storage, every
+  // class stub a module's class.
+  for (const auto& [name, e] : zip.entries) {
+    if (name.rfind("data/", 0) == 0 && !machine.records_used().count(name.substr(5)))
+      fail(where(name) + ": a record no tensor uses (the writer stores only tensors' storages)");
+    if (stubs.count(name) && !collector.classes.count(name)) fail(where(name) + ": a class stub no module uses");
+  }
   return out;
 }
 

@@ -17,6 +17,8 @@
 #include "agent/config.hpp"
 #include "core/error.hpp"
 #include "core/files.hpp"
+#include "core/input_file.hpp"
+#include "core/memory.hpp"
 #include "learn/internal/archive.hpp"
 
 namespace scout::learn {
@@ -81,6 +83,16 @@ double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
 }  // namespace
 
+void check_checkpoint_size(const agent::NetworkConfig& network) {
+  // Weights and Adam's two moments, 4 bytes each; the rest (buffers, code, pickles) is small.
+  const std::uint64_t bytes = 12 * static_cast<std::uint64_t>(agent::parameter_count(network)) + (1 << 20);
+  if (bytes > kMaxCheckpointBytes)
+    throw InputError(fmt::format(
+        "network: {} parameters make checkpoints of about {} (weights and Adam's two "
+        "moments), more than the {} Scout reads; choose a narrower or shallower network",
+        agent::parameter_count(network), core::format_bytes(bytes), core::format_bytes(kMaxCheckpointBytes)));
+}
+
 fs::path resolve_checkpoint(const fs::path& path) {
   std::error_code ec;
   return fs::is_directory(path, ec) ? path / kCheckpointFile : path;
@@ -141,33 +153,36 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
 
 namespace {
 
-// The file's bytes; a checkpoint is read whole (Scout checks it before LibTorch parses it).
+// The file's bytes; a checkpoint is read whole (Scout checks it before LibTorch parses it). Its
+// size is bounded before a byte is read, and a FIFO or a device is refused without blocking.
 std::string read_checkpoint_file(const fs::path& file) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec))
+  if (!fs::exists(file, ec))
     throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.pt or a model file)");
-  std::ifstream in(file, std::ios::binary);
-  std::string bytes;
-  if (in) {
-    const std::uintmax_t size = fs::file_size(file, ec);
-    if (!ec) bytes.reserve(static_cast<std::size_t>(size));
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
-  if (!in && !in.eof()) throw InputError(file.string() + ": cannot read it (" + std::strerror(errno) + ")");
+  const core::RegularFile in = core::open_regular_file(file);
+  if (in.size() > kMaxCheckpointBytes)
+    throw InputError(fmt::format("{}: {} bytes, more than the {} a Scout checkpoint may have", file.string(), in.size(),
+                                 core::format_bytes(kMaxCheckpointBytes)));
+  // Read, then copied into LibTorch's tensors: about twice its size at the peak.
+  const std::optional<core::AvailableMemory> available = core::available_memory();
+  if (available && 2 * in.size() > available->bytes)
+    throw InputError(fmt::format("{}: reading its {} needs about twice that much memory, {} is available ({})",
+                                 file.string(), core::format_bytes(in.size()), core::format_bytes(available->bytes),
+                                 available->bound));
+  std::string bytes(static_cast<std::size_t>(in.size()), '\0');
+  in.read_all(bytes.data());
   return bytes;
-}
-
-// Which tensors a Scout archive holds besides the agent's, and what bounds them.
-bool optimizer_tensor_fits(const ArchiveTensor& t, const std::set<std::vector<std::int64_t>>& parameter_shapes) {
-  // Adam's moments have their parameter's shape; its bookkeeping ("param_groups/size") is scalar.
-  return (t.dtype == "Float" && parameter_shapes.count(t.sizes)) ||
-         ((t.dtype == "Long" || t.dtype == "Float") && t.numel() <= 1);
 }
 
 // The non-tensor part of a checkpoint: its "progress" entry (the schedule's position, the epoch in
 // progress, the history, the run's processes and threads).
 void read_progress(const std::string& text, const std::string& origin, CheckpointState& state) {
   int stage = 0;
+  if (const std::optional<std::size_t> at = json_nested_beyond(text, kMaxJsonNesting))
+    throw InputError(
+        fmt::format("{}: progress: arrays and objects nested more than {} deep (at byte {}; Scout's "
+                    "writer nests 3)",
+                    origin, kMaxJsonNesting, *at));
   try {
     const json p = json::parse(text);
     stage = p.at("stage").get<int>();
@@ -187,17 +202,45 @@ void read_progress(const std::string& text, const std::string& origin, Checkpoin
   state.cursor.stage = static_cast<Stage>(stage);
 }
 
-// Each tensor's name, shape and type against the agent the config describes; Adam's tensors must
-// have a parameter's shape. The agent is built only once the file is known to hold that many
-// weights, so that a crafted config cannot make Scout allocate more than the file's own size.
-void check_tensors(const ArchiveContents& contents, const agent::NetworkConfig& network, const std::string& origin) {
+// The config's networks against the file's size, before anything is built from the config: a
+// config that declares a billion parameters in a file of a megabyte is refused in microseconds.
+void check_network_fits(const agent::NetworkConfig& network, std::size_t file_bytes, const std::string& origin) {
+  const std::int64_t parameters = agent::parameter_count(network);
+  if (static_cast<std::uint64_t>(parameters) > file_bytes / sizeof(float))
+    throw InputError(fmt::format("{}: config: the network has {} parameters ({} of weights), the whole file holds {}",
+                                 origin, parameters, core::format_bytes(4 * static_cast<std::uint64_t>(parameters)),
+                                 core::format_bytes(file_bytes)));
+}
+
+// Plain values (strings, numbers) where Scout's writer stores them: the format number, the config
+// and the progress at the root, Adam's bookkeeping under optimizer. (check_optimizer), nothing else.
+void check_plain_values(const ArchiveContents& contents, const std::string& origin) {
+  const auto check = [&](const std::string& path) {
+    if (path == "scout_checkpoint_format" || path == "config" || path == "progress" || path.rfind("optimizer.", 0) == 0)
+      return;
+    throw InputError(origin + ": not a Scout checkpoint (" + path + " is not a value Scout's writer stores)");
+  };
+  for (const auto& item : contents.strings) check(item.first);
+  for (const auto& item : contents.ints) check(item.first);
+  for (const auto& item : contents.floats) check(item.first);
+  for (const auto& item : contents.bools) check(item.first);
+  for (const auto& item : contents.float_pairs) check(item.first);
+}
+
+// Each agent tensor's name, shape and type against the agent the config describes. The agent is
+// built only once the file is known to hold that many weights, so that a crafted config cannot
+// make Scout allocate more than the file's own size. Returns the parameters' shapes in the
+// order Adam keeps them.
+std::vector<std::vector<std::int64_t>> check_agent_tensors(const ArchiveContents& contents,
+                                                           const agent::NetworkConfig& network,
+                                                           const std::string& origin) {
   const std::string agent_prefix = "agent.";
   std::map<std::string, const ArchiveTensor*> agent_tensors;
   std::int64_t agent_values = 0;
   for (const ArchiveTensor& t : contents.tensors) {
     if (t.path.rfind(agent_prefix, 0) != 0) continue;
     agent_tensors[t.path.substr(agent_prefix.size())] = &t;
-    agent_values += t.numel();
+    agent_values += t.numel();  // each at most the file's size (inspect_archive): no overflow
   }
   const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
   const std::int64_t parameters = agent::parameter_count(network);
@@ -213,7 +256,7 @@ void check_tensors(const ArchiveContents& contents, const agent::NetworkConfig& 
     ~GeneratorRestore() { generator.set_state(state); }
   } restore;
   agent::Agent reference(network);
-  std::set<std::vector<std::int64_t>> parameter_shapes;
+  std::vector<std::vector<std::int64_t>> parameter_shapes;
   std::size_t expected = 0;
   const auto expect = [&](const std::string& name, const torch::Tensor& value) {
     ++expected;
@@ -227,29 +270,157 @@ void check_tensors(const ArchiveContents& contents, const agent::NetworkConfig& 
   };
   for (const auto& p : reference->named_parameters()) {
     expect(p.key(), p.value());
-    parameter_shapes.insert(p.value().sizes().vec());
+    parameter_shapes.push_back(p.value().sizes().vec());
   }
   for (const auto& b : reference->named_buffers()) expect(b.key(), b.value());
   if (agent_tensors.size() != expected)
     throw InputError(origin + mismatch + "the file holds " + std::to_string(agent_tensors.size()) +
                      " tensors, the config " + std::to_string(expected) + ")");
+  return parameter_shapes;
+}
 
-  std::int64_t optimizer_values = 0;
+// The tensors besides the agent's: LibTorch's generator state, as the generator's get_state()
+// makes it, and Adam's (check_optimizer).
+void check_other_tensors(const ArchiveContents& contents, const std::string& origin) {
+  const std::int64_t rng_bytes = at::detail::getDefaultCPUGenerator().get_state().numel();
+  bool rng = false;
   for (const ArchiveTensor& t : contents.tensors) {
-    if (t.path.rfind(agent_prefix, 0) == 0) continue;
-    if (t.path == "torch_rng_state" && t.dtype == "Byte" && t.sizes.size() == 1 && t.numel() <= (1 << 20)) continue;
-    if (t.path.rfind("optimizer.", 0) == 0 && optimizer_tensor_fits(t, parameter_shapes)) {
-      optimizer_values += t.numel();
+    if (t.path.rfind("agent.", 0) == 0 || t.path.rfind("optimizer.", 0) == 0) continue;
+    if (t.path == "torch_rng_state" && t.dtype == "Byte" && t.sizes == std::vector<std::int64_t>{rng_bytes}) {
+      rng = true;
       continue;
     }
     throw InputError(origin + ": not a Scout checkpoint (tensor " + t.path + ", " + t.dtype + " " +
                      c10::str(c10::IntArrayRef(t.sizes)) + ", is not one Scout's writer makes)");
   }
-  // Adam keeps two moments per parameter (three with AMSGrad).
-  if (optimizer_values > 3 * parameters + 1024)
-    throw InputError(fmt::format("{}: optimizer: {} values for {} parameters (Adam keeps at most three per parameter)",
-                                 origin, optimizer_values, parameters));
+  if (!rng) throw InputError(fmt::format("{}: torch_rng_state: missing (expected Byte [{}])", origin, rng_bytes));
 }
+
+// Adam's state, as LibTorch's Adam writes it for Scout's one parameter group: every value where
+// the writer puts it, of its type and in its range, and nothing else. LibTorch's reader would
+// take a NaN beta or amsgrad as they are, and silently drop the moments of a parameter whose key
+// it cannot match: a resumed run would not continue the one that wrote the file.
+class OptimizerCheck {
+ public:
+  OptimizerCheck(const ArchiveContents& contents, const std::string& origin) : contents_(contents), origin_(origin) {
+    const auto add = [this](const auto& values) {
+      for (const auto& item : values)
+        if (item.first.rfind(kPrefix, 0) == 0) unchecked_.insert(item.first.substr(kPrefix.size()));
+    };
+    add(contents.strings), add(contents.ints), add(contents.floats), add(contents.bools), add(contents.float_pairs);
+    for (const ArchiveTensor& t : contents.tensors)
+      if (t.path.rfind(kPrefix, 0) == 0) unchecked_.insert(t.path.substr(kPrefix.size()));
+  }
+
+  // `shapes`: the agent's parameters' shapes, in the order Adam holds them.
+  void run(const std::vector<std::vector<std::int64_t>>& shapes) {
+    if (unchecked_.empty()) return;  // a model file: no optimizer
+    if (text("pytorch_version") != "1.5.0") refuse("pytorch_version is not 1.5.0, what LibTorch's writer stores");
+    if (count("param_groups.param_groups/size") != 1) refuse("expected one parameter group, as Scout's Adam has");
+    const std::map<std::string, std::size_t> keys = parameter_keys(shapes.size());
+    options();
+    for (const auto& [key, index] : keys) state(key, shapes[index]);
+    if (!unchecked_.empty())
+      refuse(*unchecked_.begin() + " is not a value LibTorch's Adam stores for Scout's parameters");
+  }
+
+ private:
+  static inline const std::string kPrefix = "optimizer.";
+  static inline const std::string kGroup = "param_groups.param_groups/0.";
+
+  [[noreturn]] void refuse(const std::string& what) const {
+    throw InputError(origin_ + ": optimizer: " + one_line(what));
+  }
+  // Marks `path` checked; false when the file does not hold it.
+  template <class Map>
+  const typename Map::mapped_type* take(const Map& values, const std::string& path) {
+    const auto it = values.find(kPrefix + path);
+    if (it == values.end()) return nullptr;
+    unchecked_.erase(path);
+    return &it->second;
+  }
+  const std::string& text(const std::string& path) {
+    const std::string* v = take(contents_.strings, path);
+    if (!v) refuse(path + ": missing (expected a string)");
+    return *v;
+  }
+  double real(const std::string& path) {
+    const double* v = take(contents_.floats, path);
+    if (!v) refuse(path + ": missing (expected a number)");
+    return *v;
+  }
+  const ArchiveTensor& tensor(const std::string& path) {
+    for (const ArchiveTensor& t : contents_.tensors)
+      if (t.path == kPrefix + path) {
+        unchecked_.erase(path);
+        return t;
+      }
+    refuse(path + ": missing (expected a tensor)");
+  }
+  // A count LibTorch's reader loops over: a 0-d Long tensor.
+  std::int64_t count(const std::string& path) {
+    const ArchiveTensor& t = tensor(path);
+    if (t.dtype != "Long" || !t.sizes.empty() || !t.value) refuse(path + ": expected a 0-d Long tensor (a count)");
+    return *t.value;
+  }
+
+  // params/0 ... params/N-1: the key (a parameter's address when written, "0x...") under which
+  // each parameter's state is kept, one per agent parameter, all different. Returns key -> index.
+  std::map<std::string, std::size_t> parameter_keys(std::size_t parameters) {
+    const std::string group = kGroup;
+    if (count(group + "params/size") != static_cast<std::int64_t>(parameters))
+      refuse(fmt::format("{}params/size: expected {}, the agent's parameters", group, parameters));
+    std::map<std::string, std::size_t> keys;
+    for (std::size_t i = 0; i < parameters; ++i) {
+      const std::string path = group + "params/" + std::to_string(i);
+      const std::string& key = text(path);
+      const bool hex = key.size() > 2 && key.size() <= 18 && key.rfind("0x", 0) == 0 &&
+                       key.find_first_not_of("0123456789abcdef", 2) == std::string::npos;
+      if (!hex)
+        refuse(path + ": expected a parameter key (0x and hexadecimal digits), got '" + key.substr(0, 40) + "'");
+      if (!keys.emplace(key, i).second) refuse(path + ": the key " + key + " is another parameter's too");
+    }
+    return keys;
+  }
+
+  void options() {
+    const std::string at = std::string(kGroup) + "options.";
+    const double lr = real(at + "lr"), eps = real(at + "eps"), weight_decay = real(at + "weight_decay");
+    if (!std::isfinite(lr) || lr <= 0) refuse(fmt::format("{}lr: expected a finite number > 0, got {}", at, lr));
+    if (!std::isfinite(eps) || eps <= 0) refuse(fmt::format("{}eps: expected a finite number > 0, got {}", at, eps));
+    if (weight_decay != 0)
+      refuse(fmt::format("{}weight_decay: expected 0, as Scout's Adam has, got {}", at, weight_decay));
+    const std::pair<double, double>* betas = take(contents_.float_pairs, at + "betas");
+    const auto beta = [](double b) { return std::isfinite(b) && b >= 0 && b < 1; };
+    if (!betas || !beta(betas->first) || !beta(betas->second))
+      refuse(at + "betas: expected two numbers in [0, 1)" +
+             (betas ? fmt::format(", got ({}, {})", betas->first, betas->second) : std::string(", got none")));
+    const bool* amsgrad = take(contents_.bools, at + "amsgrad");
+    if (!amsgrad || *amsgrad) refuse(at + "amsgrad: expected false, as Scout's Adam has");
+  }
+
+  // One parameter's state, if it has one (a parameter that never had a gradient has none).
+  void state(const std::string& key, const std::vector<std::int64_t>& shape) {
+    const std::string at = "state." + key + ".";
+    const std::int64_t* step = take(contents_.ints, at + "step");
+    if (!step) {
+      for (const char* moment : {"exp_avg", "exp_avg_sq"})
+        if (unchecked_.count(at + moment)) refuse(at + "step: missing beside " + moment);
+      return;
+    }
+    if (*step < 0) refuse(fmt::format("{}step: expected a count >= 0, got {}", at, *step));
+    for (const char* moment : {"exp_avg", "exp_avg_sq"}) {
+      const ArchiveTensor& t = tensor(at + moment);
+      if (t.dtype != "Float" || t.sizes != shape)
+        refuse(at + moment + ": " + t.dtype + " " + c10::str(c10::IntArrayRef(t.sizes)) + ", expected Float " +
+               c10::str(c10::IntArrayRef(shape)) + ", its parameter's shape");
+    }
+  }
+
+  const ArchiveContents& contents_;
+  const std::string& origin_;
+  std::set<std::string> unchecked_;  // paths under optimizer. not checked yet
+};
 
 // Holds the archive against what Scout's writer produces before LibTorch parses it: its structure
 // (learn/internal/archive.hpp), then its format number, its config and progress, and its tensors.
@@ -271,10 +442,13 @@ CheckpointState check_archive(const std::string& bytes, const std::string& origi
   if (config == contents.strings.end()) throw InputError(origin + ": config: missing from the checkpoint");
   CheckpointState state;
   state.config = TrainConfig::from_json(config->second, origin);
+  check_network_fits(state.config.network, bytes.size(), origin);
   const auto progress = contents.strings.find("progress");
   if (progress == contents.strings.end()) throw InputError(origin + ": progress: missing from the checkpoint");
   read_progress(progress->second, origin, state);
-  check_tensors(contents, state.config.network, origin);
+  check_plain_values(contents, origin);
+  check_other_tensors(contents, origin);
+  OptimizerCheck(contents, origin).run(check_agent_tensors(contents, state.config.network, origin));
   return state;
 }
 

@@ -2,6 +2,7 @@
 /// Checkpoint and model files from outside (torch-free, for the CLI): opening one once, what it
 /// says about itself, where a run keeps it, and exporting a model. Writing and loading weights is
 /// learn/internal/checkpoint.hpp's.
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <vector>
@@ -52,5 +53,15 @@ CheckpointInfo export_model(const Checkpoint& checkpoint, const std::filesystem:
 
 /// The checkpoint format this build writes and reads.
 inline constexpr int kCheckpointFormat = 1;
+
+/// The largest checkpoint or model file Scout reads (open_checkpoint refuses a larger one from its
+/// size, before reading a byte) and writes (a new run whose checkpoints would be larger is
+/// refused: check_checkpoint_size). 2 GiB holds about 170 million parameters with Adam's two
+/// moments; the shipped models are 1-3 MB, ResNet-18 at width 64 with Adam about 135 MB.
+inline constexpr std::uint64_t kMaxCheckpointBytes = std::uint64_t{2} << 30;
+
+/// Refuses (InputError) networks whose checkpoints (weights and Adam's two moments) would be
+/// larger than kMaxCheckpointBytes, before a run starts: Scout never writes a file it cannot read.
+void check_checkpoint_size(const agent::NetworkConfig& network);
 
 }  // namespace scout::learn

@@ -17,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "env/batch_env.hpp"
+#include "learn/internal/archive.hpp"
 
 namespace scout::learn {
 
@@ -514,6 +515,11 @@ std::string TrainConfig::to_json() const {
 TrainConfig TrainConfig::from_json(const std::string& text, const std::string& origin) {
   TrainConfig c;
   std::string field = "config";
+  if (const std::optional<std::size_t> at = json_nested_beyond(text, kMaxJsonNesting))
+    throw InputError(
+        fmt::format("{}: config: arrays and objects nested more than {} deep (at byte {}; Scout's "
+                    "writer nests 2)",
+                    origin, kMaxJsonNesting, *at));
   try {
     const json j = json::parse(text);
     auto at_key = [&](const json& parent, const char* key) -> const json& {

@@ -155,6 +155,7 @@ struct Trainer::Impl {
                          fmt::format("training B x N = {} x {} robots on {} x {} floors with these networks",
                                      config.batch_images, config.rollouts, frame.width_px, frame.height_px),
                          force_memory);
+    if (new_run) check_checkpoint_size(config.network);  // what it writes, it must read back
     torch::manual_seed(config.seed);
     agent = agent::Agent(config.network);
     optimizer =

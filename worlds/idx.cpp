@@ -16,6 +16,7 @@
 #include <system_error>
 
 #include "core/files.hpp"
+#include "core/input_file.hpp"
 
 namespace scout::worlds {
 namespace {
@@ -113,23 +114,12 @@ std::vector<std::uint8_t> gunzip(const std::vector<std::uint8_t>& in, std::size_
 }
 
 std::vector<std::uint8_t> read_file(const fs::path& file) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(file, ec);
-  if (st.type() == fs::file_type::not_found) fail(file, "no such file");
-  if (ec) fail(file, fmt::format("cannot access: {}", ec.message()));
-  if (fs::is_directory(st)) fail(file, "is a folder, not a file");
-
-  std::ifstream in(file, std::ios::binary);
-  if (!in) fail(file, fmt::format("cannot open: {}", std::strerror(errno)));
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) fail(file, "cannot determine the file size");
-  if (static_cast<std::uint64_t>(size) > kMaxFileBytes)
-    fail(file, fmt::format("{} bytes, more than the 2 GiB limit", size));
-  in.seekg(0, std::ios::beg);
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
-  in.read(reinterpret_cast<char*>(bytes.data()), size);
-  if (in.gcount() != size) fail(file, "read error: the file changed or could not be read");
+  // Opened without blocking and refused unless a regular file: a FIFO given as --images would
+  // otherwise block in open() for ever.
+  const core::RegularFile in = core::open_regular_file(file);
+  if (in.size() > kMaxFileBytes) fail(file, fmt::format("{} bytes, more than the 2 GiB limit", in.size()));
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(in.size()));
+  in.read_all(reinterpret_cast<char*>(bytes.data()));
   return bytes;
 }
 

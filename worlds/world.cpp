@@ -58,6 +58,8 @@ constexpr int kMaxNesting = 64;
 
 /// Scalars quoted back in messages are clipped so that one bad value cannot flood a terminal.
 constexpr std::size_t kMaxQuoted = 40;
+// The longest path a world may name (Linux's PATH_MAX).
+constexpr std::size_t kMaxPathBytes = 4096;
 
 constexpr std::string_view kYamlTagPrefix = "tag:yaml.org,2002:";
 
@@ -625,7 +627,13 @@ double Loader::read_number(const Field& f, const Bounds& range) const {
 
 std::string Loader::read_string(const Field& f, std::string_view expected) const {
   if (!f.value.IsScalar() || f.value.Scalar().empty()) fail_field(f.line, f.dotted, expected, describe(f.value));
-  return f.value.Scalar();
+  // A name or a path: longer than any path the system opens, it is refused here, quoted clipped,
+  // rather than repeated whole in a later message ("FOLDER: no such folder").
+  const std::string& s = f.value.Scalar();
+  if (s.size() > kMaxPathBytes)
+    fail_field(f.line, f.dotted, fmt::format("{} (at most {} bytes)", expected, kMaxPathBytes),
+               fmt::format("{} bytes (\"{}\")", s.size(), clip(s)));
+  return s;
 }
 
 // ---------------------------------------------------------------------------------------------
