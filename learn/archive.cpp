@@ -303,6 +303,7 @@ struct Value {
   std::vector<Ref> items;                  ///< Tuple, List; Dict: key, value, key, value...; Tensor: its sizes as Ints
   Ref state = nullptr;                     ///< Object: its attributes (a Dict) once BUILD ran
   std::optional<std::int64_t> long_value;  ///< Tensor: a one-element Long tensor's value, read from its record
+  int depth = 1;                           ///< how deep values nest in it, as far as its items were known
 };
 
 struct DtypeInfo {
@@ -643,15 +644,26 @@ class PickleMachine {
     return stack_.back();
   }
 
+  // A container's depth, as its items are added: a crafted chain of a million one-element tuples
+  // is refused at the 151st, before it takes memory (check_nesting() sees what comes later).
+  void contain(Ref container, Ref item) {
+    container->depth = std::max(container->depth, item->depth + 1);
+    if (container->depth > static_cast<int>(kMaxNesting))
+      error(fmt::format("values nested more than {} deep", kMaxNesting));
+  }
   Ref tuple(std::vector<Ref> items) {
     Ref v = make(Value::Kind::Tuple);
+    for (Ref item : items) contain(v, item);
     v->items = std::move(items);
     return v;
   }
   void append(std::vector<Ref> items) {
     Ref& list = top();
     if (list->kind != Value::Kind::List) error("APPEND to something other than a list");
-    for (Ref item : items) list->items.push_back(item);
+    for (Ref item : items) {
+      contain(list, item);
+      list->items.push_back(item);
+    }
   }
   void set_items(std::vector<Ref> items) {
     Ref& dict = top();
@@ -659,7 +671,10 @@ class PickleMachine {
     if (items.size() % 2) error("SETITEMS with an odd number of values");
     for (std::size_t i = 0; i < items.size(); i += 2)
       if (items[i]->kind != Value::Kind::String) error("a dict key that is not a string");
-    for (Ref item : items) dict->items.push_back(item);
+    for (Ref item : items) {
+      contain(dict, item);
+      dict->items.push_back(item);
+    }
   }
 
   void memo_put(std::uint64_t index) {
@@ -794,6 +809,7 @@ class PickleMachine {
     Ref& object = top();
     if (!is(object, Value::Kind::Object) || object->state || !is(state, Value::Kind::Dict))
       error("BUILD of something other than a new module with its attributes");
+    contain(object, state);
     object->state = state;
   }
 
