@@ -367,7 +367,20 @@ struct Compared {
   std::string label;
   fs::path file;
   json eval;
+  fs::path model;                            // the evaluated model, where it is on this machine ("": not found)
+  std::vector<learn::EpochMetrics> history;  // its training history, drawn beside the model's
 };
+
+// The model an evaluation names: its path as scout eval was given it (relative to where it ran,
+// usually the source tree), else a file of that name beside the evaluation; "" where neither is.
+fs::path evaluated_model(const json& eval, const fs::path& eval_file) {
+  if (!eval.contains("checkpoint") || !eval["checkpoint"].is_string()) return {};
+  const fs::path given = eval["checkpoint"].get<std::string>();
+  std::error_code ec;
+  if (fs::exists(given, ec)) return given;
+  const fs::path beside = eval_file.parent_path() / given.filename();
+  return fs::exists(beside, ec) ? beside : fs::path();
+}
 
 // Everything a report reads, read and checked before minutes of work.
 struct ReportInputs {
@@ -389,9 +402,13 @@ std::vector<Compared> read_compared(const ReportOptions& opt) {
     const std::size_t eq = entry.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == entry.size())
       throw InputError(fmt::format("--compare: expected LABEL=EVAL.json, got \"{}\"", entry));
-    Compared c{entry.substr(0, eq), entry.substr(eq + 1), {}};
+    Compared c{entry.substr(0, eq), entry.substr(eq + 1), {}, {}, {}};
     c.eval = read_json_file(c.file, "--compare");
     check_eval_json(c.eval, c.file);
+    c.model = evaluated_model(c.eval, c.file);
+    // A model found is opened like any other (a file that is not a Scout model is refused here,
+    // before minutes of work); its history draws its curve beside this model's.
+    if (!c.model.empty()) c.history = learn::open_checkpoint(learn::resolve_checkpoint(c.model)).info().history;
     compared.push_back(std::move(c));
   }
   return compared;
@@ -497,14 +514,14 @@ json compared_rows(const std::vector<Compared>& compared) {
     e["eval"] = eval_summary(c.eval);
     e["eval_source"] = c.file.string();
     e["eval_command"] = eval_command_of(c.eval);
-    // The evaluated model's manifest: its path as scout eval was given it (relative to where it
-    // ran, usually the source tree), else beside the evaluation file.
-    if (c.eval.contains("checkpoint")) {
-      const fs::path given = c.eval["checkpoint"].get<std::string>();
-      std::error_code exists;
-      const fs::path model_path = fs::exists(given, exists) ? given : c.file.parent_path() / given.filename();
-      e["train_commands"] = training_commands(manifest_beside(model_path));
+    if (c.eval.contains("checkpoint") && c.eval["checkpoint"].is_string()) {
+      // The manifest beside the model, or beside the evaluation where the model is not here.
+      const fs::path model = !c.model.empty() ? c.model
+                                              : c.file.parent_path() /
+                                                    fs::path(c.eval["checkpoint"].get<std::string>()).filename();
+      e["train_commands"] = training_commands(manifest_beside(model));
     }
+    if (!c.model.empty()) e["history"] = history_json(c.history);
     rows.push_back(e);
   }
   return rows;

@@ -9,6 +9,8 @@
 #include <iterator>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "tests/support/eval_run_fixture.hpp"
 
 namespace scout::testing::report_command_tests {
@@ -88,6 +90,36 @@ TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
   EXPECT_FALSE(fs::exists(path("beside") + "/budget.png"));
   const std::string report = read_text(path("beside") + "/REPORT.md");
   EXPECT_NE(report.find("scout eval --checkpoint " + path("run")), std::string::npos) << report;
+}
+
+// A compared model's row carries its own evaluation's figures, and its history (read from the
+// model the evaluation names) is drawn beside this model's: mode (i) only, one epoch.
+TEST_F(EvalRun, ReportComparesAnotherModelsRowAndCurve) {
+  const Result other =
+      scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --runs 2 --json " + path("mode-i-eval.json"));
+  ASSERT_EQ(other.status, 0) << other.output;
+  const Result r = scout("report " + path("run") + " --out " + path("compared") + test_data() +
+                         " --runs 2 --sweep-digits 0 --episodes 0 --compare \"mode i only=" + path("mode-i-eval.json") +
+                         "\"");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json evaluated = read_json(path("mode-i-eval.json"));
+  const json data = read_json(path("compared") + "/report-data.json");
+  ASSERT_EQ(data["compare"].size(), 1u);
+  const json& row = data["compare"][0];
+  EXPECT_EQ(row["label"], "mode i only");
+  EXPECT_EQ(row["eval"]["accuracy"], evaluated["accuracy"]);
+  EXPECT_EQ(row["eval"]["top2"], evaluated["top2"]);
+  ASSERT_EQ(row["history"].size(), 1u);
+  EXPECT_EQ(row["history"][0]["mode"], "i");
+  // The mode (i) run trained the same first epoch as the full run, from the same seed.
+  EXPECT_EQ(row["history"][0]["validation_accuracy"], data["model"]["history"][0]["validation_accuracy"]);
+  const std::string report = read_text(path("compared") + "/REPORT.md");
+  const std::string mean = fmt::format("{:.2f} ± {:.2f} %", 100 * evaluated["accuracy"]["mean"].get<double>(),
+                                       100 * evaluated["accuracy"]["ci95"].get<double>());
+  const std::size_t line = report.find("| mode i only |");
+  ASSERT_NE(line, std::string::npos) << report;
+  EXPECT_NE(report.substr(line, report.find('\n', line) - line).find(mean), std::string::npos) << report;
+  EXPECT_TRUE(fs::is_regular_file(path("compared") + "/accuracy_vs_epochs.png"));
 }
 
 TEST_F(EvalRun, ReportRefusesBadInputsWithOneLine) {

@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 
 MODE_NAMES = {"full": "full images", "i": "mode (i)", "ii": "mode (ii)", "iii": "mode (iii)"}
 MODE_COLOURS = {"full": "#7f7f7f", "i": "#1f77b4", "ii": "#2ca02c", "iii": "#d62728"}
+COMPARE_COLOURS = ["#9467bd", "#ff7f0e", "#8c564b", "#e377c2"]  # compared models' curves
 DPI = 110
 
 
@@ -55,8 +56,9 @@ def save(fig, out_dir, name):
 # ---- figures --------------------------------------------------------------------------------
 
 
-def plot_history(history, out_dir):
-    """Validation accuracy against training epochs, per mode, with the baselines."""
+def plot_history(history, out_dir, compared=()):
+    """Validation accuracy against training epochs, per mode, with the baselines; each compared
+    model's agent curve (label, history) beside it on the same epoch axis."""
     if not history:
         return None
     fig, ax = plt.subplots(figsize=(8, 4.5))
@@ -80,13 +82,26 @@ def plot_history(history, out_dir):
     ax.plot(x, goals_only, "s--", color="#2ca02c", ms=3, label="learned goals, i.i.d. actions")
     ax.plot(x, series("validation_iid"), "^--", color="#1f77b4", ms=3, label="i.i.d. goals and actions")
     ax.plot(x, series("validation_full_image"), ":", color="#7f7f7f", label="the classifier on full images")
+    # A compared run's modes need not line up with this one's: its curve is drawn on its own
+    # epoch count, and the shading stays this model's.
+    lengths, compared_values = [len(history)], []
+    for k, (label, other) in enumerate(compared):
+        if not other:
+            continue
+        y = np.array([np.nan if h.get("validation_accuracy") is None else h["validation_accuracy"] for h in other],
+                     dtype=float)
+        ax.plot(np.arange(1, len(other) + 1), y, "o-", color=COMPARE_COLOURS[k % len(COMPARE_COLOURS)], ms=3,
+                label=f"{label}: the agent")
+        lengths.append(len(other))
+        compared_values.append(y)
     ax.set_xlabel("epoch (all modes, in order)")
     ax.set_ylabel("validation accuracy")
-    finite = np.concatenate([series(k) for k in ("validation_accuracy", "validation_iid", "validation_goals_only")])
+    finite = np.concatenate([series(k) for k in ("validation_accuracy", "validation_iid", "validation_goals_only")] +
+                            compared_values)
     finite = finite[np.isfinite(finite)]
     low = max(0.0, min(finite.min() if finite.size else 0.0, 0.8) - 0.02)
     ax.set_ylim(low, 1.0)
-    ax.set_xlim(0.5, len(history) + 0.5)
+    ax.set_xlim(0.5, max(lengths) + 0.5)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8, frameon=False)
     ax.set_title("Validation accuracy against epochs (one stochastic pass per epoch)")
@@ -378,7 +393,8 @@ def main(argv):
     model = need(data, "model", data_file)
     evaluation = need(model, "eval", data_file + ": model")
     figures = {
-        "history": plot_history(model.get("history", []), out_dir),
+        "history": plot_history(model.get("history", []), out_dir,
+                                [(c["label"], c.get("history", [])) for c in data.get("compare", [])]),
         "confusion": plot_confusion(evaluation, out_dir),
         "episodes": plot_episodes(data.get("episodes", []), out_dir),
     }
