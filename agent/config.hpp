@@ -9,13 +9,13 @@ namespace scout::agent {
 /// Which classifier network f3 is. Each value has one row in kClassifierVariants (its name and
 /// help) and one factory in agent/networks.cpp (checked at compile time).
 enum class ClassifierKind {
-  Paper,     ///< METHOD.md: dense blocks at full resolution, width doubling each block, 1x1 head, GAP
+  Paper,  ///< METHOD.md: dense blocks at full resolution, width doubling each block, 1x1 head, GAP
   /// METHOD.md's dense blocks read as ResNets downsample: a stride-2 step at each doubling (block
   /// k >= 1), the concatenated skip average-pooled to match; no normalisation (the paper names none)
   PaperStrided,
   PaperStridedNorm,  ///< PaperStrided with GroupNorm after each convolution
-  Strided,   ///< beyond the paper: each block halves the resolution (stride 2), width doubling
-  ResNet18,  ///< the paper's transfer variant: ResNet-18 (BasicBlocks 2-2-2-2), base width = classifier_width
+  Strided,           ///< beyond the paper: each block halves the resolution (stride 2), width doubling
+  ResNet18,          ///< the paper's transfer variant: ResNet-18 (BasicBlocks 2-2-2-2), base width = classifier_width
 };
 
 /// A classifier variant as the command line, the checkpoint's config and the documentation name it.

@@ -75,8 +75,8 @@ struct TrainResult {
 /// Where the schedule stands (stored in checkpoints).
 struct ScheduleCursor {
   Stage stage = Stage::Pretrain;  ///< Done once the schedule has no epoch left
-  int epoch = 0;  ///< epochs done within that stage
-  int batch = 0;  ///< batches done within the next epoch (non-zero only after an interrupt)
+  int epoch = 0;                  ///< epochs done within that stage
+  int batch = 0;                  ///< batches done within the next epoch (non-zero only after an interrupt)
 };
 
 /// The files of a run folder.

@@ -516,9 +516,9 @@ json compared_rows(const std::vector<Compared>& compared) {
     e["eval_command"] = eval_command_of(c.eval);
     if (c.eval.contains("checkpoint") && c.eval["checkpoint"].is_string()) {
       // The manifest beside the model, or beside the evaluation where the model is not here.
-      const fs::path model = !c.model.empty() ? c.model
-                                              : c.file.parent_path() /
-                                                    fs::path(c.eval["checkpoint"].get<std::string>()).filename();
+      const fs::path model = !c.model.empty()
+                                 ? c.model
+                                 : c.file.parent_path() / fs::path(c.eval["checkpoint"].get<std::string>()).filename();
       e["train_commands"] = training_commands(manifest_beside(model));
     }
     if (!c.model.empty()) e["history"] = history_json(c.history);

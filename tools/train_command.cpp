@@ -303,8 +303,7 @@ void print_run_header(const learn::Trainer& trainer, const fs::path& run, bool r
   if (resuming) {
     const learn::ScheduleCursor& k = trainer.cursor();
     fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer.history().size(),
-               learn::to_string(k.stage),
-               k.epoch, k.batch);
+               learn::to_string(k.stage), k.epoch, k.batch);
   }
   std::fflush(stdout);
 }

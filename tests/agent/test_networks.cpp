@@ -159,8 +159,11 @@ TEST(Networks, TheStridedReadingSamplesEvery2ToTheRMinus1Pixels) {
     floor.narrow(2, y, 5).narrow(3, x, 5).copy_(blob);
     return floor;
   };
-  const auto max_change = [](const torch::Tensor& a, const torch::Tensor& b) { return (a - b).abs().max().item<float>(); };
-  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm}) {
+  const auto max_change = [](const torch::Tensor& a, const torch::Tensor& b) {
+    return (a - b).abs().max().item<float>();
+  };
+  for (const ClassifierKind kind :
+       {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm}) {
     SCOPED_TRACE(to_string(kind));
     NetworkConfig config = config_for(kind);
     config.classifier_depth = 3;
@@ -244,8 +247,8 @@ TEST(Networks, GoalLogitsAreRowMajorAndSeeA7x7Neighbourhood) {
 
 TEST(Networks, PlannersAndPerSampleClassifiersAreBatchIndependent) {
   torch::manual_seed(5);
-  for (const ClassifierKind kind :
-       {ClassifierKind::Paper, ClassifierKind::PaperStrided, ClassifierKind::PaperStridedNorm, ClassifierKind::Strided}) {
+  for (const ClassifierKind kind : {ClassifierKind::Paper, ClassifierKind::PaperStrided,
+                                    ClassifierKind::PaperStridedNorm, ClassifierKind::Strided}) {
     SCOPED_TRACE(to_string(kind));
     const NetworkConfig config = config_for(kind);
     Agent agent(config);

@@ -1,6 +1,7 @@
 // `scout report` end to end on the EvalRun fixture's tiny model (real Box2D, OSMesa, LibTorch and
 // matplotlib): the folder's files, numbers that agree with the evaluation and with each other, an
 // evaluation found beside the model and not repeated, and bad inputs refused with one line.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,8 +9,6 @@
 #include <fstream>
 #include <iterator>
 #include <string>
-
-#include <fmt/format.h>
 
 #include "tests/support/eval_run_fixture.hpp"
 
@@ -98,9 +97,9 @@ TEST_F(EvalRun, ReportComparesAnotherModelsRowAndCurve) {
   const Result other =
       scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --runs 2 --json " + path("mode-i-eval.json"));
   ASSERT_EQ(other.status, 0) << other.output;
-  const Result r = scout("report " + path("run") + " --out " + path("compared") + test_data() +
-                         " --runs 2 --sweep-digits 0 --episodes 0 --compare \"mode i only=" + path("mode-i-eval.json") +
-                         "\"");
+  const Result r =
+      scout("report " + path("run") + " --out " + path("compared") + test_data() +
+            " --runs 2 --sweep-digits 0 --episodes 0 --compare \"mode i only=" + path("mode-i-eval.json") + "\"");
   ASSERT_EQ(r.status, 0) << r.output;
   const json evaluated = read_json(path("mode-i-eval.json"));
   const json data = read_json(path("compared") + "/report-data.json");
