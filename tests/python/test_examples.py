@@ -2,6 +2,7 @@
 moves must beat i.i.d. moves by at least 15 points on held-out floors, and PPO's short form
 through Gymnasium, whose learned moves must beat random moves by at least 15 points for the same
 fixed classifier (where Gymnasium cannot be imported, that test is skipped with one line)."""
+import math
 import os
 import re
 import subprocess
@@ -20,10 +21,20 @@ def run(script, *args):
     return result.stdout
 
 
-def test_the_random_agent_runs_and_pays_about_log_one_tenth():
+def test_the_random_agent_pays_log_one_tenth_on_every_move_but_the_reset_steps():
+    # The uniform prediction's reward is ln(1/10) on a move and 0 on the step that starts a robot's
+    # next run (NEXT_STEP autoreset): of `steps` steps, one in every run + 1 is a reset step.
     out = run("random_agent.py", "--num-envs", "16", "--runs", "2")
-    reward = float(re.search(r"mean reward per move (-?\d+\.\d+)", out).group(1))
-    assert -2.31 < reward < -2.0, out  # log(1/10) = -2.303 on every move but the reset steps'
+    import scout  # the run length the example's world (the default, worlds/mnist.yaml) has
+    world = scout.make_vec(os.path.join(SOURCE, "worlds", "mnist.yaml"), 1)
+    run_moves = world.episodes * world.steps
+    found = re.search(r"16 robots x (\d+) moves in .*\nmean reward per move (-?\d+\.\d+)", out)
+    assert found, out
+    steps, reward = int(found.group(1)), float(found.group(2))
+    assert steps == 2 * run_moves, out  # --runs 2
+    paying = steps - steps // (run_moves + 1)  # 40 steps of 20-move runs: 39 paying, 1 reset step
+    expected = paying / steps * math.log(0.1)  # 39/40 ln 0.1 = -2.2450 (all 40: ln 0.1 = -2.3026)
+    assert abs(reward - expected) < 1e-4, (reward, expected, out)  # printed to 4 decimals
 
 
 def test_reinforce_learns_to_look_at_the_corner():
