@@ -63,6 +63,8 @@ std::string path(py::handle value, const std::string& name, const std::string& e
     throw py::type_error(name + ": expected " + expected + ", got " + text_of(value));
   const py::object p = fspath(value);
   if (!py::isinstance<py::str>(p)) throw py::type_error(name + ": expected " + expected + ", got " + text_of(value));
+  // An empty path names no file or folder; C++ would take it as "not given" (data: the default folder).
+  if (py::len(p) == 0) throw py::value_error(name + ": expected " + expected + ", got " + text_of(value));
   return p.cast<std::string>();
 }
 

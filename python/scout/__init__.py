@@ -17,6 +17,7 @@ in C++ (scout._scout): a bad one raises ValueError or TypeError with one line.
 """
 import numbers
 import os
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -98,6 +99,13 @@ else:
             if not self.closed:
                 self.close_extras()
                 self.closed = True
+
+        def __enter__(self):  # gymnasium.Env's with-statement: closes on the way out
+            return self
+
+        def __exit__(self, *exc):
+            self.close()
+            return False
 
     _VectorBase = _EnvBase = _Base
 
@@ -281,6 +289,10 @@ class Agent:
                 break
         logits = agent.classify(obs)       # (num_envs, D) log-probabilities
 
+    `greedy`: the argmax goals and moves (what `scout run --greedy` chooses) instead of drawing them
+    from each run's policy seed (info["policy_seed"]). `threads`: LibTorch's threads for the
+    networks, 0..256 (0: one per core; a process-wide setting, the last Agent made sets it).
+
     `precision` is the networks' arithmetic here: "auto" (bf16 where this CPU has native bf16,
     else fp32, whatever the model was trained in), "bf16" or "fp32"; `agent.precision` says which
     runs, `agent.trained_precision` what the model was trained in.
@@ -290,23 +302,45 @@ class Agent:
     def __init__(self, model, greedy=False, threads=0, precision="auto"):
         if not isinstance(model, (str, os.PathLike)):
             raise TypeError(f"model: expected a path to a model file or run folder, got {model!r}")
+        if not isinstance(greedy, (bool, np.bool_)):  # bool("no") would be True
+            raise TypeError(f"greedy: expected True or False, got {greedy!r}")
         if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral) or not 0 <= threads <= 256:
             raise ValueError(f"threads: expected an integer in 0..256 (0: one per core), got {threads!r}")
+        if not isinstance(precision, str):  # str(None) would be refused as "None", a value never given
+            raise TypeError(f"precision: expected 'auto', 'bf16' or 'fp32', got {precision!r}")
         from . import _scout_agent  # LibTorch comes with it
-        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads), str(precision))
+        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads), precision)
         self.num_classes = self._core.classes
         self.precision = self._core.precision
         self.trained_precision = self._core.trained_precision
 
     @staticmethod
-    def _robots(obs, info=None):
-        """The arrays the agent reads, checked to describe the same robots and floor."""
+    def _robots(obs, info=None, need_info=False):
+        """The arrays the agent reads, checked to describe the same robots and floor: integers
+        that fit where integers are read, finite values in [0, 1] for the revealed floor."""
+        for where, source in [("obs", obs)] + ([("info", info)] if need_info else []):
+            if not isinstance(source, Mapping):
+                raise TypeError(f"{where}: expected the dict make_vec's reset and step return, got "
+                                f"{type(source).__name__}")
+
         def get(source, where, key, dtype, shape):
             if key not in source:
                 raise ValueError(f"{where}[{key!r}]: missing")
             value = np.asarray(source[key])
             if value.shape != shape:
                 raise ValueError(f"{where}[{key!r}]: expected shape {shape}, got {value.shape}")
+            if dtype is float:  # the revealed floor: any real numbers (checked for [0, 1] below)
+                dtype = np.float32
+                if value.dtype.kind not in "biuf":
+                    raise TypeError(f"{where}[{key!r}]: expected numbers, got dtype {value.dtype}")
+            elif value.dtype.kind not in "biu":  # a float pose or seed is refused, not truncated
+                raise TypeError(f"{where}[{key!r}]: expected integers, got dtype {value.dtype}")
+            elif dtype is not bool and value.dtype.kind != "b" and value.size:  # nothing wraps around
+                limits = np.iinfo(dtype)
+                low, high = value.min(), value.max()
+                if low < limits.min or high > limits.max:
+                    raise ValueError(f"{where}[{key!r}]: expected values that fit {np.dtype(dtype).name}, "
+                                     f"got {low if low < limits.min else high}")
             return np.ascontiguousarray(value, dtype=dtype)
         seen = np.asarray(obs["seen"]) if "seen" in obs else None
         if seen is None or seen.ndim != 3 or seen.shape[0] < 1:
@@ -315,11 +349,15 @@ class Agent:
         patch = np.asarray(obs.get("patch", np.empty(0)))
         if patch.ndim != 3 or patch.shape[0] != n or patch.shape[1] != patch.shape[2]:
             raise ValueError(f"obs['patch']: expected shape ({n}, m, m), got {patch.shape}")
+        revealed = get(obs, "obs", "revealed", float, (n, h, w))
+        if not (np.all(revealed >= 0) and np.all(revealed <= 1)):  # NaN fails both
+            bad = revealed[~((revealed >= 0) & (revealed <= 1))][0]
+            raise ValueError(f"obs['revealed']: expected values in [0, 1] (the floor's pixels / 255), got {bad}")
         arrays = {"pose": get(obs, "obs", "pose", np.int32, (n, 2)),
                   "seen": get(obs, "obs", "seen", np.uint8, (n, h, w)),
-                  "revealed": get(obs, "obs", "revealed", np.float32, (n, h, w)),
+                  "revealed": revealed,
                   "patch_px": int(patch.shape[1])}
-        if info is not None:
+        if need_info:
             arrays.update(time_step=get(obs, "obs", "time_step", np.int32, (n,)),
                           policy_seed=get(info, "info", "policy_seed", np.uint64, (n,)),
                           episode=get(info, "info", "goal_episode", np.int32, (n,)),
@@ -329,7 +367,7 @@ class Agent:
     def act(self, obs, info):
         """The action dict for the next move: the planners' moves and the episode's goals (the goal
         keeps each move from passing it, as the paper's protocol does)."""
-        a = self._robots(obs, info)
+        a = self._robots(obs, info, need_info=True)
         moves, goals = self._core.act(a["pose"], a["seen"], a["revealed"], a["time_step"], a["policy_seed"],
                                       a["episode"], a["episode_start"], a["patch_px"])
         return {"move": moves, "goal": goals}

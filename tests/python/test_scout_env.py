@@ -1,11 +1,16 @@
 """The Python package end to end (real Box2D, OSMesa and LibTorch): scout.Agent driving make_vec
-reproduces `scout run --checkpoint` bit for bit; observations match the described spaces;
-autoreset; determinism; every bad input is one clear exception; memory stays flat over 10^6
-agent-steps. ctest runs this with PYTHONPATH=build/python, SCOUT_BINARY and SCOUT_SOURCE_DIR set."""
+reproduces `scout run --checkpoint` bit for bit, in the precision asked for and greedy as `scout run
+--greedy`; its threads are the ones asked for; observations match the described spaces; autoreset;
+determinism; split= and data= pick the digits the IDX files hold; close() and the with-statement
+release the environment; every bad input (to make_vec, scout.Env or scout.Agent) is one clear
+exception; memory stays flat over 10^6 agent-steps. ctest runs this with PYTHONPATH=build/python,
+SCOUT_BINARY and SCOUT_SOURCE_DIR set."""
+import gc
 import json
 import os
 import subprocess
 import sys
+import weakref
 
 import numpy as np
 import pytest
@@ -60,7 +65,7 @@ def test_the_agent_through_make_vec_is_scout_run_bit_for_bit(tmp_path):
 
 def test_the_agent_runs_in_the_precision_asked_for_as_scout_run_does(tmp_path):
     # The model was trained in bf16; fp32 asked for runs fp32 and chooses what `scout run
-    # --precision fp32` chooses.
+    # --precision fp32` chooses: the same digits, starts, moves, goals and probabilities.
     n, seed = 8, 4
     out = tmp_path / "run"
     subprocess.run([BINARY, "run", WORLD, "--checkpoint", MODEL, "--precision", "fp32", "--seed", str(seed),
@@ -68,20 +73,219 @@ def test_the_agent_runs_in_the_precision_asked_for_as_scout_run_does(tmp_path):
     runs = json.loads((out / "trajectory.json").read_text())["runs"]
     agent = scout.Agent(MODEL, precision="fp32")
     assert (agent.precision, agent.trained_precision) == ("fp32", "bf16")
-    _, poses, goals, logits = drive(scout.make_vec(WORLD, n, seed=seed), agent, seed)
+    info, poses, goals, logits = drive(scout.make_vec(WORLD, n, seed=seed), agent, seed)
+    for i, run in enumerate(runs):
+        assert (info["index"][i], info["label"][i]) == (run["index"], run["label"])
+        assert list(poses[0, i]) == run["start"]
+        assert [list(p) for p in poses[1:, i]] == [s["grid_pose"] for s in run["steps"]]
+        assert [list(g) for g in goals[:, i]] == [s["goal"] for s in run["steps"]]
+        assert np.allclose(np.exp(logits[i]), run["probabilities"], atol=1e-6)
+        assert int(np.argmax(logits[i])) == run["prediction"]
+    # The comparison tells the precisions apart: in bf16 the classifier's probabilities differ from
+    # fp32's by far more than the 1e-6 above, so an Agent that ran bf16 whatever it was asked for
+    # would fail the loop.
+    envs = scout.make_vec(WORLD, n, seed=seed)
+    obs, _ = envs.reset()
+    obs, *_ = envs.step({"move": np.arange(n) % 4})
+    bf16 = scout.Agent(MODEL, precision="bf16")
+    assert bf16.precision == "bf16"
+    assert np.abs(np.exp(bf16.classify(obs)) - np.exp(agent.classify(obs))).max() > 1e-3
+    with pytest.raises(ValueError) as caught:
+        scout.Agent(MODEL, precision="fp16")
+    assert str(caught.value) == 'precision: expected one of fp32, bf16, auto, got "fp16"'
+
+
+def cpu_has_native_bf16():
+    """What /proc/cpuinfo says, read independently of Scout's CPUID check."""
+    with open("/proc/cpuinfo") as f:
+        flags = next((line.split(":", 1)[1].split() for line in f if line.startswith("flags")), [])
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+AUTO_PROBE = """
+import json, sys, numpy as np, scout
+envs = scout.make_vec(%r, 4, seed=2)
+obs, _ = envs.reset()
+obs, *_ = envs.step({"move": np.array([0, 1, 2, 3])})
+auto = scout.Agent(%r)
+resolved = scout.Agent(%r, precision=auto.precision)
+same_output = np.array_equal(auto.classify(obs), resolved.classify(obs))
+print(json.dumps([auto.precision, auto.trained_precision, bool(same_output)]))
+"""
+
+
+@pytest.mark.parametrize("capped", [True, False], ids=["avx2-cap", "this-cpu"])
+def test_the_agents_auto_precision_is_bf16_only_where_bf16_is_native(capped):
+    # oneDNN capped to AVX2: the stand-in for a CPU without native bf16, where auto is fp32;
+    # uncapped, auto is bf16 exactly where /proc/cpuinfo shows AVX-512 BF16 or AMX-BF16. Either way
+    # the agent runs what it says: its classifier's output is that of an agent asked for it.
+    env = dict(os.environ)
+    if capped:
+        env.update(ONEDNN_MAX_CPU_ISA="AVX2", ATEN_CPU_CAPABILITY="avx2")
+    else:
+        for name in ("ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "ATEN_CPU_CAPABILITY"):
+            env.pop(name, None)
+    result = subprocess.run([sys.executable, "-c", AUTO_PROBE % (WORLD, MODEL, MODEL)], env=env, capture_output=True,
+                            text=True)
+    assert result.returncode == 0, result.stderr
+    precision, trained, same_output = json.loads(result.stdout)
+    expected = "fp32" if capped or not cpu_has_native_bf16() else "bf16"
+    assert (precision, trained, same_output) == (expected, "bf16", True)
+
+
+def first_goals(agent, obs, info, shift):
+    """The goals the agent chooses at the start of the runs, shown policy seeds shifted by `shift`."""
+    return agent.act(obs, dict(info, policy_seed=info["policy_seed"] + np.uint64(shift)))["goal"]
+
+
+def test_the_greedy_agent_is_scout_run_greedy_and_ignores_the_policy_seeds(tmp_path):
+    # greedy=True: argmax goals and moves, as `scout run --greedy` chooses them, whatever the runs'
+    # policy seeds; greedy=False samples from those seeds, so other seeds choose other goals.
+    n, seed = 6, 9
+    out = tmp_path / "run"
+    subprocess.run([BINARY, "run", WORLD, "--checkpoint", MODEL, "--greedy", "--seed", str(seed), "--count", str(n),
+                    "--no-images", "--out", str(out)], check=True, capture_output=True)
+    runs = json.loads((out / "trajectory.json").read_text())["runs"]
+    greedy = scout.Agent(MODEL, greedy=True, threads=1)
+    _, poses, goals, logits = drive(scout.make_vec(WORLD, n, seed=seed), greedy, seed)
     for i, run in enumerate(runs):
         assert [list(p) for p in poses[1:, i]] == [s["grid_pose"] for s in run["steps"]]
+        assert [list(g) for g in goals[:, i]] == [s["goal"] for s in run["steps"]]
         assert np.allclose(np.exp(logits[i]), run["probabilities"], atol=1e-6)
-    with pytest.raises(ValueError, match="precision"):
-        scout.Agent(MODEL, precision="fp16")
+    obs, info = scout.make_vec(WORLD, n, seed=seed).reset()
+    assert np.array_equal(first_goals(greedy, obs, info, 12345), goals[0])
+    sampling = scout.Agent(MODEL, threads=1)
+    sampled = first_goals(sampling, obs, info, 0)
+    assert np.array_equal(first_goals(sampling, obs, info, 0), sampled)  # the same seeds choose the same
+    assert not np.array_equal(first_goals(sampling, obs, info, 12345), sampled)
+    assert not np.array_equal(sampled, goals[0])
 
 
-def test_the_agents_auto_precision_is_fp32_where_bf16_is_not_native():
-    # oneDNN capped to AVX2: the stand-in for a CPU without native bf16.
-    env = dict(os.environ, ONEDNN_MAX_CPU_ISA="AVX2", ATEN_CPU_CAPABILITY="avx2")
-    probe = "import scout; a = scout.Agent(%r); print(a.precision, a.trained_precision)" % MODEL
-    result = subprocess.run([sys.executable, "-c", probe], env=env, check=True, capture_output=True, text=True)
-    assert result.stdout.split() == ["fp32", "bf16"], result.stderr
+THREADS_PROBE = """
+import json, os, numpy as np, scout
+import scout._scout_agent  # LibTorch loaded first: threads a library starts as it loads are not the networks'
+import torch  # Debian's, over the same libtorch_cpu: it reads the setting scout.Agent makes
+envs = scout.make_vec(%r, 16, seed=1)
+obs, info = envs.reset()
+def threads(): return len(os.listdir("/proc/self/task"))
+seen = []
+for asked in (1, 3, 0):
+    before = threads()
+    agent = scout.Agent(%r, threads=asked)
+    agent.classify(obs)
+    agent.act(obs, info)
+    seen.append([asked, torch.get_num_threads(), threads() - before])
+libraries = {os.path.realpath(line.split()[-1]) for line in open("/proc/self/maps") if "libtorch_cpu" in line}
+assert len(libraries) == 1, libraries  # one LibTorch: torch.get_num_threads() is scout.Agent's
+print(json.dumps(seen))
+"""
+
+
+def test_the_agents_threads_are_the_ones_asked_for():
+    # LibTorch's intra-op threads: with 1 the networks run on the calling thread alone (they start
+    # no thread), with 3 on at least two more, with 0 one per core.
+    result = subprocess.run([sys.executable, "-c", THREADS_PROBE % (WORLD, MODEL)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    one, three, zero = json.loads(result.stdout)  # [asked, LibTorch's setting, threads started]
+    assert one[1:] == [1, 0], one
+    assert three[1] == 3 and three[2] >= 2, three
+    assert zero[1] == os.cpu_count(), zero
+
+
+@pytest.fixture(scope="module")
+def agent_and_robots():
+    """An agent, 3 robots at the start of their runs and what the agent chooses for them."""
+    agent = scout.Agent(MODEL, threads=1)
+    obs, info = scout.make_vec(WORLD, 3, seed=1).reset()
+    return agent, obs, info, agent.act(obs, info), agent.classify(obs)
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"model": 123}, TypeError, "model: expected a path to a model file or run folder, got 123"),
+    ({"model": "/no/such.pt"}, ValueError, "/no/such.pt: no such checkpoint file"),
+    ({"model": os.path.join(SOURCE, "README.md")}, ValueError,
+     f"{os.path.join(SOURCE, 'README.md')}: not a Scout checkpoint"),
+    ({"greedy": "no"}, TypeError, "greedy: expected True or False, got 'no'"),
+    ({"greedy": None}, TypeError, "greedy: expected True or False, got None"),
+    ({"threads": -1}, ValueError, "threads: expected an integer in 0..256 (0: one per core), got -1"),
+    ({"threads": 257}, ValueError, "threads: expected an integer in 0..256 (0: one per core), got 257"),
+    ({"threads": 1.5}, ValueError, "threads: expected an integer in 0..256 (0: one per core), got 1.5"),
+    ({"threads": True}, ValueError, "threads: expected an integer in 0..256 (0: one per core), got True"),
+    ({"precision": "fp16"}, ValueError, 'precision: expected one of fp32, bf16, auto, got "fp16"'),
+    ({"precision": None}, TypeError, "precision: expected 'auto', 'bf16' or 'fp32', got None"),
+])
+def test_bad_agent_arguments_raise_one_clear_line(kwargs, error, message):
+    args = dict({"model": MODEL}, **kwargs)
+    with pytest.raises(error) as caught:
+        scout.Agent(**args)
+    text = str(caught.value)
+    assert "\n" not in text
+    assert text.startswith(message), text
+
+
+def changed(source, **entries):
+    """A copy of obs or info with entries replaced (None: removed)."""
+    copy = dict(source, **entries)
+    return {k: v for k, v in copy.items() if v is not None}
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda o, i: ("act", None, i), TypeError, "obs: expected the dict make_vec's reset and step return, got NoneType"),
+    (lambda o, i: ("act", o, None), TypeError,
+     "info: expected the dict make_vec's reset and step return, got NoneType"),
+    (lambda o, i: ("classify", [o], None), TypeError,
+     "obs: expected the dict make_vec's reset and step return, got list"),
+    (lambda o, i: ("act", changed(o, pose=None), i), ValueError, "obs['pose']: missing"),
+    (lambda o, i: ("act", changed(o, pose=o["pose"][:2]), i), ValueError,
+     "obs['pose']: expected shape (3, 2), got (2, 2)"),
+    (lambda o, i: ("act", changed(o, pose=o["pose"] + 0.5), i), TypeError,
+     "obs['pose']: expected integers, got dtype float64"),
+    (lambda o, i: ("act", changed(o, pose=o["pose"] + 2**32), i), ValueError,
+     "obs['pose']: expected values that fit int32, got 42949"),
+    (lambda o, i: ("act", changed(o, pose=o["pose"] + 100), i), ValueError,
+     "obs['pose'][0]: expected a cell of the floor"),
+    (lambda o, i: ("act", changed(o, seen=o["seen"][0]), i), ValueError,
+     "obs['seen']: expected shape (num_envs, H, W)"),
+    (lambda o, i: ("act", changed(o, seen=o["seen"] * 0.5), i), TypeError,
+     "obs['seen']: expected integers, got dtype float64"),
+    (lambda o, i: ("act", changed(o, patch=None), i), ValueError, "obs['patch']: expected shape (3, m, m), got (0,)"),
+    (lambda o, i: ("act", changed(o, revealed=o["revealed"][:, :5]), i), ValueError,
+     "obs['revealed']: expected shape (3, 28, 28), got (3, 5, 28)"),
+    (lambda o, i: ("classify", changed(o, revealed=np.full_like(o["revealed"], np.nan)), None), ValueError,
+     "obs['revealed']: expected values in [0, 1] (the floor's pixels / 255), got nan"),
+    (lambda o, i: ("classify", changed(o, revealed=o["revealed"] - 1), None), ValueError,
+     "obs['revealed']: expected values in [0, 1] (the floor's pixels / 255), got -1.0"),
+    (lambda o, i: ("act", changed(o, time_step=None), i), ValueError, "obs['time_step']: missing"),
+    (lambda o, i: ("act", changed(o, time_step=np.array([0, 1, 0])), i), ValueError,
+     "scout.Agent: every robot must be at the same move of its episode (time_step 0 and 1)"),
+    (lambda o, i: ("act", o, changed(i, policy_seed=None)), ValueError, "info['policy_seed']: missing"),
+    (lambda o, i: ("act", o, changed(i, policy_seed=-np.ones(3, np.int64))), ValueError,
+     "info['policy_seed']: expected values that fit uint64, got -1"),
+    (lambda o, i: ("act", o, changed(i, goal_episode=np.zeros(2, np.int32))), ValueError,
+     "info['goal_episode']: expected shape (3,), got (2,)"),
+])
+def test_bad_agent_inputs_raise_one_clear_line_and_change_nothing(agent_and_robots, call, error, message):
+    agent, obs, info, action, logits = agent_and_robots
+    method, bad_obs, bad_info = call(obs, info)
+    with pytest.raises(error) as caught:
+        getattr(agent, method)(*([bad_obs, bad_info] if method == "act" else [bad_obs]))
+    text = str(caught.value)
+    assert "\n" not in text
+    assert text.startswith(message), text
+    # The agent was left as it was: it chooses and classifies what it did before the refusal.
+    again = agent.act(obs, info)
+    assert all(np.array_equal(again[k], action[k]) for k in action)
+    assert np.array_equal(agent.classify(obs), logits)
+
+
+def test_an_agent_must_see_the_runs_start():
+    agent = scout.Agent(MODEL, threads=1)
+    envs = scout.make_vec(WORLD, 2, seed=1)
+    envs.reset()
+    obs, _, _, _, info = envs.step({"move": np.zeros(2, int)})
+    with pytest.raises(ValueError) as caught:
+        agent.act(obs, info)
+    assert str(caught.value) == "scout.Agent: act() must first see the robots at time_step 0 (after reset)"
 
 
 def test_observations_match_the_described_spaces_and_are_never_overwritten():
@@ -200,6 +404,109 @@ def test_bad_arguments_raise_one_clear_line(kwargs, error, message):
     text = str(caught.value)
     assert "\n" not in text
     assert message in text, text
+
+
+def read_idx(path):
+    """An IDX file as a NumPy array, read here without Scout: big-endian dimensions after the magic."""
+    raw = np.fromfile(path, np.uint8)
+    assert raw[0] == raw[1] == 0 and raw[2] == 8, path  # unsigned bytes
+    dims = raw[3]
+    shape = tuple(int(d) for d in raw[4:4 + 4 * dims].view(">u4"))
+    return raw[4 + 4 * dims:].reshape(shape)
+
+
+SUBSET = os.path.join(SOURCE, "tests", "data", "mnist-subset")  # 96 train, 32 validation, 64 test digits
+
+
+@pytest.mark.parametrize("split, files", [("train", "train"), ("validation", "validation"), ("test", "t10k"),
+                                          (None, "t10k")])  # None: the world's own split (test)
+def test_split_and_data_pick_that_splits_digits(split, files):
+    images = read_idx(os.path.join(SUBSET, f"{files}-images-idx3-ubyte"))
+    labels = read_idx(os.path.join(SUBSET, f"{files}-labels-idx1-ubyte"))
+    n = len(labels)
+    # As many robots as digits: the first runs take every digit of the split once (a permutation).
+    envs = scout.make_vec(WORLD, n, seed=3, split=split, data=SUBSET)
+    obs, info = envs.reset()
+    assert sorted(info["index"]) == list(range(n))
+    assert np.array_equal(info["label"], labels[info["index"]])
+    seen = obs["seen"] == 1
+    assert seen.any(axis=(1, 2)).all()
+    floors = images[info["index"]]  # revealed is the floor's bytes / 255 where seen
+    assert np.array_equal(np.rint(obs["revealed"][seen] * 255), floors[seen]), "the floor seen is not the split's digit"
+    # One robot (scout.Env) takes the same keywords: reset(seed=3) runs make_vec's robot 0's run.
+    env = scout.Env(WORLD, split=split, data=SUBSET)
+    one, one_info = env.reset(seed=3)
+    assert (one_info["index"], one_info["label"]) == (info["index"][0], info["label"][0])
+    assert np.array_equal(one["revealed"], obs["revealed"][0])
+
+
+def test_split_without_data_reads_the_installed_mnist():
+    # data=None: the installed MNIST (data/mnist, or $SCOUT_DATA/mnist), whose validation split is
+    # its own file pair.
+    images = read_idx(os.path.join(DATA, "validation-images-idx3-ubyte"))
+    labels = read_idx(os.path.join(DATA, "validation-labels-idx1-ubyte"))
+    obs, info = scout.make_vec(WORLD, 8, seed=3, split="validation").reset()
+    assert np.array_equal(info["label"], labels[info["index"]])
+    seen = obs["seen"] == 1
+    assert np.array_equal(np.rint(obs["revealed"][seen] * 255), images[info["index"]][seen])
+
+
+def test_a_missing_or_incomplete_data_folder_is_one_clear_line(tmp_path):
+    expected = ("expected train-images-idx3-ubyte, train-labels-idx1-ubyte, t10k-images-idx3-ubyte, "
+                "t10k-labels-idx1-ubyte")
+    (tmp_path / "mnist").mkdir()
+    for name in os.listdir(SUBSET):
+        if name != "t10k-labels-idx1-ubyte":
+            os.symlink(os.path.join(SUBSET, name), tmp_path / "mnist" / name)
+    cases = [({"data": "/no/such/folder"}, ValueError, f"{WORLD}:3: floor.dataset: /no/such/folder/mnist: no such "
+              "folder; " + expected, "(run `scout data --data /no/such/folder` to install MNIST there)"),
+             ({"data": str(tmp_path)}, ValueError, f"{WORLD}:3: floor.dataset: {tmp_path}/mnist: missing "
+              "t10k-labels-idx1-ubyte[.gz]; " + expected, ""),
+             ({"data": ""}, ValueError, "data: expected a path to a data folder, got ''", ""),
+             ({"data": 5}, TypeError, "data: expected a path to a data folder, got 5", ""),
+             ({"split": "Test"}, ValueError, "split: expected 'train', 'validation' or 'test', got 'Test'", ""),
+             ({"split": 1}, ValueError, "split: expected 'train', 'validation' or 'test', got 1", "")]
+    for kwargs, error, starts, ends in cases:
+        for make in (lambda: scout.make_vec(WORLD, 2, **kwargs), lambda: scout.Env(WORLD, **kwargs)):
+            with pytest.raises(error) as caught:
+                make()
+            text = str(caught.value)
+            assert "\n" not in text and text.startswith(starts) and text.endswith(ends), (kwargs, text)
+    # The folder serves the splits it has: train needs no t10k labels.
+    _, info = scout.make_vec(WORLD, 96, seed=1, split="train", data=str(tmp_path)).reset()
+    assert sorted(info["index"]) == list(range(96))
+
+
+def test_close_and_the_with_statement_release_the_environment():
+    step = {"move": np.zeros(2, int)}
+    with scout.make_vec(WORLD, 2, seed=1, render_mode="rgb_array") as envs:
+        assert not envs.closed
+        core = weakref.ref(envs._core)
+        envs.reset()
+        envs.step(step)
+    assert envs.closed
+    gc.collect()
+    assert core() is None, "close() kept the C++ environment (its robots, floors and threads) alive"
+    for what, call in (("reset", envs.reset), ("step", lambda: envs.step(step)), ("render", envs.render)):
+        with pytest.raises(ValueError) as caught:
+            call()
+        assert str(caught.value) == f"{what}: the environment is closed"
+    envs.close()  # a second close is harmless
+    assert envs.closed
+    # An exception inside the block still closes, and goes on up.
+    with pytest.raises(KeyError, match="inside"):
+        with scout.make_vec(WORLD, 2) as inner:
+            raise KeyError("inside")
+    assert inner.closed
+    # One robot: the same, with or without Gymnasium (gymnasium.Env's with-statement).
+    with scout.Env(WORLD) as env:
+        env.reset(seed=1)
+    assert env.closed
+    with pytest.raises(ValueError) as caught:
+        env.step({"move": 0})
+    assert str(caught.value) == "step: the environment is closed"
+    env.close()
+    assert env.closed
 
 
 def test_more_robots_than_memory_allows_are_refused_unless_forced(monkeypatch):
