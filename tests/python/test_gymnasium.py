@@ -60,6 +60,22 @@ def test_make_vec_is_a_gymnasium_vector_env():
     envs.close()  # twice is fine
 
 
+def test_the_with_statement_closes_through_gymnasium():
+    # gymnasium.vector.VectorEnv has no with-statement of its own: scout.VectorEnv's closes it;
+    # gymnasium.make's wrappers pass close() down to scout.Env.
+    with gymnasium.make_vec("scout/MNIST-v0", num_envs=2) as envs:
+        envs.reset(seed=1)
+    assert envs.closed and envs._core is None
+    with pytest.raises(ValueError, match="^reset: the environment is closed$"):
+        envs.reset()
+    with gymnasium.make("scout/MNIST-v0") as env:
+        env.reset(seed=1)
+    assert env.unwrapped.closed
+    with pytest.raises(ValueError, match="^reset: the environment is closed$"):
+        env.unwrapped.reset()
+    env.close()  # twice is fine
+
+
 def test_registered_ids_make_the_vector_env_one_robot_and_any_world():
     envs = gymnasium.make_vec("scout/MNIST-v0", num_envs=4, seed=2)
     assert isinstance(envs, scout.VectorEnv) and envs.num_envs == 4
