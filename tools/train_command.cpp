@@ -15,6 +15,7 @@
 
 #include "core/digest.hpp"
 #include "core/error.hpp"
+#include "core/folder_lock.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/distributed.hpp"
 #include "learn/trainer.hpp"
@@ -209,6 +210,9 @@ std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::pa
   if (!o.resume.empty()) {
     if (!fs::is_regular_file(run / learn::kCheckpointFile))
       throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
+    if (!core::take_folder_for_this_process(run))
+      throw InputError("--resume: " + o.resume +
+                       ": another scout train is writing this run; resume it once that one has ended");
     // Opened once: read, checked and parsed here, and the trainer continues from it.
     const learn::Checkpoint checkpoint = learn::open_checkpoint(run / learn::kCheckpointFile);
     const learn::CheckpointInfo& info = checkpoint.info();
@@ -242,9 +246,15 @@ std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::pa
   const learn::TrainConfig config = new_run_config(o);
   check_batch_split(config.batch_images, world_size);
   std::error_code ec;
-  if (fs::exists(run, ec))
+  // Created here, not found: of two runs started on one folder at once, exactly one creates it.
+  const fs::path folder = run.has_filename() ? run : run.parent_path();  // "runs/x/" is runs/x
+  if (folder.has_parent_path()) fs::create_directories(folder.parent_path(), ec);
+  if (!fs::create_directory(folder, ec)) {
+    if (ec) throw InputError(fmt::format("--out: {}: cannot create ({})", o.out, ec.message()));
     throw InputError("--out: " + o.out + " exists (continue it with --resume " + o.out + ", or name a new folder)");
-  fs::create_directories(run);
+  }
+  // A resume of the new run cannot start before it has a checkpoint; the lock keeps it out after.
+  core::take_folder_for_this_process(run);
   try {
     return std::make_unique<learn::Trainer>(config, run, threads, o.force);
   } catch (...) {

@@ -411,9 +411,45 @@ TEST_F(TrainCli, CheckpointsInsideAnEpochSoThatAKillLosesMinutesNotAnEpoch) {
 
 // Requests that cannot fit are refused before they allocate, with the estimate; a user's cap
 // (SCOUT_MEMORY_LIMIT) counts as the machine's, and --force runs anyway.
+// Two writers of one run folder would overwrite each other's checkpoints: while one scout train
+// runs on a folder, a second (a resume, or a new run of the same name) is refused with one line,
+// and the first goes on to a checkpoint that a later resume continues.
+TEST_F(TrainCli, ASecondTrainOnARunFolderInUseIsRefused) {
+  const std::string run_dir = path("run");
+  ASSERT_EQ(run("train " + world() + " --out " + run_dir + " --epochs 1,0,0" + kTiny).status, 0);
+  const fs::path out = local_.path() / "first.out", err = local_.path() / "first.err";
+  const pid_t first =
+      scout::testing::spawn({SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "100000,0,0"}, out, err);
+  ASSERT_TRUE(scout::testing::wait_for_text(first, out, "mode i   epoch", 300)) << read_text(err);  // training
+  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.pt");
+  const Result second = run("train --resume " + run_dir + " --epochs 100000,0,0");
+  EXPECT_EQ(second.status, 1) << second.out << second.err;
+  EXPECT_EQ(std::count(second.err.begin(), second.err.end(), '\n'), 1) << second.err;
+  EXPECT_NE(second.err.find("--resume: " + run_dir + ": another scout train is writing this run"), std::string::npos)
+      << second.err;
+  const Result renewed = run("train " + world() + " --out " + run_dir + " --epochs 1,0,0" + kTiny);
+  EXPECT_EQ(renewed.status, 1) << renewed.err;
+  EXPECT_NE(renewed.err.find(run_dir + " exists"), std::string::npos) << renewed.err;
+  kill(first, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(first, &status, 0), first);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << read_text(err);
+  // The first run's checkpoint is its own (it trained on from the one it resumed), and a resume
+  // after it continues from there.
+  EXPECT_NE(read_text(run_dir + "/checkpoint.pt"), checkpoint_before);
+  const std::size_t rows = lines_of(read_text(run_dir + "/metrics.csv")).size();
+  const Result after = run("train --resume " + run_dir + " --epochs " + std::to_string(rows) + ",0,0");
+  EXPECT_EQ(after.status, 0) << after.out << after.err;
+  EXPECT_NE(after.out.find("resuming after"), std::string::npos) << after.out;
+}
+
 TEST_F(TrainCli, AnEstimateBeyondTheAvailableMemoryIsRefusedUnlessForced) {
   // 64 x 64 robots (the most one camera draws) with 16 planner blocks 512 wide: hundreds of GiB of
-  // activations on these 12 x 12 floors.
+  // activations on these 12 x 12 floors, beyond a 64 GiB cap on any host (without the cap a host
+  // with more memory than the estimate would start training; the message names whichever bound is
+  // the smallest).
+  ::setenv("SCOUT_MEMORY_LIMIT", "64G", 1);
   const Result huge =
       run("train " + world() + " --out " + path("huge") +
           " --epochs 1,0,0 --batch 64 --rollouts 64 --planner-width 512 --planner-depth 16 --threads 1");
