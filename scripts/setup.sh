@@ -20,6 +20,7 @@ packages=(
   libboost-math-dev       # Student-t quantiles (learn/evaluation.cpp; header-only)
   libarchive-dev          # reads npm's tarballs in-process (worlds/data_install.cpp)
   libgtest-dev            # tests
+  strace                  # tests: the order of fsync and rename in a durable write
   python3 python3-numpy python3-matplotlib python3-pytest  # scout report's figures, Python tests (/usr/bin/python3)
   python3-dev pybind11-dev  # the Python package (python/)
   python3-torch           # the Python examples' REINFORCE and PPO agents

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -56,6 +57,55 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
   std::ofstream(path("junk.pt")) << "not a checkpoint";
   expect_one_line_error(run("export " + path("junk.pt") + " --out " + path("m2.pt")), {path("junk.pt")});
   EXPECT_FALSE(fs::exists(path("m2.pt")));
+}
+
+// A durable write, seen from the kernel's side (strace -f -y): the temporary file's data is synced
+// before it is renamed over the model, and the folder is synced after the rename, so that a power
+// cut leaves the old file or the whole new one (core/files.hpp). strace is one of the packages
+// scripts/setup.sh installs; where the kernel forbids tracing, the test says so and skips.
+TEST_F(TrainCli, ExportSyncsTheFileRenamesItThenSyncsTheFolder) {
+  const std::string model = path("model.pt"), trace = path("trace.txt");
+  const scout::testing::CliResult traced =
+      scout::testing::run_cli("strace", "-f -y -qq -e trace=fsync,fdatasync,rename,renameat,renameat2 -o " + trace +
+                                            " " + SCOUT_BINARY + " export " + base() + " --out " + model);
+  if (traced.status != 0 && traced.output.find("ptrace") != std::string::npos)
+    GTEST_SKIP() << "strace cannot trace here: " << traced.output;
+  ASSERT_EQ(traced.status, 0) << traced.output;
+  // The lines that name the model: "fsync(5</tmp/.../.model.pt.tmp-...>) = 0",
+  // "rename(\"/tmp/.../.model.pt.tmp-...\", \"/tmp/.../model.pt\") = 0", "fsync(6</tmp/...>) = 0".
+  std::vector<std::string> calls;
+  std::istringstream lines(read_text(trace));
+  for (std::string line; std::getline(lines, line);) {
+    const std::size_t call = line.find_first_not_of(' ', line.find(' '));  // after "PID  "
+    if (call != std::string::npos) calls.push_back(line.substr(call));
+  }
+  const auto index_of = [&](const std::function<bool(const std::string&)>& matches) {
+    for (std::size_t i = 0; i < calls.size(); ++i)
+      if (matches(calls[i])) return static_cast<long>(i);
+    return -1L;
+  };
+  const std::string name = fs::path(model).filename().string(), folder = fs::path(model).parent_path().string();
+  const long renamed = index_of([&](const std::string& c) {
+    return c.rfind("rename", 0) == 0 && c.find("/." + name + ".tmp-") != std::string::npos &&
+           c.find(", \"" + model + "\"") != std::string::npos && c.find(") = 0") != std::string::npos;
+  });
+  ASSERT_GE(renamed, 0) << "no rename of a temporary over " << model << " in:\n" << read_text(trace);
+  // The temporary's name as renamed, then its sync before the rename.
+  const std::string& rename_call = calls[renamed];
+  const std::size_t from = rename_call.find('"') + 1;
+  const std::string temporary = rename_call.substr(from, rename_call.find('"', from) - from);
+  const long file_synced = index_of([&](const std::string& c) {
+    return (c.rfind("fsync(", 0) == 0 || c.rfind("fdatasync(", 0) == 0) &&
+           c.find("<" + temporary + ">") != std::string::npos;
+  });
+  EXPECT_GE(file_synced, 0) << temporary << " was never synced:\n" << read_text(trace);
+  EXPECT_LT(file_synced, renamed) << "synced after the rename:\n" << read_text(trace);
+  long folder_synced = -1;
+  for (long i = renamed + 1; i < static_cast<long>(calls.size()) && folder_synced < 0; ++i)
+    if (calls[i].rfind("fsync(", 0) == 0 && calls[i].find("<" + folder + ">") != std::string::npos) folder_synced = i;
+  EXPECT_GT(folder_synced, renamed) << "the folder " << folder << " was not synced after the rename:\n"
+                                    << read_text(trace);
+  EXPECT_TRUE(fs::is_regular_file(model));
 }
 
 }  // namespace scout::testing::export_command_train_cli_tests

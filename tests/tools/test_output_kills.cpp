@@ -4,6 +4,8 @@
 // that passes for the whole; the next run repairs what the killed one left (its hidden staging
 // folders and temporary files) and finishes. `scout data` killed mid-install is repaired by the
 // next run (needs the npm registry, as `scout data` does).
+#include <chrono>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -29,23 +31,72 @@ struct Kill {
 
 const Kill kNoKill{};
 
-// Runs `scout ARGS` once with `kill`; returns whether it was killed (otherwise it must have
-// finished well).
-bool attempt(const fs::path& dir, const std::string& args, const Kill& kill) {
+// What `scout run --checkpoint` and `scout eval` print on stderr once the model is open and the
+// work begins (the precision line): random kills are drawn after it, so that none is spent on
+// start-up (seconds under ASan).
+constexpr const char* kModelOpened = "precision: ";
+
+// How an attempt ended.
+struct Ended {
+  bool killed = false;    // by SIGKILL (a named point or a random moment)
+  bool mid_work = false;  // a random kill that found the process still working
+};
+
+// Runs `scout ARGS` once with `kill` (otherwise it must finish well). A random moment counts from
+// the line `ready` on stderr where one is given, else from the start.
+Ended attempt(const fs::path& dir, const std::string& args, const Kill& kill, const std::string& ready = "") {
   std::vector<std::string> argv = {"/usr/bin/env", "SCOUT_FAULT_KILL_AT=" + kill.point, SCOUT_BINARY};
   std::istringstream words(args);
   for (std::string w; words >> w;) argv.push_back(w);
   const pid_t child = scout::testing::spawn(argv, dir / "out.txt", dir / "err.txt");
   EXPECT_GT(child, 0);
+  Ended ended;
+  int status = 0;
+  bool reaped = false;
   if (kill.point.empty() && kill.delay_ms >= 0) {
-    usleep(kill.delay_ms * 1000);
-    ::kill(child, SIGKILL);
+    if (ready.empty() || scout::testing::wait_for_text(child, dir / "err.txt", ready, 300, &status)) {
+      usleep(kill.delay_ms * 1000);
+      reaped = waitpid(child, &status, WNOHANG) == child;
+      if (!reaped) {
+        ::kill(child, SIGKILL);
+        ended.mid_work = true;
+      }
+    } else {
+      reaped = true;  // ended before its readiness line: reported below
+    }
   }
+  if (!reaped) {
+    EXPECT_EQ(waitpid(child, &status, 0), child);
+  }
+  ended.killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+  if (!ended.killed) {
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << kill.describe() << ": " << read_text(dir / "err.txt");
+  }
+  return ended;
+}
+
+// Runs `scout ARGS` to its end; returns the milliseconds from the line `ready` to the end.
+double work_ms(const fs::path& dir, const std::string& args, const std::string& ready) {
+  std::vector<std::string> argv = {SCOUT_BINARY};
+  std::istringstream words(args);
+  for (std::string w; words >> w;) argv.push_back(w);
+  const pid_t child = scout::testing::spawn(argv, dir / "out.txt", dir / "err.txt");
+  EXPECT_TRUE(scout::testing::wait_for_text(child, dir / "err.txt", ready, 300)) << read_text(dir / "err.txt");
+  const auto t0 = std::chrono::steady_clock::now();
   int status = 0;
   EXPECT_EQ(waitpid(child, &status, 0), child);
-  if (WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) return true;
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << kill.describe() << ": " << read_text(dir / "err.txt");
-  return false;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read_text(dir / "err.txt");
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Every regular file under `folder` but the manifest (which records times and command lines), by
+// its path inside it.
+std::map<std::string, std::string> files_under(const fs::path& folder) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::recursive_directory_iterator(folder))
+    if (entry.is_regular_file() && entry.path().filename() != "manifest.json")
+      files[fs::relative(entry.path(), folder).string()] = read_text(entry.path());
+  return files;
 }
 
 // The hidden entries beside `target` that a writer of it leaves while working.
@@ -58,9 +109,9 @@ std::vector<std::string> leftovers_beside(const fs::path& target) {
 }
 
 // A schedule of kills: the named points interleaved with seeded random moments in [lo, hi] ms.
-std::vector<Kill> schedule(std::vector<std::string> points, int random_kills, int lo, int hi, unsigned seed) {
+std::vector<Kill> schedule(std::vector<std::string> points, int random_kills, double lo, double hi, unsigned seed) {
   std::mt19937 random(seed);
-  std::uniform_int_distribution<int> delay_ms(lo, hi);
+  std::uniform_int_distribution<int> delay_ms(static_cast<int>(lo), static_cast<int>(hi));
   std::vector<Kill> out;
   for (int k = 0; k < random_kills || !points.empty(); ++k) {
     if (k < random_kills) out.push_back(Kill{"", delay_ms(random)});
@@ -83,19 +134,26 @@ void expect_complete_run_output(const fs::path& out, const std::string& when) {
 
 TEST_F(TrainCli, RunKilledLeavesNoOutputThatPassesForComplete) {
   const fs::path out = path("out");
-  const std::string args = "run " + world() + " --checkpoint " + base() + " --count " + std::to_string(kRuns) +
-                           " --out " + out.string() + " --overwrite";
-  int kills = 0;
-  for (const Kill& kill : schedule({"file-write:1", "output-commit:1", "file-write:1"}, 6, 20, 900, 20261202)) {
-    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+  const std::string common = "run " + world() + " --checkpoint " + base() + " --count " + std::to_string(kRuns);
+  const std::string args = common + " --out " + out.string() + " --overwrite";
+  // The uninterrupted run, the one every killed run's final output must equal, and how long its
+  // work takes: the random moments are shares of it.
+  const double work = work_ms(local_.path(), common + " --out " + path("reference"), kModelOpened);
+  int kills = 0, mid_work = 0;
+  for (const Kill& kill :
+       schedule({"file-write:1", "output-commit:1", "file-write:1"}, 6, 0.05 * work, 0.9 * work, 20261202)) {
+    const Ended ended = attempt(local_.path(), args, kill, kModelOpened);
+    kills += ended.killed ? 1 : 0;
+    mid_work += ended.mid_work ? 1 : 0;
     // After every attempt: the folder is absent, or whole (the previous run's or this one's).
     if (fs::exists(out)) expect_complete_run_output(out, kill.describe());
   }
   EXPECT_GE(kills, 5);
+  EXPECT_GE(mid_work, 4) << "of 6 random kills, only " << mid_work << " landed mid-work";
 
   // Killed between the two renames of a replacement: the previous output is aside, none in place.
-  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));  // a whole run first (the kill comes too late)
-  ASSERT_TRUE(attempt(local_.path(), args, Kill{"output-commit:1"}));
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);  // a whole run first (the kill comes too late)
+  ASSERT_TRUE(attempt(local_.path(), args, Kill{"output-commit:1"}).killed);
   EXPECT_FALSE(fs::exists(out));
   // The next run puts it back before anything else: without --overwrite it is refused, as for any
   // existing output, and the previous output is in place again.
@@ -104,11 +162,17 @@ TEST_F(TrainCli, RunKilledLeavesNoOutputThatPassesForComplete) {
   EXPECT_NE(refused.err.find("already exists"), std::string::npos) << refused.err;
   expect_complete_run_output(out, "restored");
 
-  // Finally a run to the end: complete, and nothing hidden left beside it.
-  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  // Finally a run to the end: complete, the uninterrupted run's output byte for byte (trajectories
+  // and pictures), and nothing hidden left beside it.
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
   expect_complete_run_output(out, "last");
+  const std::map<std::string, std::string> reference = files_under(path("reference")), last = files_under(out);
+  EXPECT_GT(reference.size(), 1u);
+  EXPECT_EQ(last.size(), reference.size());
+  for (const auto& [name, bytes] : reference) EXPECT_TRUE(last.count(name) && last.at(name) == bytes) << name;
   EXPECT_EQ(leftovers_beside(out), std::vector<std::string>{});
-  std::printf("[ measured ] scout run: %d SIGKILLs, then complete output\n", kills + 1);
+  std::printf("[ measured ] scout run: %d SIGKILLs (%d of 6 random ones mid-work), then the uninterrupted output\n",
+              kills + 1, mid_work);
 }
 
 TEST_F(TrainCli, EvalKilledLeavesNoPartialReport) {
@@ -118,9 +182,18 @@ TEST_F(TrainCli, EvalKilledLeavesNoPartialReport) {
                            " --labels " + (data / "train-labels-idx1-ubyte").string() + " --runs 200 --json " +
                            report.string() + " --predictions " + predictions.string();
   const std::size_t images = 48;
-  int kills = 0;
-  for (const Kill& kill : schedule({"file-write:1", "file-write:2", "file-write:1"}, 6, 20, 900, 7)) {
-    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+  // The uninterrupted evaluation (its predictions are what every finished attempt must write).
+  const fs::path reference = path("reference-predictions.csv");
+  const double work = work_ms(
+      local_.path(),
+      "eval --checkpoint " + base() + " --images " + (data / "train-images-idx3-ubyte").string() + " --labels " +
+          (data / "train-labels-idx1-ubyte").string() + " --runs 200 --predictions " + reference.string(),
+      kModelOpened);
+  int kills = 0, mid_work = 0;
+  for (const Kill& kill : schedule({"file-write:1", "file-write:2", "file-write:1"}, 6, 0.05 * work, 0.9 * work, 7)) {
+    const Ended ended = attempt(local_.path(), args, kill, kModelOpened);
+    kills += ended.killed ? 1 : 0;
+    mid_work += ended.mid_work ? 1 : 0;
     if (fs::exists(report)) {
       const json j = json::parse(read_text(report));  // parses: never half a file
       EXPECT_TRUE(j.contains("accuracy")) << kill.describe();
@@ -130,12 +203,15 @@ TEST_F(TrainCli, EvalKilledLeavesNoPartialReport) {
     }
   }
   EXPECT_GE(kills, 5);
-  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  EXPECT_GE(mid_work, 4) << "of 6 random kills, only " << mid_work << " landed mid-work";
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
   EXPECT_TRUE(json::parse(read_text(report)).contains("accuracy"));
   EXPECT_EQ(lines_of(read_text(predictions)).size(), images + 1);
+  EXPECT_EQ(read_text(predictions), read_text(reference)) << "not the uninterrupted evaluation's predictions";
   EXPECT_EQ(leftovers_beside(report), std::vector<std::string>{});
   EXPECT_EQ(leftovers_beside(predictions), std::vector<std::string>{});
-  std::printf("[ measured ] scout eval: %d SIGKILLs, then a complete report\n", kills);
+  std::printf("[ measured ] scout eval: %d SIGKILLs (%d of 6 random ones mid-work), then a complete report\n", kills,
+              mid_work);
 }
 
 TEST_F(TrainCli, DataKilledMidInstallIsRepairedByTheNextRun) {
@@ -144,9 +220,9 @@ TEST_F(TrainCli, DataKilledMidInstallIsRepairedByTheNextRun) {
   const std::string args = "data mnist-10k --data " + data.string();
   int kills = 0;
   for (const Kill& kill : schedule({"file-write:1"}, 4, 300, 4000, 11))
-    kills += attempt(local_.path(), args, kill) ? 1 : 0;
+    kills += attempt(local_.path(), args, kill).killed ? 1 : 0;
   EXPECT_GE(kills, 3);
-  ASSERT_FALSE(attempt(local_.path(), args, kNoKill));
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
   // Installed and checked (the next call has nothing to do), and the killed installs' temporary
   // folders are gone.
   const Result again = run(args);

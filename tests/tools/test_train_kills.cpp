@@ -37,31 +37,51 @@ struct Kill {
   int delay_ms = 0;
 };
 
+// The line scout train prints once its run is open and the work begins ("training WORLD -> RUN
+// (...)"): random kills are drawn after it, so that none is spent on start-up (~2.5 s under ASan).
+constexpr const char* kReady = "training ";
+
+// Runs `scout ARGS` to its end (stdout and stderr in DIR/ref.out, DIR/ref.err); returns the
+// milliseconds from its readiness line to its end, or -1 if it failed.
+double work_after_ready_ms(const std::string& args, const fs::path& dir) {
+  std::vector<std::string> argv = {SCOUT_BINARY};
+  std::istringstream words(args);
+  for (std::string w; words >> w;) argv.push_back(w);
+  const pid_t child = scout::testing::spawn(argv, dir / "ref.out", dir / "ref.err");
+  int status = 0;
+  if (!scout::testing::wait_for_text(child, dir / "ref.out", kReady, 300, &status)) return -1;
+  const auto ready = std::chrono::steady_clock::now();
+  if (waitpid(child, &status, 0) != child || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return -1;
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - ready).count();
+}
+
 TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   // A checkpoint after every batch (--checkpoint-every below a batch's time), as the default
   // 5 minutes is on a long run; fp32 so that nothing depends on the CPU's bf16.
   const std::string options = " --epochs 2,2,2 --baseline --precision fp32" + std::string(kTiny);
+  constexpr double kEpochs = 6;                             // of the schedule above
   const std::string every = " --checkpoint-every 0.00002";  // 1 ms
-  const auto started = std::chrono::steady_clock::now();
-  const Result reference = run("train " + world() + " --out " + path("reference") + options + every);
-  ASSERT_EQ(reference.status, 0) << reference.out << reference.err;
-  const double reference_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  // The uninterrupted run, and how long its work takes from the readiness line to its end.
+  const double work_ms =
+      work_after_ready_ms("train " + world() + " --out " + path("reference") + options + every, local_.path());
+  ASSERT_GT(work_ms, 0) << read_text(local_.path() / "ref.err");
 
   std::vector<Kill> schedule = {{"batch:3"},      {"file-write:2"}, {"validation:1"}, {"batch:2"},
                                 {"file-write:5"}, {"validation:2"}, {"file-write:1"}};
-  // The random moments, seeded (the same schedule every run), as shares of the uninterrupted run's
-  // time on this machine now, so that they land inside the work however fast the machine is: a
-  // resumed run has less left to do, so the shares stay in its first half.
+  // The random moments, seeded (the same schedule every run), as shares of the uninterrupted
+  // run's work on this machine now, counted from the readiness line and scaled to the share of
+  // the schedule's epochs a resumed run still has ahead of it, so that they land inside its work.
   std::mt19937 random(20261202);
   std::uniform_real_distribution<double> share(0.1, 0.5);
   for (int k = 0; k < 7; ++k)
-    schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", static_cast<int>(share(random) * reference_ms)});
+    schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", static_cast<int>(share(random) * work_ms)});
 
   const std::string killed = path("killed");
-  int kills = 0, fresh_starts = 0;
+  int kills = 0, fresh_starts = 0, random_mid_work = 0;
   for (const Kill& kill : schedule) {
     const bool resume = fs::is_regular_file(killed + "/checkpoint.pt");
+    const double epochs_left =
+        resume ? 1.0 - double(lines_of(read_text(killed + "/metrics.csv")).size() - 1) / kEpochs : 1.0;
     if (!resume) {
       // Killed before its first checkpoint: the run starts again (nothing to resume).
       fs::remove_all(killed);
@@ -73,12 +93,27 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
     for (std::string w; words >> w;) argv.push_back(w);
     const pid_t child = scout::testing::spawn(argv, local_.path() / "out.txt", local_.path() / "err.txt");
     ASSERT_GT(child, 0);
-    if (kill.point.empty()) {
-      usleep(kill.delay_ms * 1000);
-      ::kill(child, SIGKILL);
-    }
     int status = 0;
-    ASSERT_EQ(waitpid(child, &status, 0), child);
+    bool reaped = false;
+    if (kill.point.empty()) {
+      if (scout::testing::wait_for_text(child, local_.path() / "out.txt", kReady, 300, &status)) {
+        usleep(static_cast<useconds_t>(kill.delay_ms * std::max(epochs_left, 0.1) * 1000));
+        // Mid-work: still running when the kill lands (it ends by the kill, not on its own).
+        int raw = 0;
+        if (waitpid(child, &raw, WNOHANG) == 0) {
+          ::kill(child, SIGKILL);
+          ++random_mid_work;
+        } else {
+          status = raw;
+          reaped = true;
+        }
+      } else {
+        reaped = true;  // it ended before its readiness line: an error, reported below
+      }
+    }
+    if (!reaped) {
+      ASSERT_EQ(waitpid(child, &status, 0), child);
+    }
     if (WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) {
       ++kills;
     } else {
@@ -90,12 +125,17 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
     }
   }
   EXPECT_GE(kills, 10);
+  // Most random moments land in the middle of the work: a resumed run's work is shorter than the
+  // whole run's, so a late draw may find it finished, but not most of them.
+  EXPECT_GE(random_mid_work, 5) << "of 7 random kills, only " << random_mid_work << " landed mid-work";
   // Finish: one more resume (a no-op when the last attempt finished).
   ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.pt"));
   const Result last = run("train --resume " + killed);
   ASSERT_EQ(last.status, 0) << last.out << last.err;
-  std::printf("[ measured ] %d SIGKILLs (%d before a first checkpoint), then resumed to the end\n", kills,
-              fresh_starts - 1);
+  std::printf(
+      "[ measured ] %d SIGKILLs (%d of 7 random ones mid-work, %d before a first checkpoint), then resumed to "
+      "the end\n",
+      kills, random_mid_work, fresh_starts - 1);
 
   EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"),
             metrics_without_timing(path("reference") + "/metrics.csv"));
