@@ -102,7 +102,7 @@ class PaperClassifierImpl : public ClassifierImpl {
 /// METHOD.md's classifier read as ResNets downsample: block 0 at full resolution, then a stride-2
 /// step at each doubling. A block's 3 x 3 convolution runs with stride 2 and its concatenated skip
 /// (everything before it) is average-pooled 2 x 2 to the same ceil(n / 2) grid, as DenseNet's
-/// transitions pool: 28 -> 14 -> 7 -> 4 -> 2. Receptive field of r blocks: 3, 7, 15, 31, ... px,
+/// transitions pool: 28 -> 14 -> 7 -> 4 -> 2. Receptive field of r blocks: 3, 5, 9, 17, 33 px (2^r + 1),
 /// where the full-resolution reading sees 2r + 1 px. With `normalise`, GroupNorm (per sample)
 /// follows each convolution; the paper names no normalisation, so both are variants.
 class PaperStridedClassifierImpl : public ClassifierImpl {
