@@ -8,7 +8,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "tests/support/eval_run_fixture.hpp"
 
@@ -24,6 +26,27 @@ Result scout_with_env(const std::string& assignment, const std::string& args) {
 std::string read_text(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// The report's history, row by row, against the run's metrics.csv (mode, epoch and the
+// validation figures as the file prints them).
+void expect_history_is_the_runs_metrics(const json& history, const std::string& metrics_csv) {
+  std::istringstream lines(read_text(metrics_csv));
+  std::string line;
+  std::getline(lines, line);  // the header
+  std::size_t row = 0;
+  for (; std::getline(lines, line); ++row) {
+    std::vector<std::string> cells;
+    std::istringstream in(line);
+    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    ASSERT_LT(row, history.size()) << line;
+    const json& h = history[row];
+    EXPECT_EQ(h["mode"], cells.at(0)) << line;
+    EXPECT_EQ(h["epoch"], std::stoi(cells.at(1))) << line;
+    EXPECT_NEAR(h["validation_accuracy"].get<double>(), std::stod(cells.at(5)), 1e-6) << line;
+    EXPECT_NEAR(h["validation_full_image"].get<double>(), std::stod(cells.at(11)), 1e-6) << line;
+  }
+  EXPECT_EQ(row, history.size());
 }
 
 TEST_F(EvalRun, ReportEvaluatesAndDrawsTheTableAndFigures) {
@@ -70,6 +93,18 @@ TEST_F(EvalRun, ReportEvaluatesAndDrawsTheTableAndFigures) {
     EXPECT_EQ(e["path"].size(), 5u);   // the start and E x T = 4 moves
     EXPECT_EQ(e["goal_map"].size(), static_cast<std::size_t>(kSide * kSide));
   }
+  expect_history_is_the_runs_metrics(data["model"]["history"], path("run") + "/metrics.csv");
+  // A budget point is what scout eval gives in that world: m = 4 (points[1]) on the same 9
+  // digits, 1 run, seed 4.
+  temp_->write("world-m4.yaml", "floor: {dataset: " + path("data") +
+                                    ", split: test, index: random}\n"
+                                    "camera: {patch_px: 4}\n"
+                                    "task: {episodes: 2, steps: 2}\n");
+  const Result at_m4 = scout("eval --checkpoint " + path("run") + test_data() + " --world " + path("world-m4.yaml") +
+                             " --runs 1 --seed 4 --json " + path("m4-eval.json"));
+  ASSERT_EQ(at_m4.status, 0) << at_m4.output;
+  ASSERT_EQ(points[1]["patch_px"], 4);
+  EXPECT_EQ(points[1]["accuracy"], read_json(path("m4-eval.json"))["accuracy"]["mean"]);
   const std::string report = read_text(path("report") + "/REPORT.md");
   EXPECT_NE(report.find("94.61 ± 0.17 %"), std::string::npos);
   EXPECT_NE(report.find("](budget.png)"), std::string::npos);
