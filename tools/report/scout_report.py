@@ -18,6 +18,7 @@ import matplotlib
 
 matplotlib.use("Agg")  # headless: no display is needed or used
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 
 MODE_NAMES = {"full": "full images", "i": "mode (i)", "ii": "mode (ii)", "iii": "mode (iii)"}
@@ -82,26 +83,35 @@ def plot_history(history, out_dir, compared=()):
     ax.plot(x, goals_only, "s--", color="#2ca02c", ms=3, label="learned goals, i.i.d. actions")
     ax.plot(x, series("validation_iid"), "^--", color="#1f77b4", ms=3, label="i.i.d. goals and actions")
     ax.plot(x, series("validation_full_image"), ":", color="#7f7f7f", label="the classifier on full images")
-    # A compared run's modes need not line up with this one's: its curve is drawn on its own
-    # epoch count, and the shading stays this model's.
-    lengths, compared_values = [len(history)], []
+    # A compared run's schedule need not be this one's (full-image epochs or none): its curve is
+    # shifted so that its first mode (i) epoch sits on this model's, and the shading stays this
+    # model's.
+    def first_mode_i(rows):
+        return next((k for k, h in enumerate(rows) if h.get("mode") == "i"), None)
+
+    lengths, starts, compared_values = [len(history)], [1], []
     for k, (label, other) in enumerate(compared):
         if not other:
             continue
         y = np.array([np.nan if h.get("validation_accuracy") is None else h["validation_accuracy"] for h in other],
                      dtype=float)
-        ax.plot(np.arange(1, len(other) + 1), y, "o-", color=COMPARE_COLOURS[k % len(COMPARE_COLOURS)], ms=3,
+        ours, theirs = first_mode_i(history), first_mode_i(other)
+        shift = ours - theirs if ours is not None and theirs is not None else 0
+        ax.plot(np.arange(1, len(other) + 1) + shift, y, "o-", color=COMPARE_COLOURS[k % len(COMPARE_COLOURS)], ms=3,
                 label=f"{label}: the agent")
-        lengths.append(len(other))
+        lengths.append(len(other) + shift)
+        starts.append(1 + shift)
         compared_values.append(y)
-    ax.set_xlabel("epoch (all modes, in order)")
+    ax.set_xlabel("epoch (all modes, in order)" + ("; compared runs aligned at their first mode (i) epoch"
+                                                   if len(lengths) > 1 else ""))
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_ylabel("validation accuracy")
     finite = np.concatenate([series(k) for k in ("validation_accuracy", "validation_iid", "validation_goals_only")] +
                             compared_values)
     finite = finite[np.isfinite(finite)]
     low = max(0.0, min(finite.min() if finite.size else 0.0, 0.8) - 0.02)
     ax.set_ylim(low, 1.0)
-    ax.set_xlim(0.5, max(lengths) + 0.5)
+    ax.set_xlim(min(starts) - 0.5, max(lengths) + 0.5)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, fontsize=8, frameon=False)
     ax.set_title("Validation accuracy against epochs (one stochastic pass per epoch)")
