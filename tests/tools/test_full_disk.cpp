@@ -78,6 +78,7 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
       "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../full.out' 2> '{m}/../full.err' || echo $? > "
       "'{m}/../full.status'; "
       "cmp '{run}/checkpoint.pt' '{ckpt}' && echo intact > '{m}/../full.intact'; "
+      "ls -A '{run}' | grep -c '^[.]' > '{m}/../full.hidden' || true; "
       "rm '{m}/filler'; mount -o remount,ro '{m}'; "
       "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../ro.out' 2> '{m}/../ro.err' || echo $? > "
       "'{m}/../ro.status'",
@@ -91,6 +92,7 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
   EXPECT_EQ(read_text(dir / "full.status"), "1\n") << read_text(dir / "full.err");
   expect_write_error({1, "", read_text(dir / "full.err")}, run_dir + "/checkpoint.pt", "No space left on device");
   EXPECT_EQ(read_text(dir / "full.intact"), "intact\n");
+  EXPECT_EQ(read_text(dir / "full.hidden"), "0\n") << "the failed write left a temporary in the run folder";
   EXPECT_EQ(read_text(dir / "ro.status"), "1\n") << read_text(dir / "ro.err");
   const std::string ro = read_text(dir / "ro.err");
   EXPECT_EQ(std::count(ro.begin(), ro.end(), '\n'), 1) << ro;

@@ -132,6 +132,10 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.pt"));
   const Result last = run("train --resume " + killed);
   ASSERT_EQ(last.status, 0) << last.out << last.err;
+  // What the killed writers left (hidden temporaries beside the checkpoint and metrics) is gone
+  // once a run has written there again.
+  for (const auto& entry : fs::directory_iterator(killed))
+    EXPECT_NE(entry.path().filename().string()[0], '.') << entry.path() << " was left behind";
   std::printf(
       "[ measured ] %d SIGKILLs (%d of 7 random ones mid-work, %d before a first checkpoint), then resumed to "
       "the end\n",
