@@ -392,6 +392,7 @@ class Loader {
   }
 
   void check_text(std::string_view text) const;
+  void check_size_and_bytes(std::string_view text) const;
   void read(const YAML::Node& root);
 
  private:
@@ -438,17 +439,22 @@ class Loader {
 // ---------------------------------------------------------------------------------------------
 // Pre-scan: size and nesting, before yaml-cpp sees the text.
 
-void Loader::check_text(std::string_view text) const {
+// The file's size, and no NUL byte (yaml-cpp reports one as a confusing escape error on the
+// wrong line: it is named here).
+void Loader::check_size_and_bytes(std::string_view text) const {
   if (text.size() > kMaxFileBytes) {
     throw InputError(one_line(origin_.string() + ": expected a world file of at most 1 MiB (" +
                               std::to_string(kMaxFileBytes) + " bytes), got " + std::to_string(text.size()) +
                               " bytes"));
   }
-  // yaml-cpp reports a NUL byte as a confusing escape error on the wrong line: name it here.
   if (const auto nul = text.find('\0'); nul != std::string_view::npos) {
     const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(nul), '\n');
     throw InputError(one_line(origin_.string() + ":" + std::to_string(line) + ": expected text, got a NUL byte"));
   }
+}
+
+void Loader::check_text(std::string_view text) const {
+  check_size_and_bytes(text);
   // Over-estimates depth where unsure (brackets in plain scalars, lines of a block scalar count
   // as nesting), which only refuses odd files; the quote rules are strict enough that text can
   // hide real brackets from the scan only where yaml-cpp's own depth guard still applies.
