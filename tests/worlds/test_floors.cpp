@@ -1,11 +1,13 @@
 // Floors: PNG files (folders, missing files, wrong formats, truncated and corrupt images, the
-// camera's size limit, pixels read back) and data set floors (errors named by the world file's
-// floor.dataset line, labels outside 0..9). Every refusal is one line, and libpng / OpenCV
-// print nothing to stderr on the way.
+// camera's size limit, a huge header refused within a measured memory bound, pixels read back)
+// and data set floors (errors named by the world file's floor.dataset line, labels outside
+// 0..9). Every refusal is one line, and libpng / OpenCV print nothing to stderr on the way.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
@@ -15,10 +17,12 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/support/child_peak.hpp"
 #include "tests/support/temp_dir.hpp"
 #include "worlds/floors.hpp"
 #include "worlds/idx.hpp"
@@ -207,6 +211,113 @@ TEST(PngFloor, LargerThanTheCameraLimitIsRefused) {
   static_assert(kMaxFloorPx == 512);
 }
 
+// --- A huge header over a small file -------------------------------------------------------------
+
+void put_be32(Bytes& out, std::uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(v >> shift));
+}
+
+void put_chunk(Bytes& png, const char* type, const Bytes& data) {
+  put_be32(png, static_cast<std::uint32_t>(data.size()));
+  const std::size_t start = png.size();
+  png.insert(png.end(), type, type + 4);
+  png.insert(png.end(), data.begin(), data.end());
+  uLong crc = crc32(0L, Z_NULL, 0);
+  crc = crc32(crc, png.data() + start, static_cast<uInt>(png.size() - start));
+  put_be32(png, static_cast<std::uint32_t>(crc));
+}
+
+// An 8-bit grayscale PNG of `side` x `side` black pixels, every row present, in a small file: the
+// zlib stream is one block of `kRowsPerBlock` rows (filter byte 0, then zeros), compressed once
+// and repeated (after a full flush deflate starts afresh, so each repeat is the same bytes), then
+// an empty final block and the Adler-32 of the zeros ((1, N mod 65521): every byte adds a = 1 to
+// b). A decoder that goes ahead reads it to the end and fills the whole image.
+Bytes black_png(std::uint32_t side) {
+  constexpr std::uint32_t kRowsPerBlock = 64;
+  Bytes png = {0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A};
+  Bytes ihdr;
+  put_be32(ihdr, side);
+  put_be32(ihdr, side);
+  ihdr.insert(ihdr.end(), {8, 0, 0, 0, 0});  // 8 bits, grayscale, deflate, adaptive filters, no interlace
+  put_chunk(png, "IHDR", ihdr);
+
+  EXPECT_EQ(side % kRowsPerBlock, 0u);
+  const Bytes rows(static_cast<std::size_t>(side + 1) * kRowsPerBlock, 0);
+  z_stream zs{};
+  EXPECT_EQ(deflateInit(&zs, Z_BEST_COMPRESSION), Z_OK);
+  const auto compress_block = [&zs, &rows] {
+    Bytes out(deflateBound(&zs, static_cast<uLong>(rows.size())) + 64);
+    zs.next_in = const_cast<Bytef*>(rows.data());  // zlib's API is not const-correct
+    zs.avail_in = static_cast<uInt>(rows.size());
+    zs.next_out = out.data();
+    zs.avail_out = static_cast<uInt>(out.size());
+    EXPECT_EQ(deflate(&zs, Z_FULL_FLUSH), Z_OK);
+    EXPECT_EQ(zs.avail_in, 0u);
+    out.resize(out.size() - zs.avail_out);
+    return out;
+  };
+  Bytes idat = compress_block();  // the zlib header, then the first block
+  const Bytes block = compress_block();
+  deflateEnd(&zs);
+  for (std::uint32_t n = 1; n < side / kRowsPerBlock; ++n) idat.insert(idat.end(), block.begin(), block.end());
+  idat.insert(idat.end(), {0x01, 0x00, 0x00, 0xFF, 0xFF});  // final stored block of 0 bytes
+  const std::uint64_t zeros = std::uint64_t{side + 1} * side;
+  put_be32(idat, static_cast<std::uint32_t>(((zeros % 65521) << 16) | 1));
+  put_chunk(png, "IDAT", idat);
+  put_chunk(png, "IEND", {});
+  return png;
+}
+
+// "Refused before the decoder allocates", measured: the PNG declares 16384 x 16384 pixels (256 MiB
+// of image) in a file of about 260 KiB, and load_floors runs in a forked child whose peak resident
+// memory above its start must stay within kRefusalBoundKiB, a small fraction of the image. The
+// same bytes handed to the decoder directly (OpenCV's imdecode, which load_floors calls) show that
+// the bound means something: the decoder reads them as the whole black image and its peak is at
+// least the image's size, so a loader that let the decoder start would fail the bound.
+TEST(PngFloor, AHugeHeaderIsRefusedBeforeTheDecoderAllocatesTheImage) {
+  constexpr std::uint32_t kSide = 16384;
+  constexpr long kImageKiB = long{kSide} * kSide / 1024;
+  // Reading a file of this size and refusing it: well under a MiB in a Release build.
+  constexpr long kRefusalBoundKiB = 8 * 1024 * scout::testing::kSanitizerMemoryFactor;
+  static_assert(2 * kRefusalBoundKiB <= kImageKiB, "the bound must be far below the decoded image");
+
+  TempDir dir;
+  const Bytes png = black_png(kSide);
+  ASSERT_LT(png.size(), std::size_t{512} << 10);
+  write_bytes(dir.path() / "x.png", png);
+  const World world = world_in(dir, kPngWorld);
+
+  const scout::testing::ChildOutcome refused =
+      scout::testing::run_in_child_measuring_peak([&world] { load_floors(world, "/nonexistent"); });
+  std::printf("[ measured ] %zu-byte PNG declaring %u x %u: load_floors' peak %ld KiB (bound %ld KiB)\n", png.size(),
+              kSide, kSide, refused.peak_kib, kRefusalBoundKiB);
+  EXPECT_EQ(refused.signal, 0);
+  EXPECT_EQ(refused.status, 1) << refused.message;
+  EXPECT_EQ(refused.message,
+            png_prefix(dir) + "expected a floor of at most 512 x 512 pixels (the camera's limit), got 16384 x 16384");
+  EXPECT_GE(refused.peak_kib, 0) << "the child's peak memory could not be measured";
+  EXPECT_LE(refused.peak_kib, kRefusalBoundKiB);
+
+  // The control: the decoder itself, on the same bytes, in a child of its own. (No OpenCV call
+  // that might start its thread pool runs in the child: the pixels are checked by hand.)
+  const scout::testing::ChildOutcome decoded = scout::testing::run_in_child_measuring_peak([&png] {
+    const cv::Mat encoded(1, static_cast<int>(png.size()), CV_8UC1, const_cast<std::uint8_t*>(png.data()));
+    const cv::Mat gray = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE);
+    if (gray.rows != static_cast<int>(kSide) || gray.cols != static_cast<int>(kSide) || gray.type() != CV_8UC1)
+      throw std::runtime_error("decoded as " + std::to_string(gray.cols) + " x " + std::to_string(gray.rows));
+    for (int r = 0; r < gray.rows; ++r) {
+      const std::uint8_t* row = gray.ptr<std::uint8_t>(r);
+      if (std::any_of(row, row + gray.cols, [](std::uint8_t p) { return p != 0; }))
+        throw std::runtime_error("a pixel that is not black in row " + std::to_string(r));
+    }
+  });
+  std::printf("[ measured ] the same PNG decoded by cv::imdecode: peak %ld KiB (the image: %ld KiB)\n",
+              decoded.peak_kib, kImageKiB);
+  EXPECT_EQ(decoded.signal, 0);
+  EXPECT_EQ(decoded.status, 0) << decoded.message;
+  EXPECT_GE(decoded.peak_kib, kImageKiB * 9 / 10);  // the whole image, give or take the kernel's approximate count
+}
+
 TEST(PngFloor, ValidPngIsReadAsGrayscale) {
   TempDir dir;
   const cv::Mat img = pattern(40, 30);
@@ -258,7 +369,8 @@ void fix_chunk_crcs(Bytes& png) {
 // A seeded fuzz loop over PNG floors: random bytes behind a PNG signature, and valid floors with
 // flipped bytes (CRCs kept or fixed), truncations, and headers declaring huge sizes. Each is
 // refused in one line with nothing on stderr, or read with the size its header declares; none
-// crashes, and a huge header is refused before the decoder allocates its image.
+// crashes. (That a huge header is refused before the decoder allocates its image is measured by
+// AHugeHeaderIsRefusedBeforeTheDecoderAllocatesTheImage above.)
 TEST(PngFloor, FuzzedFilesAreRefusedInOneLineOrRead) {
   TempDir dir;
   const World world = world_in(dir, kPngWorld);

@@ -1,12 +1,18 @@
 // A deterministic fuzz loop over the IDX parsers: random bytes and mutations of valid raw and
-// gzipped files. Each input must parse into a consistent set or throw InputError; any other
-// outcome (another exception type, a crash, an inconsistent result) is a bug.
+// gzipped files. Every input is also read by a reference reader written here (zlib for the gzip
+// layer, then the header by hand), and the parsers must agree with it: a file it reads is
+// accepted with exactly its counts, dimensions, pixels and labels, byte for byte; a file it
+// refuses is refused with one InputError line naming the input. Any other outcome (another
+// exception type, a crash, a set that differs from what the bytes say) is a bug.
 #include <gtest/gtest.h>
 #include <zlib.h>
 
 #include <algorithm>
+#include <climits>
 #include <cstdint>
+#include <cstdio>
 #include <iterator>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -121,21 +127,113 @@ class Mutator {
   std::mt19937_64 rng_;
 };
 
+// --- The reference reader: what a file's bytes say, worked out without worlds/idx.cpp ------------
+
+// The fuzz inputs are a few KiB and deflate expands at most about 1032:1, so a few MiB at most;
+// the reference stops (and fails the test) far beyond that rather than guess.
+constexpr std::size_t kReferenceMaxBytes = std::size_t{64} << 20;
+
+std::uint32_t be32_at(const Bytes& b, std::size_t at) {
+  return (std::uint32_t{b[at]} << 24) | (std::uint32_t{b[at + 1]} << 16) | (std::uint32_t{b[at + 2]} << 8) |
+         std::uint32_t{b[at + 3]};
+}
+
+bool starts_gzip(const Bytes& b, std::size_t at) { return b.size() - at >= 2 && b[at] == 0x1f && b[at + 1] == 0x8b; }
+
+// The gzip members inflated one after another (as gunzip reads `cat a.gz b.gz`); nullopt for a
+// corrupt or truncated member, or for bytes after a member that do not start another one.
+std::optional<Bytes> reference_gunzip(const Bytes& in) {
+  Bytes out;
+  std::size_t at = 0;
+  while (at < in.size()) {
+    if (!starts_gzip(in, at)) return std::nullopt;  // junk after a member
+    z_stream zs{};
+    if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) return std::nullopt;
+    zs.next_in = const_cast<Bytef*>(in.data() + at);  // zlib's API is not const-correct
+    zs.avail_in = static_cast<uInt>(in.size() - at);
+    std::uint8_t chunk[4096];
+    int rc = Z_OK;
+    while (rc == Z_OK && out.size() <= kReferenceMaxBytes) {
+      zs.next_out = chunk;
+      zs.avail_out = sizeof chunk;
+      rc = inflate(&zs, Z_NO_FLUSH);  // Z_BUF_ERROR once the input ends before the member does
+      out.insert(out.end(), chunk, chunk + (sizeof chunk - zs.avail_out));
+    }
+    at = in.size() - zs.avail_in;
+    inflateEnd(&zs);
+    if (out.size() > kReferenceMaxBytes) {
+      ADD_FAILURE() << "the reference reader's limit: the input inflates to more than " << kReferenceMaxBytes;
+      return std::nullopt;
+    }
+    if (rc != Z_STREAM_END) return std::nullopt;
+  }
+  return out;
+}
+
+// The IDX bytes of a file: inflated if it starts with gzip's magic, else the file itself.
+std::optional<Bytes> reference_content(const Bytes& file) {
+  return starts_gzip(file, 0) ? reference_gunzip(file) : std::optional<Bytes>(file);
+}
+
+// The images a file holds by the IDX format (magic 0x00000803, then count, rows and columns as
+// big-endian 32-bit words, then exactly count * rows * cols pixel bytes) within the parser's
+// documented limits (at least one image, sides of 1 to 4096, a payload of at most INT_MAX
+// bytes); nullopt where the bytes do not hold such a set.
+std::optional<ImageSet> reference_images(const Bytes& file) {
+  const std::optional<Bytes> b = reference_content(file);
+  if (!b || b->size() < 16 || be32_at(*b, 0) != 0x00000803) return std::nullopt;
+  const std::uint32_t count = be32_at(*b, 4), rows = be32_at(*b, 8), cols = be32_at(*b, 12);
+  if (count < 1 || rows < 1 || rows > 4096 || cols < 1 || cols > 4096) return std::nullopt;
+  const std::uint64_t pixels = std::uint64_t{count} * rows * cols;
+  if (pixels > INT_MAX || b->size() - 16 != pixels) return std::nullopt;
+  ImageSet set;
+  set.count = static_cast<int>(count);
+  set.rows = static_cast<int>(rows);
+  set.cols = static_cast<int>(cols);
+  set.pixels.assign(b->begin() + 16, b->end());
+  return set;
+}
+
+// The labels a file holds by the IDX format (magic 0x00000801, a big-endian count, then exactly
+// that many bytes; at least one, at most INT_MAX); nullopt where the bytes do not hold them.
+std::optional<Bytes> reference_labels(const Bytes& file) {
+  const std::optional<Bytes> b = reference_content(file);
+  if (!b || b->size() < 8 || be32_at(*b, 0) != 0x00000801) return std::nullopt;
+  const std::uint32_t count = be32_at(*b, 4);
+  if (count < 1 || count > INT_MAX || b->size() - 8 != count) return std::nullopt;
+  return Bytes(b->begin() + 8, b->end());
+}
+
+// Fails unless `loaded` holds exactly the bytes `expected` does, naming the first that differs.
+void expect_same_bytes(const char* what, const Bytes& loaded, const Bytes& expected, int case_no) {
+  ASSERT_EQ(loaded.size(), expected.size()) << "case " << case_no << ": " << what;
+  const auto [l, e] = std::mismatch(loaded.begin(), loaded.end(), expected.begin());
+  ASSERT_TRUE(l == loaded.end()) << "case " << case_no << ": " << what << " byte " << (l - loaded.begin())
+                                 << " loaded as " << int{*l} << ", the file says " << int{*e};
+}
+
+// --- The loop ------------------------------------------------------------------------------------
+
 struct Tally {
   int parsed = 0;
   int rejected = 0;
+  int parsed_gzip = 0;               // accepted gzip inputs: the inflated bytes were compared
+  std::uint64_t bytes_compared = 0;  // pixels and labels compared with the reference's
 };
 
-// Runs one parser on one input: either it accepts and `accepted` checks the result, or it refuses
-// with one InputError line naming the input; any other outcome fails the test.
+// Runs one parser on one input: either it accepts and `accepted` compares the result with what
+// the reference reader found, or it refuses with one InputError line naming the input; a
+// refusal of a file the reference reads, or any other outcome, fails the test.
 template <typename Parse, typename Check>
-void parse_or_refuse(const char* parser, Parse&& parse, Check&& accepted, const std::filesystem::path& origin,
-                     int case_no, Tally& tally) {
+void parse_or_refuse(const char* parser, Parse&& parse, Check&& accepted, bool reference_reads,
+                     const std::filesystem::path& origin, int case_no, Tally& tally) {
   try {
     accepted(parse());
     ++tally.parsed;
   } catch (const InputError& e) {
     const std::string msg = e.what();
+    ASSERT_FALSE(reference_reads) << "case " << case_no << ": the " << parser
+                                  << " parser refused a valid file: " << msg;
     ASSERT_EQ(msg.rfind(origin.string() + ": ", 0), 0u) << "case " << case_no << ": " << msg;
     ASSERT_EQ(msg.find('\n'), std::string::npos) << "case " << case_no << ": " << msg;
     ++tally.rejected;
@@ -146,31 +244,39 @@ void parse_or_refuse(const char* parser, Parse&& parse, Check&& accepted, const 
   }
 }
 
-// Feeds `input` to both parsers and checks the outcome.
+// Feeds `input` to both parsers and compares each outcome with the reference reader's.
 void check(const Bytes& input, int case_no, Tally& tally) {
   const std::filesystem::path origin = "fuzz-" + std::to_string(case_no);
+  const bool gzipped = starts_gzip(input, 0);
+  const std::optional<ImageSet> images = reference_images(input);
   parse_or_refuse(
       "images", [&] { return parse_idx_images(input, origin); },
       [&](const ImageSet& s) {
-        ASSERT_GE(s.count, 1) << "case " << case_no;
-        ASSERT_GE(s.rows, 1) << "case " << case_no;
-        ASSERT_GE(s.cols, 1) << "case " << case_no;
-        ASSERT_LE(s.rows, 4096) << "case " << case_no;
-        ASSERT_LE(s.cols, 4096) << "case " << case_no;
-        ASSERT_EQ(s.pixels.size(), static_cast<std::size_t>(s.count) * s.rows * s.cols) << "case " << case_no;
+        ASSERT_TRUE(images.has_value()) << "case " << case_no << ": accepted as " << s.count << " images of " << s.rows
+                                        << "x" << s.cols << ", but the bytes hold no valid image set";
+        ASSERT_EQ(s.count, images->count) << "case " << case_no;
+        ASSERT_EQ(s.rows, images->rows) << "case " << case_no;
+        ASSERT_EQ(s.cols, images->cols) << "case " << case_no;
+        expect_same_bytes("pixel", s.pixels, images->pixels, case_no);
+        tally.bytes_compared += s.pixels.size();
+        tally.parsed_gzip += gzipped ? 1 : 0;
       },
-      origin, case_no, tally);
+      images.has_value(), origin, case_no, tally);
   if (::testing::Test::HasFatalFailure()) return;
+  const std::optional<Bytes> labels = reference_labels(input);
   parse_or_refuse(
       "labels", [&] { return parse_idx_labels(input, origin); },
-      [&](const Bytes& labels) {
-        ASSERT_GE(labels.size(), 1u) << "case " << case_no;
-        ASSERT_LE(labels.size(), input.size() * 1100 + 64) << "case " << case_no;  // bounded by deflate's ratio
+      [&](const Bytes& l) {
+        ASSERT_TRUE(labels.has_value()) << "case " << case_no << ": accepted as " << l.size()
+                                        << " labels, but the bytes hold no valid label set";
+        expect_same_bytes("label", l, *labels, case_no);
+        tally.bytes_compared += l.size();
+        tally.parsed_gzip += gzipped ? 1 : 0;
       },
-      origin, case_no, tally);
+      labels.has_value(), origin, case_no, tally);
 }
 
-TEST(IdxFuzz, TwentyThousandCasesParseConsistentlyOrThrowInputError) {
+TEST(IdxFuzz, TwentyThousandCasesGiveWhatTheirBytesSayOrThrowInputError) {
   Mutator m(0x5C0u);  // fixed seed: a failure is reproducible by its case number
 
   // Valid seeds of several shapes, raw and gzipped at different levels (0 gives stored blocks).
@@ -215,10 +321,15 @@ TEST(IdxFuzz, TwentyThousandCasesParseConsistentlyOrThrowInputError) {
     check(input, n, tally);
     if (HasFatalFailure()) return;
   }
-  // Both outcomes must be common, or the loop is not exercising the parsers.
+  // Both outcomes must be common, or the loop is not exercising the parsers; and accepted gzip
+  // inputs too, so that inflated content is compared as well as raw.
   EXPECT_GT(tally.parsed, kCases / 50);
   EXPECT_GT(tally.rejected, kCases / 2);
+  EXPECT_GT(tally.parsed_gzip, kCases / 200);
+  std::printf("[ measured ] %d IDX inputs: %d parses accepted (%d gzip, %llu bytes compared), %d refused\n", kCases,
+              tally.parsed, tally.parsed_gzip, static_cast<unsigned long long>(tally.bytes_compared), tally.rejected);
   RecordProperty("parsed", tally.parsed);
+  RecordProperty("parsed_gzip", tally.parsed_gzip);
   RecordProperty("rejected", tally.rejected);
 }
 

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "tests/support/temp_dir.hpp"
+#include "tests/support/world_fields.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {
@@ -24,6 +25,7 @@ namespace fs = std::filesystem;
 
 const fs::path kSource = SCOUT_SOURCE_DIR;
 
+using scout::testing::expect_same_world;  // every field but `file` and `lines`
 using scout::testing::TempDir;
 
 /// The message parse_world throws for `text`; fails the test if it accepts it.
@@ -43,30 +45,6 @@ void expect_error(const std::string& text, const std::string& prefix) {
   EXPECT_EQ(message.substr(0, prefix.size()), prefix) << "full message: " << message;
   EXPECT_EQ(message.find('\n'), std::string::npos) << message;
   EXPECT_EQ(message.find('\r'), std::string::npos) << message;
-}
-
-/// Every field but `file` and `lines` (which name where a world came from, not what it is).
-void expect_same_world(const World& a, const World& b) {
-  EXPECT_EQ(a.floor.dataset, b.floor.dataset);
-  EXPECT_EQ(a.floor.split, b.floor.split);
-  EXPECT_EQ(a.floor.index, b.floor.index);
-  EXPECT_EQ(a.floor.image, b.floor.image);
-  EXPECT_EQ(a.floor.pixel_size_m, b.floor.pixel_size_m);
-  EXPECT_EQ(a.robot.radius_m, b.robot.radius_m);
-  EXPECT_EQ(a.robot.mass_kg, b.robot.mass_kg);
-  EXPECT_EQ(a.robot.max_speed_mps, b.robot.max_speed_mps);
-  EXPECT_EQ(a.robot.start, b.robot.start);
-  EXPECT_EQ(a.controller.kp_per_s, b.controller.kp_per_s);
-  EXPECT_EQ(a.controller.tolerance_px, b.controller.tolerance_px);
-  EXPECT_EQ(a.camera.patch_px, b.camera.patch_px);
-  EXPECT_EQ(a.task.episodes, b.task.episodes);
-  EXPECT_EQ(a.task.steps, b.task.steps);
-  EXPECT_EQ(a.task.step_px, b.task.step_px);
-  EXPECT_EQ(a.physics.dt_s, b.physics.dt_s);
-  EXPECT_EQ(a.physics.velocity_iterations, b.physics.velocity_iterations);
-  EXPECT_EQ(a.physics.position_iterations, b.physics.position_iterations);
-  EXPECT_EQ(a.physics.max_ticks_per_move, b.physics.max_ticks_per_move);
-  EXPECT_EQ(a.seed, b.seed);
 }
 
 void expect_paper_preset(const World& w) {

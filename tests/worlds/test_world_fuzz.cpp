@@ -1,22 +1,32 @@
 // Deterministic fuzzing of parse_world: random bytes, YAML-ish token soup, deep nesting and
 // mutations of the shipped world. Every input must give a World that satisfies every range, or a
-// one-line scout::InputError; any other exception (or a crash) is a bug.
+// one-line scout::InputError; any other exception (or a crash) is a bug. An accepted world must
+// survive the manifest round trip (to_yaml, then parse_world) equal in every field of the schema
+// (tests/support/world_fields.hpp lists them, held to the structs and to world_schema()), with a
+// line for each field to_yaml writes.
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/support/world_fields.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::worlds {
 namespace {
+
+using scout::testing::expect_same_world;
 
 constexpr std::uint64_t kSeed = 0x5c0057;  // fixed: a failure reproduces on every run
 constexpr int kCasesPerKind = 5000;        // four kinds, 20,000 inputs in all
@@ -74,17 +84,108 @@ void expect_valid(const World& w, const std::string& text) {
   }
 }
 
+/// The dotted keys to_yaml writes for `w`, with the sections: every field of the schema but the
+/// floor's other kind (a PNG floor has no dataset, split or index; a data set floor no image).
+std::set<std::string> written_keys(const World& w) {
+  std::set<std::string> keys;
+  const bool png = !w.floor.image.empty();
+  for (const FieldInfo& f : world_schema()) {
+    const std::string section(f.section), name(f.name);
+    if (section.empty()) {
+      keys.insert(name);
+      continue;
+    }
+    keys.insert(section);
+    if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
+      continue;
+    keys.insert(section + "." + name);
+  }
+  return keys;
+}
+
+/// What the accepted worlds exercised.
+struct Tally {
+  /// Per field, how many accepted worlds held a value other than the default: the round trip's
+  /// comparison of that field met a value a dropped or mangled field would not give back.
+  std::map<std::string, int> varied;
+  /// Accepted worlds naming a data set or PNG that to_yaml cannot write back (the known bug at
+  /// expect_round_trip).
+  int unwritable_names = 0;
+};
+
+/// Whether yaml-cpp's emitter, which to_yaml writes through, gives `s` back byte for byte: UTF-8
+/// in shortest form, no surrogates, nothing past U+10FFFF, and none of the noncharacters it
+/// replaces (U+FDD0..U+FDEF, U+xFFFE, U+xFFFF). Anything else it writes with U+FFFD instead.
+bool emitter_keeps(std::string_view s) {
+  for (std::size_t i = 0; i < s.size();) {
+    const auto lead = static_cast<unsigned char>(s[i]);
+    if (lead < 0x80) {
+      ++i;
+      continue;
+    }
+    const std::size_t trailing = (lead & 0xE0) == 0xC0 ? 1 : (lead & 0xF0) == 0xE0 ? 2 : (lead & 0xF8) == 0xF0 ? 3 : 0;
+    if (trailing == 0 || s.size() - i <= trailing) return false;
+    char32_t cp = lead & (0x3F >> trailing);
+    for (std::size_t k = 1; k <= trailing; ++k) {
+      const auto byte = static_cast<unsigned char>(s[i + k]);
+      if ((byte & 0xC0) != 0x80) return false;
+      cp = (cp << 6) | (byte & 0x3F);
+    }
+    constexpr char32_t kShortest[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < kShortest[trailing] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF) || (cp >= 0xFDD0 && cp <= 0xFDEF) ||
+        (cp & 0xFFFE) == 0xFFFE)
+      return false;
+    i += trailing + 1;
+  }
+  return true;
+}
+
+/// The manifest round trip: to_yaml's text, read back from the same origin, is the same world in
+/// every field; and it gives every field a line of its own (a field the writer dropped would
+/// read back as its default, which a world holding the default would not show).
+///
+/// KNOWN BUG (worlds/world.cpp, not fixed here): parse_world accepts a floor.dataset or
+/// floor.image whose bytes are not UTF-8 (a stray byte in `dataset: mnist`), and to_yaml writes
+/// it through yaml-cpp's emitter, which replaces such bytes with U+FFFD: the manifest then names
+/// another folder or file. Until the loader refuses such names, that one field of such a world is
+/// left out of the comparison (and counted); every other field is still compared. When the
+/// loader refuses them, `unwritable_names` stays 0 and this exception can go.
+void expect_round_trip(const World& w, const std::string& text, Tally& tally) {
+  const std::string yaml = to_yaml(w);
+  SCOPED_TRACE("input:\n" + text + "\nto_yaml:\n" + yaml);
+  const World back = parse_world(yaml, "fuzz.yaml");
+  World expected = w;
+  if (!emitter_keeps(w.floor.dataset)) {
+    expected.floor.dataset = back.floor.dataset;
+    ++tally.unwritable_names;
+  }
+  if (!emitter_keeps(w.floor.image.string())) {
+    expected.floor.image = back.floor.image;
+    ++tally.unwritable_names;
+  }
+  expect_same_world(back, expected);
+  EXPECT_EQ(back.file, w.file);
+  const std::set<std::string> want = written_keys(w);
+  std::string missing, extra;
+  for (const std::string& key : want)
+    if (back.lines.count(key) == 0) missing += " " + key;
+  for (const auto& [key, line] : back.lines)
+    if (want.count(key) == 0) extra += " " + key;
+  EXPECT_EQ(missing, "") << "keys to_yaml did not write";
+  EXPECT_EQ(extra, "") << "keys to_yaml wrote beyond the schema's";
+}
+
 /// Feeds one input; returns whether it was accepted. Anything but World or InputError fails.
-bool feed(const std::string& text) {
+bool feed(const std::string& text, Tally& tally) {
+  static const World defaults = parse_world("seed: 0\n", "fuzz.yaml");
   try {
     const World w = parse_world(text, "fuzz.yaml");
     expect_valid(w, text);
     // What was accepted must also survive the manifest round trip and the floor check.
-    const World back = parse_world(to_yaml(w), "fuzz.yaml");
-    EXPECT_EQ(back.camera.patch_px, w.camera.patch_px);
-    EXPECT_EQ(back.physics.dt_s, w.physics.dt_s);
-    EXPECT_EQ(back.seed, w.seed);
-    EXPECT_EQ(back.robot.start, w.robot.start);
+    expect_round_trip(w, text, tally);
+    scout::testing::for_each_world_field(w, defaults, [&tally](const char* name, const auto& x, const auto& y) {
+      tally.varied[name] += x == y ? 0 : 1;
+    });
     try {
       check_against_floor(w, 28, 28);
     } catch (const InputError&) {
@@ -405,24 +506,49 @@ class Fuzzer {
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
 };
 
+// The round trip below compares the fields tests/support/world_fields.hpp lists: they must be
+// the schema's, all of them, in its order (the header holds them to the structs' members).
+TEST(WorldFuzz, TheComparisonCoversEverySchemaField) {
+  std::vector<std::string> schema;
+  for (const FieldInfo& f : world_schema())
+    schema.push_back(f.section.empty() ? std::string(f.name) : std::string(f.section) + "." + std::string(f.name));
+  EXPECT_EQ(scout::testing::listed_world_fields(), schema);
+}
+
 TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
   const std::string preset = read_text(std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml");
   ASSERT_FALSE(preset.empty());
-  ASSERT_TRUE(feed(preset));
+  Tally tally;
+  ASSERT_TRUE(feed(preset, tally));
+  // Every field away from its default at least once, for both kinds of floor, so that the round
+  // trip meets each field with a value of its own whatever the fuzz below draws.
+  ASSERT_TRUE(
+      feed("floor: {dataset: \"odd ~ name: #x\", split: validation, index: 17, pixel_size_m: 0.3}\n"
+           "robot: {radius_m: 0.7, mass_kg: 3.7, max_speed_mps: 1e-3, start: [5, 9]}\n"
+           "controller: {kp_per_s: 12.5, tolerance_px: 0.1}\n"
+           "camera: {patch_px: 9}\n"
+           "task: {episodes: 7, steps: 3, step_px: 4}\n"
+           "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
+           "seed: 18446744073709551615\n",
+           tally));
+  ASSERT_TRUE(
+      feed("floor: {image: a.png, pixel_size_m: 0.30000000000000004}\nphysics: {dt_s: 0.1}\n"
+           "controller: {kp_per_s: 0.3333333333333333}\n",
+           tally));
 
   Fuzzer fuzz(kSeed);
   int accepted_structured = 0;
   int accepted_mutants = 0;
   for (int i = 0; i < kCasesPerKind; ++i) {
-    feed(fuzz.random_bytes());
+    feed(fuzz.random_bytes(), tally);
     // Token soup and world-shaped maps share one kind: half each.
     if (i % 2 == 0) {
-      feed(fuzz.token_soup());
+      feed(fuzz.token_soup(), tally);
     } else {
-      accepted_structured += feed(fuzz.structured()) ? 1 : 0;
+      accepted_structured += feed(fuzz.structured(), tally) ? 1 : 0;
     }
-    feed(fuzz.deep_nesting());
-    accepted_mutants += feed(fuzz.mutate(preset)) ? 1 : 0;
+    feed(fuzz.deep_nesting(), tally);
+    accepted_mutants += feed(fuzz.mutate(preset), tally) ? 1 : 0;
     if (::testing::Test::HasFailure()) break;  // one input's report is enough to act on
   }
   // Mild mutations (a truncated comment, a swapped line) keep a file valid: the accept path
@@ -430,6 +556,14 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
   EXPECT_GT(accepted_mutants, kCasesPerKind / 50);
   EXPECT_LT(accepted_mutants, kCasesPerKind);
   EXPECT_GT(accepted_structured, kCasesPerKind / 200);
+  std::string varied;
+  for (const std::string& name : scout::testing::listed_world_fields()) {
+    EXPECT_GT(tally.varied[name], 0) << name << " never differed from its default in an accepted world";
+    varied += " " + name + "=" + std::to_string(tally.varied[name]);
+  }
+  std::printf("[ measured ] accepted worlds with a field away from its default:%s\n", varied.c_str());
+  std::printf("[ measured ] accepted worlds naming a data set or PNG to_yaml cannot write back: %d\n",
+              tally.unwritable_names);
   RecordProperty("accepted_mutants", accepted_mutants);
   RecordProperty("accepted_structured", accepted_structured);
 }
