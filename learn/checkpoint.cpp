@@ -50,7 +50,8 @@ json history_json(const std::vector<EpochMetrics>& history) {
                     {"learning_rate", m.learning_rate},
                     {"validation_iid", optional_json(m.validation_iid)},
                     {"validation_goals_only", optional_json(m.validation_goals_only)},
-                    {"validation_full_image", optional_json(m.validation_full_image)}});
+                    {"validation_full_image", optional_json(m.validation_full_image)},
+                    {"gradient_norm", optional_json(m.gradient_norm)}});
   return rows;
 }
 
@@ -73,6 +74,7 @@ std::vector<EpochMetrics> history_from(const json& rows, double learning_rate) {
     m.validation_iid = optional_from(r, "validation_iid");
     m.validation_goals_only = optional_from(r, "validation_goals_only");
     m.validation_full_image = optional_from(r, "validation_full_image");
+    m.gradient_norm = optional_from(r, "gradient_norm");
     history.push_back(m);
   }
   return history;
@@ -116,7 +118,9 @@ torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torc
                      {"correct", p.correct},
                      {"robots", p.rollouts},
                      {"images", p.images},
-                     {"batches", p.batches}}},
+                     {"batches", p.batches},
+                     {"gradient_norm", finite_or_zero(p.gradient_norm)},
+                     {"gradient_steps", p.gradient_steps}}},
                    {"history", history_json(state.history)},
                    {"world_size", state.world_size},
                    {"threads", state.threads}};
@@ -188,9 +192,16 @@ void read_progress(const std::string& text, const std::string& origin, Checkpoin
     stage = p.at("stage").get<int>();
     state.cursor = {Stage::Done, p.at("epoch").get<int>(), p.at("batch").get<int>()};
     const json& q = p.at("partial");
-    state.partial = {q.at("reward").get<double>(), q.at("loss").get<double>(), q.at("train_seconds").get<double>(),
-                     q.at("correct").get<long>(),  q.at("robots").get<long>(), q.at("images").get<long>(),
-                     q.at("batches").get<long>()};
+    state.partial = {.reward = q.at("reward").get<double>(),
+                     .loss = q.at("loss").get<double>(),
+                     .train_seconds = q.at("train_seconds").get<double>(),
+                     .correct = q.at("correct").get<long>(),
+                     .rollouts = q.at("robots").get<long>(),
+                     .images = q.at("images").get<long>(),
+                     .batches = q.at("batches").get<long>(),
+                     // Absent from files written before the gradient norm was measured.
+                     .gradient_norm = q.value("gradient_norm", 0.0),
+                     .gradient_steps = q.value("gradient_steps", 0L)};
     state.history = history_from(p.at("history"), state.config.learning_rate);
     state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
     state.threads = p.contains("threads") ? p.at("threads").get<int>() : 0;

@@ -95,6 +95,13 @@ void apply_gradient_hook(torch::nn::Module& module, const std::function<void(std
   }
 }
 
+double gradient_norm(torch::nn::Module& module) {
+  double squares = 0;
+  for (const torch::Tensor& p : module.parameters())
+    if (p.grad().defined()) squares += p.grad().square().sum(torch::kDouble).item<double>();
+  return std::sqrt(squares);
+}
+
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision) {
   Sampling s;
   s.precision = precision;

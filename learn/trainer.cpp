@@ -67,19 +67,21 @@ int set_torch_threads(int threads) {
 
 std::string metrics_csv_header() {
   return "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate,"
-         "validation_iid,validation_goals_only,validation_full_image\n";
+         "validation_iid,validation_goals_only,validation_full_image,gradient_norm\n";
 }
 
 namespace {
 // An empty field for a figure a row does not have (rows written before it was measured).
 std::string csv_optional(const std::optional<double>& v) { return v ? fmt::format("{:.6f}", *v) : std::string(); }
+// A gradient's norm spans orders of magnitude over a run: significant digits, not decimals.
+std::string csv_gradient_norm(const std::optional<double>& v) { return v ? fmt::format("{:.6g}", *v) : std::string(); }
 }  // namespace
 
 std::string metrics_csv_row(const EpochMetrics& m) {
-  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{},{},{},{}\n", to_string(m.stage), m.epoch,
+  return fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{},{},{},{},{}\n", to_string(m.stage), m.epoch,
                      m.reward, m.loss, m.train_accuracy, m.validation_accuracy, m.images_per_s, m.seconds,
                      m.learning_rate, csv_optional(m.validation_iid), csv_optional(m.validation_goals_only),
-                     csv_optional(m.validation_full_image));
+                     csv_optional(m.validation_full_image), csv_gradient_norm(m.gradient_norm));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -284,6 +286,7 @@ struct Trainer::Impl {
       value = backward_if_finite(loss);
       if (!std::isfinite(value)) return value;
       if (hooks.on_gradients) apply_gradient_hook(*agent, hooks.on_gradients);
+      add_gradient_norm(gradient_norm(*agent));
     } else {
       // The batch's loss and figures over the ranks first: a non-finite loss anywhere stops every
       // rank before any of them steps.
@@ -298,6 +301,9 @@ struct Trainer::Impl {
       apply_gradient_hook(*agent, [&](std::span<float> gradients) {
         group->all_reduce_sum(gradients);
         if (hooks.on_gradients) hooks.on_gradients(gradients);
+        double squares = 0;
+        for (const float g : gradients) squares += static_cast<double>(g) * g;
+        add_gradient_norm(std::sqrt(squares));
       });
     }
     core::fault_point("batch");
@@ -305,6 +311,14 @@ struct Trainer::Impl {
     // everything in a stage whose layers are all frozen.
     optimizer->step();
     return value;
+  }
+
+  // Every step's norm is summed, so that an epoch resumed from a checkpoint reports the mean over
+  // all its steps; `gradient_steps` falls short of the epoch's batches when its first part was
+  // trained by a build that did not measure it.
+  void add_gradient_norm(double norm) {
+    sums.gradient_norm += norm;
+    sums.gradient_steps += 1;
   }
 
   void add_figures(const std::array<double, 3>& figures) {
@@ -486,6 +500,7 @@ struct Trainer::Impl {
       m.loss = sums.batches ? sums.loss / sums.batches : 0;
       m.train_accuracy = sums.rollouts ? static_cast<double>(sums.correct) / sums.rollouts : 0;
       m.images_per_s = sums.train_seconds > 0 ? sums.images / sums.train_seconds : 0;
+      if (sums.batches > 0 && sums.gradient_steps == sums.batches) m.gradient_norm = sums.gradient_norm / sums.batches;
       validate(m);
       // Wall time: this process's part of the epoch, plus the training time before a resume.
       m.seconds = seconds_before + seconds_since(epoch_start);

@@ -36,6 +36,10 @@ struct EpochMetrics {
   double images_per_s = 0;                      ///< training images per second (validation excluded)
   double seconds = 0;                           ///< wall time of the epoch, validation included
   double learning_rate = 0;                     ///< Adam's step size in this epoch (may be lowered on --resume)
+  /// The mean over the epoch's steps of the L2 norm of the gradient each step applied (in a
+  /// data-parallel run, the sum over the processes that every one of them applies); empty in rows
+  /// written before it was measured, and for an epoch resumed from such a checkpoint.
+  std::optional<double> gradient_norm;
 };
 /// metrics.csv's header line and one row.
 std::string metrics_csv_header();

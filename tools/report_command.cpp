@@ -210,6 +210,7 @@ json history_json(const std::vector<learn::EpochMetrics>& history) {
                     {"validation_iid", optional(m.validation_iid)},
                     {"validation_goals_only", optional(m.validation_goals_only)},
                     {"validation_full_image", optional(m.validation_full_image)},
+                    {"gradient_norm", optional(m.gradient_norm)},
                     {"seconds", m.seconds},
                     {"learning_rate", m.learning_rate}});
   return rows;

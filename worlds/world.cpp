@@ -71,6 +71,34 @@ std::string clip(std::string_view text) {
   return std::string(text.substr(0, kMaxQuoted)) + "...";
 }
 
+/// The offset of the first byte of `text` that is not part of a character a YAML file can hold and
+/// yaml-cpp's emitter writes back as it is: UTF-8 in its shortest form, no surrogate, nothing past
+/// U+10FFFF, no noncharacter (U+FDD0..U+FDEF, U+xFFFE, U+xFFFF), which the emitter replaces with
+/// U+FFFD. A name that failed this would be written into the manifest as another name.
+std::optional<std::size_t> first_unwritable_byte(std::string_view text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const auto lead = static_cast<unsigned char>(text[i]);
+    if (lead < 0x80) {
+      ++i;
+      continue;
+    }
+    const std::size_t trailing = (lead & 0xE0) == 0xC0 ? 1 : (lead & 0xF0) == 0xE0 ? 2 : (lead & 0xF8) == 0xF0 ? 3 : 0;
+    if (trailing == 0 || text.size() - i <= trailing) return i;
+    char32_t code = lead & (0x3F >> trailing);
+    for (std::size_t k = 1; k <= trailing; ++k) {
+      const auto byte = static_cast<unsigned char>(text[i + k]);
+      if ((byte & 0xC0) != 0x80) return i;
+      code = (code << 6) | (byte & 0x3F);
+    }
+    constexpr char32_t kShortest[] = {0, 0x80, 0x800, 0x10000};
+    const bool surrogate = code >= 0xD800 && code <= 0xDFFF;
+    const bool noncharacter = (code >= 0xFDD0 && code <= 0xFDEF) || (code & 0xFFFE) == 0xFFFE;
+    if (code < kShortest[trailing] || code > 0x10FFFF || surrogate || noncharacter) return i;
+    i += trailing + 1;
+  }
+  return std::nullopt;
+}
+
 /// yaml-cpp marks are 0-based and may be the "null mark" (-1); messages are 1-based.
 int line_of(const YAML::Mark& mark) { return mark.line >= 0 ? mark.line + 1 : 1; }
 int line_of(const YAML::Node& node) { return line_of(node.Mark()); }
@@ -639,6 +667,9 @@ std::string Loader::read_string(const Field& f, std::string_view expected) const
   if (s.size() > kMaxPathBytes)
     fail_field(f.line, f.dotted, fmt::format("{} (at most {} bytes)", expected, kMaxPathBytes),
                fmt::format("{} bytes (\"{}\")", s.size(), clip(s)));
+  if (const std::optional<std::size_t> at = first_unwritable_byte(s))
+    fail_field(f.line, f.dotted, fmt::format("{} in UTF-8 text", expected),
+               fmt::format("a byte that is not a UTF-8 character at byte {} of the value", *at + 1));
   return s;
 }
 

@@ -23,6 +23,9 @@ struct EpochSums {
   long rollouts = 0;         ///< rollouts driven (stored under the key "robots", as ever)
   long images = 0;           ///< training images
   long batches = 0;          ///< batches
+  double gradient_norm = 0;  ///< sum of the steps' gradient norms
+  long gradient_steps = 0;   ///< steps whose norm is in that sum (fewer than `batches` in an epoch begun by an
+                             ///< older build: its row then has no gradient norm)
 };
 
 /// Everything in a checkpoint besides tensors.

@@ -66,6 +66,9 @@ double backward_if_finite(const torch::Tensor& loss);
 /// still skips what no process used.
 void apply_gradient_hook(torch::nn::Module& module, const std::function<void(std::span<float>)>& hook);
 
+/// The L2 norm of all of `module`'s gradients together (those it has; summed in double).
+double gradient_norm(torch::nn::Module& module);
+
 /// The sampling of a training stage (ModeI..ModeIII): which layers choose, in `precision`.
 Sampling sampling_for(Stage stage, bool with_grad, agent::Precision precision);
 

@@ -89,6 +89,7 @@ inline void expect_same_metrics(const EpochMetrics& a, const EpochMetrics& b) {
   EXPECT_EQ(a.validation_iid, b.validation_iid) << to_string(a.stage) << " " << a.epoch;
   EXPECT_EQ(a.validation_goals_only, b.validation_goals_only) << to_string(a.stage) << " " << a.epoch;
   EXPECT_EQ(a.validation_full_image, b.validation_full_image) << to_string(a.stage) << " " << a.epoch;
+  EXPECT_EQ(a.gradient_norm, b.gradient_norm) << to_string(a.stage) << " " << a.epoch;
 }
 
 class Training : public ::testing::Test {

@@ -45,6 +45,10 @@ void expect_history_is_the_runs_metrics(const json& history, const std::string& 
     EXPECT_EQ(h["epoch"], std::stoi(cells.at(1))) << line;
     EXPECT_NEAR(h["validation_accuracy"].get<double>(), std::stod(cells.at(5)), 1e-6) << line;
     EXPECT_NEAR(h["validation_full_image"].get<double>(), std::stod(cells.at(11)), 1e-6) << line;
+    // The gradient norm where the run measured it (six significant digits in the file).
+    if (cells.size() > 12 && !cells.at(12).empty()) {
+      EXPECT_NEAR(h["gradient_norm"].get<double>() / std::stod(cells.at(12)), 1.0, 1e-5) << line;
+    }
   }
   EXPECT_EQ(row, history.size());
 }

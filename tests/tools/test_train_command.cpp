@@ -45,18 +45,18 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   ASSERT_EQ(rows.size(), 4u);
   EXPECT_EQ(rows[0],
             "mode,epoch,reward,loss,train_accuracy,validation_accuracy,images_per_s,seconds,learning_rate,"
-            "validation_iid,validation_goals_only,validation_full_image");
+            "validation_iid,validation_goals_only,validation_full_image,gradient_norm");
   const char* modes[] = {"i", "ii", "iii"};
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(rows[k + 1].rfind(std::string(modes[k]) + ",1,", 0), 0u) << rows[k + 1];
-    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 11) << rows[k + 1];
+    EXPECT_EQ(std::count(rows[k + 1].begin(), rows[k + 1].end(), ','), 12) << rows[k + 1];
     // Accuracies are fractions.
     std::vector<double> fields;
     std::istringstream in(rows[k + 1].substr(rows[k + 1].find(',', rows[k + 1].find(',') + 1) + 1));
     // An empty field (NaN here) is a figure not measured: goals only, before mode (ii).
     for (std::string f; std::getline(in, f, ',');) fields.push_back(f.empty() ? std::nan("") : std::stod(f));
     if (rows[k + 1].back() == ',') fields.push_back(std::nan(""));
-    ASSERT_EQ(fields.size(), 10u);
+    ASSERT_EQ(fields.size(), 11u);
     EXPECT_LE(fields[0], 0.0);  // reward = log pi_c[label]
     EXPECT_EQ(std::isnan(fields[8]), k == 0) << rows[k + 1];
     for (int a : {2, 3, 7, 8, 9}) {  // train, validation, and validation's baselines and full images
@@ -66,6 +66,7 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
     }
     EXPECT_GT(fields[4], 0.0);    // images per second
     EXPECT_EQ(fields[6], 0.003);  // the epoch's learning rate (--lr)
+    EXPECT_GT(fields[10], 0.0);   // the mean norm of the steps' gradients
   }
 
   std::ifstream in(path("run") + "/manifest.json");

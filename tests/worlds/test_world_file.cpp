@@ -197,6 +197,20 @@ TEST(WorldFile, ANulByteIsNamedWithItsLine) {
                "w.yaml:3: expected text, got a NUL byte");
 }
 
+// yaml-cpp's emitter would write such a name back as U+FFFD, so the manifest would name another
+// folder: refused, with the byte's place and without quoting it.
+TEST(WorldFile, ANameThatIsNotUtf8IsRefused) {
+  expect_error("floor:\n  dataset: mnist\xE9\n",
+               "w.yaml:2: floor.dataset: expected mnist, mnist-10k, fashion-mnist or a folder of IDX files in UTF-8 "
+               "text, got a byte that is not a UTF-8 character at byte 6 of the value");
+  expect_error("floor:\n  image: \xEF\xB7\x90.png\n",  // U+FDD0, a noncharacter
+               "w.yaml:2: floor.image: expected a .png file in UTF-8 text, got a byte that is not a UTF-8 character at "
+               "byte 1");
+  // Characters beyond ASCII are names like any other.
+  EXPECT_NE(parse_world("floor:\n  dataset: d\xC3\xADgitos\n", "w.yaml").floor.dataset.find("d\xC3\xADgitos"),
+            std::string::npos);
+}
+
 TEST(WorldFile, AGainThatCannotSettleIsRefused) {
   // kp * dt = 2: the position error flips sign with the same size every tick.
   expect_error("controller: {kp_per_s: 120}\nphysics: {dt_s: 0.0166667}\n",
