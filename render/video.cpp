@@ -183,11 +183,11 @@ VideoWriter::VideoWriter(const fs::path& file, double fps) : impl_(std::make_uni
     throw InputError(fmt::format("fps: expected at most 50 for a GIF ({}), got {}", file.string(), fps));
   impl_->file = file;
   impl_->fps = fps;
-  // Beside the target (same file system, so the rename is atomic), with the same extension,
-  // which FFmpeg reads to choose the container.
-  const fs::path folder = file.parent_path().empty() ? fs::path(".") : file.parent_path();
-  impl_->temporary =
-      folder / fmt::format(".{}.{}.partial{}", file.stem().string(), ::getpid(), file.extension().string());
+  // Beside the target (same file system, so the rename is atomic), named as every temporary of
+  // Scout's (".NAME.tmp-PID-XXXXXXXX", so that commit_file removes one a killed writer left), with
+  // the same extension after it, which FFmpeg reads to choose the container.
+  impl_->temporary = core::temporary_path_beside(file);
+  impl_->temporary += file.extension();
 }
 
 VideoWriter::~VideoWriter() {

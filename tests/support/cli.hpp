@@ -12,6 +12,7 @@
 #include <functional>
 #include <iterator>
 #include <string>
+#include <system_error>
 #include <vector>
 
 namespace scout::testing {
@@ -77,6 +78,20 @@ inline bool wait_for_text(pid_t child, const std::filesystem::path& file, const 
     usleep(20 * 1000);
   }
   return false;
+}
+
+/// How many processes now running have `text` in their command line (read from /proc): a child
+/// that outlived the process that started it (a rank, a plotting script) still names its files.
+inline int processes_naming(const std::string& text) {
+  int count = 0;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it("/proc", ec), end; !ec && it != end; it.increment(ec)) {
+    std::string cmdline = read_file(it->path() / "cmdline");
+    for (char& c : cmdline)
+      if (c == '\0') c = ' ';
+    if (cmdline.find(text) != std::string::npos) ++count;
+  }
+  return count;
 }
 
 /// Appends a 32-bit big-endian integer (IDX headers).

@@ -45,6 +45,21 @@ inline std::vector<std::string> lines_of(const std::string& text) {
   return lines;
 }
 
+// metrics.csv without its timing columns (images_per_s, seconds), which differ run to run.
+inline std::vector<std::string> metrics_without_timing(const std::string& file) {
+  std::vector<std::string> rows;
+  for (const std::string& line : lines_of(read_text(file))) {
+    std::vector<std::string> cells;
+    std::istringstream in(line);
+    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    if (cells.size() > 7) cells.erase(cells.begin() + 6, cells.begin() + 8);
+    std::string row;
+    for (const std::string& c : cells) row += c + ",";
+    rows.push_back(row);
+  }
+  return rows;
+}
+
 // Raw IDX train-* files of `count` 12 x 12 floors of two classes, told apart only by the
 // top-left 3 x 3 block (black or white) over noise in [64, 192).
 inline void write_train_idx(const fs::path& folder, int count) {

@@ -3,11 +3,14 @@
 // renames that replace an output folder) leave either nothing or complete output, never a part
 // that passes for the whole; the next run repairs what the killed one left (its hidden staging
 // folders and temporary files) and finishes. `scout data` killed mid-install is repaired by the
-// next run (needs the npm registry, as `scout data` does).
+// next run (needs the npm registry, as `scout data` does). `scout report`, `scout run --video` and
+// `scout bench sim --json` killed at random moments of their work: the same.
 #include <chrono>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <regex>
 
 #include "tests/support/data.hpp"
 #include "tests/support/train_cli_fixture.hpp"
@@ -232,6 +235,210 @@ TEST_F(TrainCli, DataKilledMidInstallIsRepairedByTheNextRun) {
     for (const auto& entry : fs::directory_iterator(folder))
       EXPECT_NE(entry.path().filename().string()[0], '.') << entry.path();  // no temporaries left
   std::printf("[ measured ] scout data: %d SIGKILLs, then installed\n", kills);
+}
+
+// Kills of the commands that write one whole output at the end (report, run --video, bench).
+
+// What a schedule of kills came to.
+struct Tally {
+  int kills = 0;     // attempts that ended by SIGKILL
+  int random = 0;    // random moments in the schedule
+  int mid_work = 0;  // random moments that found the process still working
+};
+
+// Runs `scout ARGS` once per kill of `kills` (the random moments counted from the line `ready`),
+// calling `before(k)` before the k-th attempt where given and `check(kill)` after each.
+Tally kill_on_schedule(const fs::path& dir, const std::string& args, const std::vector<Kill>& kills,
+                       const std::string& ready, const std::function<void(const Kill&)>& check,
+                       const std::function<void(std::size_t)>& before = {}) {
+  Tally tally;
+  for (std::size_t k = 0; k < kills.size(); ++k) {
+    const Kill& kill = kills[k];
+    if (before) before(k);
+    const Ended ended = attempt(dir, args, kill, ready);
+    tally.kills += ended.killed ? 1 : 0;
+    tally.random += kill.point.empty() ? 1 : 0;
+    tally.mid_work += ended.mid_work ? 1 : 0;
+    check(kill);
+  }
+  return tally;
+}
+
+// A JSON file's document without the members at `pointers` (times and dates, which differ run to
+// run); a file that does not parse is a null document with "unparsable" in it.
+json json_without(const fs::path& file, const std::vector<std::string>& pointers) {
+  json j = json::parse(read_text(file), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return json{{"unparsable", file.string()}};
+  for (const std::string& p : pointers) {
+    const json::json_pointer at(p);
+    if (j.contains(at)) j[at.parent_pointer()].erase(at.back());
+  }
+  return j;
+}
+
+// The hidden entries of `folder` (a writer's temporaries and staging folders).
+std::vector<std::string> hidden_in(const fs::path& folder) {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator(folder))
+    if (entry.path().filename().string()[0] == '.') found.push_back(entry.path().filename().string());
+  return found;
+}
+
+// The files of a `scout report` folder that differ from the uninterrupted report's (its files
+// listed from it). Deterministic byte for byte: the figures (matplotlib's PNGs). Deterministic
+// but for times: REPORT.md (the "in N s" it took), report-data.json ("seconds"), eval.json
+// ("seconds", the manifest's "created_utc") and manifest.json ("created_utc").
+std::vector<std::string> report_differences(const fs::path& out, const fs::path& reference) {
+  static const std::map<std::string, std::vector<std::string>> kTimes = {
+      {"report-data.json", {"/seconds"}},
+      {"eval.json", {"/seconds", "/manifest/created_utc"}},
+      {"manifest.json", {"/created_utc"}}};
+  const std::regex took(" in [0-9]+ s");
+  std::vector<std::string> differ;
+  std::size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(reference)) {
+    const std::string name = entry.path().filename().string();
+    ++files;
+    const fs::path mine = out / name;
+    bool same = false;
+    if (kTimes.count(name)) {
+      same = json_without(mine, kTimes.at(name)) == json_without(entry.path(), kTimes.at(name));
+    } else if (name == "REPORT.md") {
+      same = std::regex_replace(read_text(mine), took, " in # s") ==
+             std::regex_replace(read_text(entry.path()), took, " in # s");
+    } else {
+      same = fs::is_regular_file(mine) && read_text(mine) == read_text(entry.path());
+    }
+    if (!same) differ.push_back(name);
+  }
+  std::size_t mine = 0;
+  for (const auto& entry : fs::directory_iterator(out)) mine += entry.is_regular_file() ? 1 : 0;
+  if (mine != files) differ.push_back(std::to_string(mine) + " files, not " + std::to_string(files));
+  return differ;
+}
+
+TEST_F(TrainCli, ReportKilledLeavesNoReportThatPassesForComplete) {
+  const fs::path data = temp_->path() / "data";
+  const fs::path out = local_.path() / "report", reference = local_.path() / "reference";
+  // The base model has no evaluation beside it: the report evaluates it, then sweeps the budget,
+  // drives the test episodes and draws the figures (matplotlib) into a staging folder.
+  const std::string args = "report " + base() + " --out " + out.string() + " --overwrite --images " +
+                           (data / "train-images-idx3-ubyte").string() + " --labels " +
+                           (data / "train-labels-idx1-ubyte").string() +
+                           " --runs 2 --sweep-digits 9 --sweep-runs 1 --episodes 4 --seed 4";
+  // The uninterrupted report, with the very command line of the killed ones (the report quotes
+  // it), set aside as the reference; its work's length scales the random moments.
+  const double work = work_ms(local_.path(), args, kModelOpened);
+  fs::copy(out, reference, fs::copy_options::recursive);
+  ASSERT_EQ(report_differences(out, reference), std::vector<std::string>{});
+
+  // The named point: half-way through report-data.json, before the figures are drawn (the kill
+  // between the two renames of a replacement is scout run's above: the same OutputDir). The
+  // random moments stop short of the reference's end, whose length varies with the load.
+  auto whole = [&](const Kill& kill) {
+    // Absent, or a whole report (the previous one or this one): never part of one.
+    if (fs::exists(out)) {
+      EXPECT_EQ(report_differences(out, reference), std::vector<std::string>{}) << kill.describe();
+    }
+  };
+  // Every other attempt is a first report into a new folder (the previous one removed), the
+  // others replace the previous one: a killed report must leave no folder, or the previous one.
+  auto new_folder_every_other = [&](std::size_t k) {
+    if (k % 2 == 0) fs::remove_all(out);
+  };
+  const Tally tally =
+      kill_on_schedule(local_.path(), args, schedule({"file-write:2"}, 4, 0.05 * work, 0.7 * work, 20261204),
+                       kModelOpened, whole, new_folder_every_other);
+  EXPECT_EQ(tally.kills, 1 + tally.mid_work);  // the named point was reached
+  EXPECT_GE(tally.mid_work, 3) << "of 4 random kills, only " << tally.mid_work << " landed mid-work";
+
+  // A SIGKILL does not reach the plotting script a killed report had started: it finishes on its
+  // own, writing into the dead report's hidden staging folder. The last run's clean-up is checked
+  // once those have ended (a bound against hanging, never a pass condition).
+  const std::string staging = (local_.path() / ".report.partial-").string();
+  const int orphans = scout::testing::processes_naming(staging);
+  for (int k = 0; k < 3000 && scout::testing::processes_naming(staging) > 0; ++k) usleep(20 * 1000);
+  // A run to the end: the uninterrupted report, and nothing hidden left beside it or in it.
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
+  EXPECT_EQ(report_differences(out, reference), std::vector<std::string>{});
+  EXPECT_EQ(leftovers_beside(out), std::vector<std::string>{});
+  EXPECT_EQ(hidden_in(out), std::vector<std::string>{});
+  std::printf(
+      "[ measured ] scout report: %d SIGKILLs (%d of 4 random ones mid-work in %.0f ms of work, %d plotting "
+      "script(s) still running after its report was killed), then the uninterrupted report\n",
+      tally.kills, tally.mid_work, work, orphans);
+}
+
+TEST_F(TrainCli, RunVideoKilledLeavesNoPartialVideo) {
+  const fs::path out = local_.path() / "out", video = local_.path() / "video" / "runs.gif";
+  fs::create_directories(video.parent_path());
+  // GIF (giflib): the same frames give the same bytes.
+  const std::string args = "run " + world() + " --checkpoint " + base() + " --count 80 --no-images --scale 4 " +
+                           "--fps 10 --video " + video.string() + " --out " + out.string() + " --overwrite";
+  const double work = work_ms(local_.path(), args, kModelOpened);
+  const std::string reference_video = read_text(video), reference_trajectory = read_text(out / "trajectory.json");
+  ASSERT_GT(reference_video.size(), 1000u);
+
+  // The named point: half-way through the manifest, after the video is in place and before the
+  // output folder is.
+  auto whole = [&](const Kill& kill) {
+    // Under its name, a video is the whole video (the previous one or this one), never part.
+    if (fs::exists(video)) {
+      EXPECT_TRUE(read_text(video) == reference_video) << kill.describe();
+    }
+    if (fs::exists(out)) {
+      EXPECT_EQ(read_text(out / "trajectory.json"), reference_trajectory) << kill.describe();
+    }
+  };
+  const Tally tally = kill_on_schedule(local_.path(), args, schedule({"file-write:1"}, 4, 0.05 * work, 0.9 * work, 5),
+                                       kModelOpened, whole);
+  EXPECT_EQ(tally.kills, 1 + tally.mid_work);  // the named point was reached
+  EXPECT_GE(tally.mid_work, 3) << "of 4 random kills, only " << tally.mid_work << " landed mid-work";
+
+  // A run to the end: the uninterrupted run's video and trajectories byte for byte (the
+  // manifests differ by their dates), and no temporary video or staging folder left.
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
+  EXPECT_TRUE(read_text(video) == reference_video) << "not the uninterrupted run's video";
+  EXPECT_EQ(read_text(out / "trajectory.json"), reference_trajectory);
+  EXPECT_EQ(hidden_in(video.parent_path()), std::vector<std::string>{});
+  EXPECT_EQ(leftovers_beside(out), std::vector<std::string>{});
+  std::printf(
+      "[ measured ] scout run --video: %d SIGKILLs (%d of 4 random ones mid-work in %.0f ms of work), then the same "
+      "video\n",
+      tally.kills, tally.mid_work, work);
+}
+
+TEST_F(TrainCli, BenchKilledLeavesNoPartialReport) {
+  const fs::path report = local_.path() / "bench.json";
+  const std::string args = "bench sim --world " + world() + " --robots 8 --repeats 5000 --json " + report.string();
+  // What bench sim prints on stderr once its timing has begun.
+  const std::string timing = "scout bench sim: timing ";
+  // The figures that do not depend on time: the batch and what its moves did (the seeded
+  // recorded batch), and the manifest but its date. The medians and peak memory differ run to run.
+  const std::vector<std::string> times = {"/median_ms", "/agent_steps_per_s", "/patches_per_s", "/peak_resident_bytes",
+                                          "/manifest/created_utc"};
+  const double work = work_ms(local_.path(), args, timing);
+  const json reference = json_without(report, times);
+  ASSERT_EQ(reference["robots"], 8);
+  ASSERT_TRUE(reference.contains("ticks_per_move"));
+
+  auto whole = [&](const Kill& kill) {
+    // The previous report or this one, whole (it parses, with the same figures).
+    if (fs::exists(report)) {
+      EXPECT_EQ(json_without(report, times), reference) << kill.describe();
+    }
+  };
+  const Tally tally =
+      kill_on_schedule(local_.path(), args, schedule({"file-write:1"}, 4, 0.05 * work, 0.9 * work, 9), timing, whole);
+  EXPECT_EQ(tally.kills, 1 + tally.mid_work);  // the named point was reached
+  EXPECT_GE(tally.mid_work, 3) << "of 4 random kills, only " << tally.mid_work << " landed mid-work";
+  ASSERT_FALSE(attempt(local_.path(), args, kNoKill).killed);
+  EXPECT_EQ(json_without(report, times), reference);
+  EXPECT_EQ(leftovers_beside(report), std::vector<std::string>{});
+  std::printf(
+      "[ measured ] scout bench sim: %d SIGKILLs (%d of 4 random ones mid-work in %.0f ms of work), then a whole "
+      "report\n",
+      tally.kills, tally.mid_work, work);
 }
 
 }  // namespace

@@ -11,24 +11,10 @@ namespace {
 namespace fs = std::filesystem;
 using scout::testing::train_cli_support::kTiny;
 using scout::testing::train_cli_support::lines_of;
+using scout::testing::train_cli_support::metrics_without_timing;
 using scout::testing::train_cli_support::read_text;
 using scout::testing::train_cli_support::Result;
 using scout::testing::train_cli_support::TrainCli;
-
-// metrics.csv without its timing columns (images_per_s, seconds), which differ run to run.
-std::vector<std::string> metrics_without_timing(const std::string& file) {
-  std::vector<std::string> rows;
-  for (const std::string& line : lines_of(read_text(file))) {
-    std::vector<std::string> cells;
-    std::istringstream in(line);
-    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
-    if (cells.size() > 7) cells.erase(cells.begin() + 6, cells.begin() + 8);
-    std::string row;
-    for (const std::string& c : cells) row += c + ",";
-    rows.push_back(row);
-  }
-  return rows;
-}
 
 // How one attempt ends: a named point ("POINT:N", the process kills itself there) or a kill from
 // outside after `delay_ms`.
