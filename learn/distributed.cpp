@@ -134,13 +134,18 @@ struct ProcessGroup::Impl {
     }
   }
 
+  // Every collective passes tensors that wrap Scout's own memory and reads its result from that
+  // memory, never from a tensor after the collective: Gloo's worker thread inside LibTorch may
+  // drop the last reference to a tensor and free it after Scout is woken, which is safe (atomic
+  // reference counts) but invisible to ThreadSanitizer, for which LibTorch is not instrumented.
   void all_reduce(torch::Tensor t) {
     const auto t0 = core::Clock::now();
+    const auto bytes = static_cast<double>(t.nbytes());
     std::vector<torch::Tensor> tensors{std::move(t)};
     wait([&] { return group->allreduce(tensors); }, "all-reduce");
     timing.all_reduce_s += core::seconds_since(t0);
     timing.all_reduces += 1;
-    timing.all_reduce_bytes += static_cast<double>(tensors[0].nbytes());
+    timing.all_reduce_bytes += bytes;
   }
 };
 
@@ -210,9 +215,10 @@ void ProcessGroup::all_reduce_sum(std::span<double> values) {
 
 void ProcessGroup::broadcast(std::string& bytes) {
   if (size() == 1) return;
-  std::vector<torch::Tensor> length{torch::tensor({static_cast<std::int64_t>(bytes.size())}, torch::kInt64)};
+  std::int64_t size = static_cast<std::int64_t>(bytes.size());
+  std::vector<torch::Tensor> length{torch::from_blob(&size, {1}, torch::kInt64)};
   impl_->wait([&] { return impl_->group->broadcast(length); }, "broadcast");
-  bytes.resize(static_cast<std::size_t>(length[0].item<std::int64_t>()));
+  bytes.resize(static_cast<std::size_t>(size));
   if (bytes.empty()) return;
   std::vector<torch::Tensor> data{torch::from_blob(bytes.data(), {static_cast<long>(bytes.size())}, torch::kUInt8)};
   impl_->wait([&] { return impl_->group->broadcast(data); }, "broadcast");
@@ -222,12 +228,11 @@ std::vector<std::string> ProcessGroup::all_gather(const std::string& bytes) {
   if (size() == 1) return {bytes};
   std::string mine = bytes;
   std::vector<torch::Tensor> input{torch::from_blob(mine.data(), {static_cast<long>(mine.size())}, torch::kUInt8)};
+  std::vector<std::string> all(static_cast<std::size_t>(size()), std::string(mine.size(), '\0'));
   std::vector<std::vector<torch::Tensor>> output(1);
-  for (int r = 0; r < size(); ++r) output[0].push_back(torch::empty({static_cast<long>(mine.size())}, torch::kUInt8));
+  for (std::string& r : all)
+    output[0].push_back(torch::from_blob(r.data(), {static_cast<long>(r.size())}, torch::kUInt8));
   impl_->wait([&] { return impl_->group->allgather(output, input); }, "all-gather");
-  std::vector<std::string> all;
-  for (const torch::Tensor& t : output[0])
-    all.emplace_back(reinterpret_cast<const char*>(t.data_ptr<std::uint8_t>()), static_cast<std::size_t>(t.numel()));
   return all;
 }
 

@@ -159,6 +159,12 @@ TEST_F(TrainDistributed, TwoProcessesTrainTheSameWeightsAsOne) {
                                                                           << a[i] << "\n"
                                                                           << b[i];
     EXPECT_EQ(x.at(8), y.at(8)) << "learning rate";
+    // The gradient each step applied (13th): the processes' shares must add up to the one
+    // process's gradient, which Adam's scale-free steps alone would not show (a share weighted
+    // twice, or a mean taken where a sum belongs, changes the norm by a factor, not the weights).
+    const double norm_one = std::stod(x.at(12)), norm_two = std::stod(y.at(12));
+    EXPECT_GT(norm_one, 0) << a[i];
+    EXPECT_NEAR(norm_two / norm_one, 1.0, 1e-4) << "gradient norm\n" << a[i] << "\n" << b[i];
   }
   std::ifstream in(path("two") + "/manifest.json");
   EXPECT_EQ(json::parse(in)["world_size"], 2);
