@@ -65,11 +65,14 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   const std::string killed = path("killed");
   int kills = 0, fresh_starts = 0, random_mid_work = 0;
   for (const Kill& kill : schedule) {
-    const bool resume = fs::is_regular_file(killed + "/checkpoint.pt");
-    const double epochs_left =
-        resume ? 1.0 - double(lines_of(read_text(killed + "/metrics.csv")).size() - 1) / kEpochs : 1.0;
+    const bool checkpointed = fs::is_regular_file(killed + "/checkpoint.pt");
+    const double epochs_done =
+        checkpointed ? double(lines_of(read_text(killed + "/metrics.csv")).size() - 1) / kEpochs : 0.0;
+    // Killed before its first checkpoint, or finished (a random moment after its end): the run
+    // starts again, so that every attempt has work left for its kill to land in.
+    const bool resume = checkpointed && epochs_done < 1.0;
+    const double epochs_left = resume ? 1.0 - epochs_done : 1.0;
     if (!resume) {
-      // Killed before its first checkpoint: the run starts again (nothing to resume).
       fs::remove_all(killed);
       ++fresh_starts;
     }
