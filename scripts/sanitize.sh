@@ -25,16 +25,20 @@
 #
 # The ASan subset (ci): every test labelled core, grid, worlds, sim, render, env, agent, learn or
 # python: the loaders and their fuzzers, the physics, the camera, the networks, the checkpoints
-# and the Python package with its examples. Left out:
-#   - the `tools` label: the `scout` program's end-to-end tests (runs, reports, kills, full disks).
-#     They drive the same libraries through the command line, take 14 of the 35 minutes under
-#     ASan, and the full `address` pass runs them;
+# and the Python package with its examples; and eleven of the `tools` label's end-to-end tests
+# (ASAN_CI_TOOLS_TESTS), which run the `scout` program instrumented: its command line, output
+# folder, training, evaluation, report and multi-process launcher. Left out:
+#   - the rest of the `tools` label (more runs, kills, full disks): they drive the same code through
+#     the command line, take 14 of the 35 minutes under ASan, and the full `address` pass runs them;
 #   - SLOW_UNDER_ASAN: learning runs and gradient checks of 30-90 s each under ASan, and the
 #     Python examples (REINFORCE's 600 training batches take over 10 minutes under ASan). Shorter
 #     tests run the same code (rollouts, the estimator, the trainer, ResNet-18, the Python
 #     package's vector environment and agent in test_scout_env.py); these only run it longer.
-# With the `tools` tests left out, nothing in the subset runs the `scout` program instrumented, so
-# it is not built: test_scout_env.py compares the package with the Release build's program.
+# test_scout_env.py compares the package with the Release build's program, as its reference.
+#
+# Every process's sanitizer output goes to a log file of its own (with_sanitizer_logs below): the
+# step then prints the matched suppressions with their counts and fails on any report, whichever
+# process wrote it (a test, a `scout` it started, a rank, a forked child, the Python interpreter).
 #
 # The TSan subset (ci): the worker pool, physics, camera and environment tests, and four of the ten
 # TrainDistributed tests, which between them run every multi-process path: training with its
@@ -46,8 +50,9 @@
 # refusals before training starts (RanksThatDisagree..., ResumingWithAnotherProcessCount...).
 #
 # Every report fails the run (no recovery). What is suppressed, and why, is in
-# scripts/sanitizers/*.supp: other libraries' own leaks at exit, and races inside LibTorch and Gloo
-# (not built with TSan), each with its reason; never Scout's code.
+# scripts/sanitizers/*.supp, by function, each with the report it answers: other libraries' own
+# allocations kept until exit, and races whose synchronisation is inside LibTorch or Gloo (not
+# built with TSan); never a frame of Scout's code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 which=${1:-all}
@@ -61,16 +66,28 @@ jobs=$(nproc)
 supp="$PWD/scripts/sanitizers"
 warnings=${SCOUT_WARNINGS_AS_ERRORS:-OFF}
 
+# Each test step adds log_path (sanitizer_logs below); the matched suppressions are printed at
+# every process's exit into its log, and summarized in the step's output.
 export ASAN_OPTIONS="abort_on_error=1:detect_leaks=1:check_initialization_order=1:detect_stack_use_after_return=0"
-export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
+export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$supp/tsan.supp"
+export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:history_size=7:suppressions=$supp/tsan.supp:print_suppressions=1"
 
 ASAN_CI_LABELS='^(core|grid|worlds|sim|render|env|agent|learn|python)$'
-# Not the `scout` program: no test of the subset runs it instrumented (the Python tests run the
-# Release build's as their reference; tests/python/CMakeLists.txt).
+# The test programs the subset runs (the `scout` program with them: its tests and the hostile-
+# checkpoint corpus run it; the Python tests run the Release build's as their reference).
 ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_tests agent_tests learn_tests
-                 scout_python scout_python_agent)
+                 scout_python scout_python_agent tools_tests tools_process_tests)
+# The `scout` program's own code (tools/) under ASan, in a few of its end-to-end tests: the command
+# line and its refusals, the output folder and --overwrite, a run's pictures, a training run with
+# its checkpoint, Ctrl-C and resume, evaluation, the report (with its plotting child), and the
+# multi-process launcher with two ranks.
+ASAN_CI_TOOLS_TESTS=(Cli.HelpVersionAndUsageErrors Cli.AnExistingOutputFolderIsRefusedUnlessOverwriting
+  Cli.OverwriteNeverDestroysWhatIsNotScoutOutput Cli.RunWritesTrajectoryImagesAndManifest
+  TrainCli.ATinyRunWritesCheckpointMetricsAndManifest TrainCli.BadOptionsAreRefusedWithOneLine
+  TrainCli.ControlCSavesACheckpointThatResumeFinishes EvalRun.EvalPrintsATableAndWritesTheReportAndPredictions
+  EvalRun.ReportEvaluatesAndDrawsTheTableAndFigures EvalRun.ReportRefusesBadInputsWithOneLine
+  TrainDistributed.TwoProcessesTrainTheSameWeightsAsOne)
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|TrainerPin\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
 TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
@@ -95,6 +112,22 @@ require_tests() {  # folder pattern...
   done
 }
 
+# Runs a test command with every process's sanitizer output in FOLDER/sanitizer-logs (log_path:
+# one file per process, whichever test, rank or child it is and whoever reads its stderr), then
+# summarizes those logs (scripts/sanitizers/summarize_logs.py): the matched suppressions with their
+# counts, and every report, which fails the step even where its process exited as its test
+# expected. The command's own failure fails the step too, after the summary.
+with_sanitizer_logs() {  # folder suppression-files command...
+  local logs="$PWD/$1/sanitizer-logs" files=$2 status=0 summary=0
+  shift 2
+  rm -rf "$logs" && mkdir -p "$logs"
+  ASAN_OPTIONS="$ASAN_OPTIONS:log_path=$logs/asan" UBSAN_OPTIONS="$UBSAN_OPTIONS:log_path=$logs/ubsan" \
+    TSAN_OPTIONS="$TSAN_OPTIONS:log_path=$logs/tsan" "$@" || status=$?
+  # shellcheck disable=SC2086  # the suppression files, split on purpose
+  /usr/bin/python3 scripts/sanitizers/summarize_logs.py "$logs" $files || summary=$?
+  ((status == 0 && summary == 0))
+}
+
 # Ninja for new build folders, as scripts/setup.sh.
 export CMAKE_GENERATOR=${CMAKE_GENERATOR:-Ninja}
 
@@ -107,6 +140,17 @@ build() {  # folder [targets...]
   local folder=$1
   shift
   if (($#)); then cmake --build "$folder" -j"$jobs" --target "$@"; else cmake --build "$folder" -j"$jobs"; fi
+}
+
+# The ASan subset of CI: the labelled tests, grouped, then the tools/ tests one by one (some run
+# serially: several processes, or a kill); both run whatever the other's result.
+asan_ci_tests() {  # tools-regex [--costs FILE]
+  local tools_regex=$1 status=0
+  shift
+  /usr/bin/python3 scripts/sanitizers/run_grouped.py build-asan "$jobs" "$@" -L "$ASAN_CI_LABELS" \
+    -E "$SLOW_UNDER_ASAN" || status=$?
+  ctest --test-dir build-asan --output-on-failure --no-tests=error -j"$jobs" -R "$tools_regex" || status=$?
+  return "$status"
 }
 
 address() {  # build|test
@@ -129,8 +173,10 @@ address() {  # build|test
       # RUN_SERIAL test): scripts/sanitizers/run_grouped.py says why.
       local costs=()
       [[ -f build/Testing/Temporary/CTestCostData.txt ]] && costs=(--costs build/Testing/Temporary/CTestCostData.txt)
-      /usr/bin/python3 scripts/sanitizers/run_grouped.py build-asan "$jobs" "${costs[@]}" -L "$ASAN_CI_LABELS" \
-        -E "$SLOW_UNDER_ASAN"
+      local tools_regex
+      tools_regex="^($(IFS='|'; echo "${ASAN_CI_TOOLS_TESTS[*]//./\\.}"))\$"
+      require_tests build-asan "${ASAN_CI_TOOLS_TESTS[@]/#/^}"
+      with_sanitizer_logs build-asan "$supp/lsan.supp" asan_ci_tests "$tools_regex" "${costs[@]}"
     fi
     what="the labelled subset (scripts/sanitize.sh)"
   else
@@ -138,7 +184,7 @@ address() {  # build|test
       configure build-asan address,undefined -DSCOUT_PYTHON_REFERENCE_PROGRAM=
       build build-asan
     else
-      ctest --test-dir build-asan --output-on-failure -j"$jobs"
+      with_sanitizer_logs build-asan "$supp/lsan.supp" ctest --test-dir build-asan --output-on-failure -j"$jobs"
     fi
     what="the whole suite"
   fi
@@ -162,7 +208,8 @@ thread() {  # build|test
     local tests=$TSAN_TESTS
     [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
     require_tests build-tsan "${TSAN_FAMILIES[@]}" "${TSAN_CI_NAMED[@]}"
-    "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests"
+    with_sanitizer_logs build-tsan "$supp/tsan.supp" \
+      "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests"
   fi
   echo "sanitize: ThreadSanitizer: $1 of the worker pool, physics, camera, environment and multi-process tests done in $((SECONDS - start)) s"
 }
