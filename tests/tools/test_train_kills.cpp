@@ -41,6 +41,38 @@ double work_after_ready_ms(const std::string& args, const fs::path& dir) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - ready).count();
 }
 
+// Seven named fault points, and between them seven random moments, seeded (the same schedule
+// every run), as shares of the uninterrupted run's work on this machine now; each is counted from
+// the readiness line and scaled to the share of the schedule's epochs a resumed run still has
+// ahead of it, so that it lands inside its work.
+std::vector<Kill> kill_schedule(double work_ms) {
+  std::vector<Kill> schedule = {{"batch:3"},      {"file-write:2"}, {"validation:1"}, {"batch:2"},
+                                {"file-write:5"}, {"validation:2"}, {"file-write:1"}};
+  std::mt19937 random(20261202);
+  std::uniform_real_distribution<double> share(0.1, 0.5);
+  for (int k = 0; k < 7; ++k)
+    schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", static_cast<int>(share(random) * work_ms)});
+  return schedule;
+}
+
+// What killed writers left (hidden temporaries beside the checkpoint and metrics) is gone once a
+// run has written to the folder again.
+void expect_no_hidden_files(const std::string& folder) {
+  for (const auto& entry : fs::directory_iterator(folder))
+    EXPECT_NE(entry.path().filename().string()[0], '.') << entry.path() << " was left behind";
+}
+
+// The killed and resumed run ended as the uninterrupted one: the same metrics but for clocks, and
+// the same weights bit for bit.
+void expect_the_same_run(const std::string& reference, const std::string& killed) {
+  EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"), metrics_without_timing(reference + "/metrics.csv"));
+  const scout::testing::CliResult same =
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + reference + "/checkpoint.pt' '" + killed + "/checkpoint.pt'");
+  ASSERT_EQ(same.status, 0) << same.output;
+  EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
+  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;         // bit for bit
+}
+
 TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   // A checkpoint after every batch (--checkpoint-every below a batch's time), as the default
   // 5 minutes is on a long run; fp32 so that nothing depends on the CPU's bf16.
@@ -52,15 +84,7 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
       work_after_ready_ms("train " + world() + " --out " + path("reference") + options + every, local_.path());
   ASSERT_GT(work_ms, 0) << read_text(local_.path() / "ref.err");
 
-  std::vector<Kill> schedule = {{"batch:3"},      {"file-write:2"}, {"validation:1"}, {"batch:2"},
-                                {"file-write:5"}, {"validation:2"}, {"file-write:1"}};
-  // The random moments, seeded (the same schedule every run), as shares of the uninterrupted
-  // run's work on this machine now, counted from the readiness line and scaled to the share of
-  // the schedule's epochs a resumed run still has ahead of it, so that they land inside its work.
-  std::mt19937 random(20261202);
-  std::uniform_real_distribution<double> share(0.1, 0.5);
-  for (int k = 0; k < 7; ++k)
-    schedule.insert(schedule.begin() + 2 * k + 1, Kill{"", static_cast<int>(share(random) * work_ms)});
+  const std::vector<Kill> schedule = kill_schedule(work_ms);
 
   const std::string killed = path("killed");
   int kills = 0, fresh_starts = 0, random_mid_work = 0;
@@ -121,22 +145,13 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.pt"));
   const Result last = run("train --resume " + killed);
   ASSERT_EQ(last.status, 0) << last.out << last.err;
-  // What the killed writers left (hidden temporaries beside the checkpoint and metrics) is gone
-  // once a run has written there again.
-  for (const auto& entry : fs::directory_iterator(killed))
-    EXPECT_NE(entry.path().filename().string()[0], '.') << entry.path() << " was left behind";
+  expect_no_hidden_files(killed);
   std::printf(
       "[ measured ] %d SIGKILLs (%d of 7 random ones mid-work, %d before a first checkpoint), then resumed to "
       "the end\n",
       kills, random_mid_work, fresh_starts - 1);
 
-  EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"),
-            metrics_without_timing(path("reference") + "/metrics.csv"));
-  const scout::testing::CliResult same = scout::testing::run_cli(
-      COMPARE_WEIGHTS, "'" + path("reference") + "/checkpoint.pt' '" + killed + "/checkpoint.pt'");
-  ASSERT_EQ(same.status, 0) << same.output;
-  EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
-  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;         // bit for bit
+  expect_the_same_run(path("reference"), killed);
 }
 
 }  // namespace
