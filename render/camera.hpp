@@ -17,6 +17,13 @@ struct PixelPose {
   int y = 0;
 };
 
+/// A robot's centre in continuous floor pixels (pixel (x, y) spans [x, x+1) x [y, y+1); a cell's
+/// centre is (x + 0.5, y + 0.5)).
+struct FloorPoint {
+  float x = 0.5f;
+  float y = 0.5f;
+};
+
 /// Renders the camera patches of up to `max_robots` robots, each over its own floor.
 class PatchCamera {
  public:
@@ -36,6 +43,15 @@ class PatchCamera {
   /// Pixels of a window that fall off the floor are 0. The result equals the CPU crop exactly.
   void capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches);
 
+  /// Renders the patches of robots 0 .. centres.size()-1 at their continuous centres, sub-pixel,
+  /// into `patches` (the same layout as capture()). What filtering: patch pixel (column i, row j)
+  /// is the floor sampled bilinearly over texel centres at (cx + i - floor(m/2), cy + j - floor(m/2)),
+  /// with texels off the floor counting as 0, computed in float and rounded to nearest (halves up);
+  /// see sample_patch_bilinear. At a cell centre (x + 0.5, y + 0.5) the result equals capture() at
+  /// PixelPose{x, y} bit for bit. Centres may lie anywhere, on or off the floor, but must be finite
+  /// (std::invalid_argument otherwise). One draw and one read-back for the batch, like capture().
+  void capture_at(std::span<const FloorPoint> centres, std::span<std::uint8_t> patches);
+
   int patch_px() const;
   int max_robots() const;
   /// The GL renderer and version strings, e.g. "llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6".
@@ -49,5 +65,13 @@ class PatchCamera {
 /// The CPU reference: the same window cropped from an image in memory (off-floor pixels 0).
 void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px, PixelPose pose,
                 std::uint8_t* patch_out);
+
+/// The CPU reference of PatchCamera::capture_at, in double precision: patch pixel (i, j) is
+/// round-half-up of the bilinear blend of the four texels around the point
+/// (centre.x + i - floor(m/2), centre.y + j - floor(m/2)), with texel (x, y)'s centre at
+/// (x + 0.5, y + 0.5) and texels off the floor 0. The GL camera computes the same blend in float,
+/// so it may differ from this by one grey level where the blend lies within float error of a half.
+void sample_patch_bilinear(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px,
+                           FloorPoint centre, std::uint8_t* patch_out);
 
 }  // namespace scout::render
