@@ -2,6 +2,7 @@
 /// Seeds and random draws that are the same on every platform and standard library:
 /// std::uniform_int_distribution and std::shuffle are implementation-defined, these are not.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <utility>
@@ -72,6 +73,21 @@ std::uint64_t uniform_below(Generator& rng, std::uint64_t n) {
   do x = rng();
   while (x < reject_below);
   return x % n;
+}
+
+/// A uniform double in [0, 1) from the top 53 bits of one draw.
+template <typename Generator>
+double uniform01(Generator& rng) {
+  return static_cast<double>(rng() >> 11) * 0x1.0p-53;
+}
+
+/// A standard normal draw (Box-Muller from two uniform01 draws, the cosine branch): written out
+/// because std::normal_distribution's sequence is unspecified.
+template <typename Generator>
+double standard_normal(Generator& rng) {
+  const double u1 = 1.0 - uniform01(rng);  // (0, 1]: the logarithm stays finite
+  const double u2 = uniform01(rng);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * 3.14159265358979323846 * u2);
 }
 
 /// Fisher-Yates shuffle, written out because std::shuffle's sequence is unspecified.

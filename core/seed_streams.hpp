@@ -11,6 +11,7 @@ namespace scout::streams {
 // `scout run`: run k's seed is derive_seed(command seed, k); below it:
 inline constexpr std::uint64_t kRunStart = 2;   ///< run k's start cell
 inline constexpr std::uint64_t kRunPolicy = 3;  ///< run k's goal and axis choices
+inline constexpr std::uint64_t kRunMotion = 4;  ///< run k's motion errors and pushes (worlds that have them)
 /// Below the command seed itself: the permutation of the split that `index: random` walks.
 inline constexpr std::uint64_t kRunDigitOrder = ~std::uint64_t{0};
 
@@ -18,6 +19,7 @@ inline constexpr std::uint64_t kRunDigitOrder = ~std::uint64_t{0};
 // index); below it:
 inline constexpr std::uint64_t kRobotStart = 1;   ///< the robot's start cell
 inline constexpr std::uint64_t kRobotPolicy = 2;  ///< the robot's goal and axis choices
+inline constexpr std::uint64_t kRobotMotion = 3;  ///< the robot's motion errors and pushes (worlds that have them)
 
 // A training run's seed; below it, then the stage and the epoch:
 inline constexpr std::uint64_t kTrainOrder = 11;       ///< data order of (stage, epoch)

@@ -14,7 +14,7 @@ using core::Clock;
 using core::seconds_since;
 
 BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
-    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots) {
+    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots), exact_motion_(world.ideal_motion()) {
   if (max_robots <= 0) throw std::invalid_argument("BatchEnv: max_robots must be positive");
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
   camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots);
@@ -25,6 +25,7 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   floors_.resize(area * max_robots);
   patches_.resize(static_cast<std::size_t>(max_robots) * patch_px_ * patch_px_);
   pixel_poses_.resize(max_robots);
+  centres_.resize(max_robots);
   moves_.resize(max_robots);
   sim_results_.resize(max_robots);
   results_.resize(max_robots);
@@ -53,19 +54,21 @@ Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->positio
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
 // Puts robot i on its floor, at rest on its start, with nothing seen yet.
-void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start) {
+void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start,
+                     std::uint64_t motion_seed) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
-  robots_->place(robot, start);
-  poses_[robot] = robots_->grid_pose(robot);
+  robots_->place(robot, start, motion_seed);
+  poses_[robot] = robots_->agent_pose(robot);
   seen_[robot].clear();
   moves_[robot] = 0;
   sim_results_[robot] = sim::MoveResult{};
   results_[robot] = MoveResult{};
 }
 
-void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts) {
+void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
+                     std::span<const std::uint64_t> motion_seeds) {
   const int count = static_cast<int>(starts.size());
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   if (count <= 0 || count > max_robots_)
@@ -74,23 +77,26 @@ void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid:
   if (floors.size() != area * count)
     throw std::invalid_argument("BatchEnv::reset: floors hold " + std::to_string(floors.size()) + " bytes, expected " +
                                 std::to_string(area * count));
+  if (motion_seeds.size() != starts.size())
+    throw std::invalid_argument("BatchEnv::reset: " + std::to_string(motion_seeds.size()) + " motion seeds for " +
+                                std::to_string(count) + " robots");
   for (const grid::Cell& s : starts)
     if (!frame_.contains(s)) throw std::invalid_argument("BatchEnv::reset: a start cell is off the floor");
   const auto t0 = Clock::now();
   count_ = count;
-  for (int i = 0; i < count; ++i) place(i, floors.subspan(area * i, area), starts[i]);
+  for (int i = 0; i < count; ++i) place(i, floors.subspan(area * i, area), starts[i], motion_seeds[i]);
   camera_->load_floors(std::span(floors_.data(), area * count), count);
   timing_.observe_s += seconds_since(t0);
   observe();
 }
 
 void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
-                            std::span<const grid::Cell> starts) {
+                            std::span<const grid::Cell> starts, std::span<const std::uint64_t> motion_seeds) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-  if (starts.size() != robots.size() || floors.size() != area * robots.size())
+  if (starts.size() != robots.size() || motion_seeds.size() != robots.size() || floors.size() != area * robots.size())
     throw std::invalid_argument("BatchEnv::reset_robots: " + std::to_string(robots.size()) + " robots, " +
-                                std::to_string(starts.size()) + " starts and " + std::to_string(floors.size()) +
-                                " floor bytes");
+                                std::to_string(starts.size()) + " starts, " + std::to_string(motion_seeds.size()) +
+                                " motion seeds and " + std::to_string(floors.size()) + " floor bytes");
   for (std::size_t k = 0; k < robots.size(); ++k) {
     if (robots[k] < 0 || robots[k] >= count_)
       throw std::invalid_argument("BatchEnv::reset_robots: robot " + std::to_string(robots[k]) + " of " +
@@ -100,7 +106,8 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
   }
   if (robots.empty()) return;
   const auto t0 = Clock::now();
-  for (std::size_t k = 0; k < robots.size(); ++k) place(robots[k], floors.subspan(area * k, area), starts[k]);
+  for (std::size_t k = 0; k < robots.size(); ++k)
+    place(robots[k], floors.subspan(area * k, area), starts[k], motion_seeds[k]);
   // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
   camera_->load_floors(std::span(floors_.data(), area * count_), count_);
   timing_.observe_s += seconds_since(t0);
@@ -125,8 +132,9 @@ void BatchEnv::step(std::span<const grid::Cell> commands) {
                    .settled = r.settled,
                    .touched_wall = r.touched_wall,
                    .peak_speed_mps = r.peak_speed_mps,
-                   .beyond_border_px = r.beyond_border_px};
-    poses_[i] = robots_->grid_pose(i);
+                   .beyond_border_px = r.beyond_border_px,
+                   .pushed = r.pushed};
+    poses_[i] = robots_->agent_pose(i);
     ++moves_[i];
     timing_.ticks += results_[i].ticks;
     timing_.peak_speed_mps = std::max(timing_.peak_speed_mps, results_[i].peak_speed_mps);
@@ -138,13 +146,23 @@ void BatchEnv::step(std::span<const grid::Cell> commands) {
     for (int i = 0; i < count_; ++i) tick_hook_(i, ticks_[i]);
 }
 
-// The camera at every robot's grid pose; what it sees is revealed and written into y.
+// The camera looks from every robot (at its grid pose in an exact world, where the robot really
+// is otherwise); what it sees is revealed and written into y at the pose the agent reads.
 void BatchEnv::observe() {
   auto t0 = Clock::now();
-  static_assert(sizeof(render::PixelPose) == 2 * sizeof(int));
-  for (int i = 0; i < count_; ++i) pixel_poses_[i] = {poses_[i].x(), poses_[i].y()};
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px_) * patch_px_;
-  camera_->capture(std::span(pixel_poses_.data(), count_), std::span(patches_.data(), patch_bytes * count_));
+  const std::span<std::uint8_t> patches(patches_.data(), patch_bytes * count_);
+  if (exact_motion_) {
+    static_assert(sizeof(render::PixelPose) == 2 * sizeof(int));
+    for (int i = 0; i < count_; ++i) pixel_poses_[i] = {poses_[i].x(), poses_[i].y()};
+    camera_->capture(std::span(pixel_poses_.data(), count_), patches);
+  } else {
+    for (int i = 0; i < count_; ++i) {
+      const Eigen::Vector2d p = robots_->position_px(i);
+      centres_[i] = {static_cast<float>(p.x()), static_cast<float>(p.y())};
+    }
+    camera_->capture_at(std::span(centres_.data(), count_), patches);
+  }
   timing_.render_s += seconds_since(t0);
 
   t0 = Clock::now();

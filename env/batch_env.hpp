@@ -24,6 +24,7 @@ struct MoveResult;
 namespace scout::render {
 class PatchCamera;
 struct PixelPose;
+struct FloorPoint;
 }  // namespace scout::render
 
 namespace scout::env {
@@ -35,6 +36,7 @@ struct MoveResult {
   bool touched_wall = false;      ///< touched a wall during the move
   double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
   double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
+  bool pushed = false;            ///< a push hit the robot during the move (worlds with `pushes`)
 };
 
 /// Sees every physics tick of a step: called once per robot after the step, in robot order, with
@@ -67,14 +69,17 @@ class BatchEnv {
   /// Starts robots 0 .. starts.size() - 1 over `floors` (H * W bytes each, concatenated): each
   /// is placed at rest on its start cell, what it has seen is cleared, its move count is 0, and
   /// the camera takes its first look. Robots beyond are idle until the next reset.
-  void reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts);
-  /// Starts again only robots[k] (< count()), over floors[k] from starts[k]; the others keep
-  /// their state (an autoreset of finished robots).
+  /// motion_seeds[i] (one per start) seeds robot i's motion errors and pushes in a world that
+  /// has them (sim::RobotBatch::place); they change nothing in an exact world.
+  void reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
+             std::span<const std::uint64_t> motion_seeds);
+  /// Starts again only robots[k] (< count()), over floors[k] from starts[k] with motion_seeds[k];
+  /// the others keep their state (an autoreset of finished robots).
   void reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
-                    std::span<const grid::Cell> starts);
+                    std::span<const grid::Cell> starts, std::span<const std::uint64_t> motion_seeds);
   /// One move per robot (commands.size() == count()): commands[i] pixels from its grid pose
   /// (zero: it stays, no tick), driven by the controller and Box2D; then the camera looks from
-  /// every robot's new grid pose and what it sees is revealed.
+  /// every robot's new position and what it sees is revealed at the pose the agent reads.
   void step(std::span<const grid::Cell> commands);
   /// Set (or clear, with an empty function) the hook that sees every physics tick.
   void set_tick_hook(TickHook hook);
@@ -86,9 +91,13 @@ class BatchEnv {
 
   // Robots 0 .. count() - 1, robot-major and contiguous:
   /// The camera's last image of each robot, count * m * m bytes, row-major; pixels of the window
-  /// that lie off the floor are 0.
+  /// that lie off the floor are 0. In an exact world it is the crop of the window at the grid
+  /// pose; with imperfect motion or pushes, the floor sampled bilinearly where the robot really
+  /// is (render::PatchCamera::capture_at).
   std::span<const std::uint8_t> patches() const;
-  std::span<const grid::Cell> poses() const;  ///< grid pose of each robot's actual position
+  /// The pose each robot's agent reads (METHOD.md's l): the grid pose of its actual position, or
+  /// in a world with `motion.pose: odometry` the one its odometry believes.
+  std::span<const grid::Cell> poses() const;
   /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
   std::span<const std::uint8_t> revealed() const;
   std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
@@ -105,7 +114,7 @@ class BatchEnv {
   std::string camera_description() const;
 
  private:
-  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start);
+  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed);
   void observe();
 
   grid::FloorFrame frame_;
@@ -119,7 +128,9 @@ class BatchEnv {
   std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
   std::vector<std::uint8_t> patches_;
-  std::vector<render::PixelPose> pixel_poses_;
+  bool exact_motion_;                           // moves land on cells: the camera crops at grid poses
+  std::vector<render::PixelPose> pixel_poses_;  // exact worlds: the grid poses the camera crops at
+  std::vector<render::FloorPoint> centres_;     // otherwise: the true centres it samples at
   std::vector<int> moves_;
   std::vector<sim::MoveResult> sim_results_;  // what the physics reports, copied into results_
   std::vector<MoveResult> results_;

@@ -30,6 +30,7 @@ PlannedRun RunSequence::run(std::uint64_t k) const {
   core::Rng start_rng(core::derive_seed(r.seed, streams::kRunStart));
   r.start = draw_start(world_, frame_, start_rng);
   r.policy_seed = core::derive_seed(r.seed, streams::kRunPolicy);
+  r.motion_seed = core::derive_seed(r.seed, streams::kRunMotion);
   return r;
 }
 

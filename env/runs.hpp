@@ -21,6 +21,7 @@ struct PlannedRun {
   int index = 0;                  ///< the digit, in its split
   grid::Cell start;               ///< drawn from derive_seed(seed, kRunStart) (or the world's start)
   std::uint64_t policy_seed = 0;  ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
+  std::uint64_t motion_seed = 0;  ///< derive_seed(seed, kRunMotion): the run's motion errors and pushes
 };
 
 /// The runs of one sequence seed over a split of `split_size` digits. With `index: random` run k

@@ -57,6 +57,7 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   commands_.resize(num_envs_);
   floor_bytes_.resize(static_cast<std::size_t>(frame_.area_px()) * num_envs_);
   starts_.resize(num_envs_);
+  motion_seeds_.resize(num_envs_);
 }
 
 VectorEnv::~VectorEnv() = default;
@@ -69,6 +70,7 @@ void VectorEnv::plan(std::span<const int> robots) {
     planned_[i] = sequence_[i]->run(run_[i]);
     std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * k);
     starts_[k] = planned_[i].start;
+    motion_seeds_[k] = planned_[i].motion_seed;
     done_[i] = 0;
     time_step_[i] = 0;
   }
@@ -120,11 +122,11 @@ void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
                 [&](const auto& entry) { return !std::binary_search(used.begin(), used.end(), entry.second.get()); });
   plan(robots);
   if (robots.size() == n) {
-    env_->reset(floor_bytes_, starts_);
+    env_->reset(floor_bytes_, starts_, motion_seeds_);
   } else {
     const std::size_t area = static_cast<std::size_t>(frame_.area_px());
     env_->reset_robots(robots, std::span(floor_bytes_.data(), area * robots.size()),
-                       std::span(starts_.data(), robots.size()));
+                       std::span(starts_.data(), robots.size()), std::span(motion_seeds_.data(), robots.size()));
   }
   if (out.reward) std::fill_n(out.reward, num_envs_, 0.0f);
   if (out.terminated) std::fill_n(out.terminated, num_envs_, 0);
@@ -204,7 +206,7 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
     plan(finished_);
     const std::size_t area = static_cast<std::size_t>(frame_.area_px());
     env_->reset_robots(finished_, std::span(floor_bytes_.data(), area * finished_.size()),
-                       std::span(starts_.data(), finished_.size()));
+                       std::span(starts_.data(), finished_.size()), std::span(motion_seeds_.data(), finished_.size()));
   }
   env_->step(commands_);
 

@@ -148,6 +148,7 @@ class VectorEnv {
   std::vector<int> finished_;
   std::vector<std::uint8_t> floor_bytes_;
   std::vector<grid::Cell> starts_;
+  std::vector<std::uint64_t> motion_seeds_;
 };
 
 }  // namespace scout::env

@@ -112,6 +112,7 @@ class Evaluator {
         batch.labels.push_back(one.labels[0]);
         batch.starts.push_back(one.starts[0]);
         batch.seeds.push_back(one.seeds[0]);
+        batch.motion_seeds.push_back(one.motion_seeds[0]);
       }
       batch.count = k;
       const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling,

@@ -22,6 +22,7 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
   batch.labels.resize(batch.count);
   batch.starts.resize(batch.count);
   batch.seeds.resize(batch.count);
+  batch.motion_seeds.resize(batch.count);
   for (std::size_t i = 0; i < indices.size(); ++i) {
     const int image = indices[i];
     if (image < 0 || image >= data.images.count) throw std::out_of_range("make_batch: image index out of range");
@@ -33,6 +34,7 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
       batch.starts[r] = env::draw_start(world, frame, start_rng);
       batch.seeds[r] = core::derive_seed(robot_seed, streams::kRobotPolicy);
+      batch.motion_seeds[r] = core::derive_seed(robot_seed, streams::kRobotMotion);
     }
   }
   return batch;
@@ -43,7 +45,7 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   // One guard for the whole batch, so that each weight is cast to bf16 once, not once per move.
   const ComputePrecision precision(sampling.precision);
   policy.begin(batch.seeds, sampling);
-  engine.run(batch.floors, batch.starts, policy, /*record=*/false);
+  engine.run(batch.floors, batch.starts, batch.motion_seeds, policy, /*record=*/false);
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling.with_grad) no_grad.emplace();
   torch::Tensor log_probs =

@@ -134,10 +134,11 @@ void RolloutEngine::record_moves(std::vector<RolloutRecord>& records, int e, int
 }
 
 std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
-                                              Policy& policy, bool record) {
+                                              std::span<const std::uint64_t> motion_seeds, Policy& policy,
+                                              bool record) {
   check_inputs(floors, starts);
   const int count = static_cast<int>(starts.size());
-  env_->reset(floors, starts);
+  env_->reset(floors, starts, motion_seeds);
   auto t0 = Clock::now();
   std::fill(goals_.begin(), goals_.begin() + count, grid::Cell::Zero());
   refresh_state();

@@ -22,7 +22,7 @@ struct BatchState {
   grid::FloorFrame frame;
   int patch_px = 0;
   int count = 0;                           ///< robots in this rollout batch
-  std::span<const grid::Cell> pose;        ///< grid pose of the actual position, per robot
+  std::span<const grid::Cell> pose;        ///< the pose each robot reads (env::BatchEnv::poses)
   std::span<const grid::Cell> goal;        ///< current goal per robot
   std::span<const grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
   std::span<const std::uint8_t> revealed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
@@ -107,9 +107,10 @@ class RolloutEngine {
   RolloutEngine& operator=(const RolloutEngine&) = delete;
 
   /// Runs one rollout per robot: robot i drives over floors[i] (H * W bytes each, concatenated)
-  /// from starts[i]. With `record` false only the final state is kept (benchmarks, training).
+  /// from starts[i], its motion errors and pushes (in worlds that have them) drawn from
+  /// motion_seeds[i]. With `record` false only the final state is kept (benchmarks, training).
   std::vector<RolloutRecord> run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
-                                 Policy& policy, bool record = true);
+                                 std::span<const std::uint64_t> motion_seeds, Policy& policy, bool record = true);
 
   const BatchState& state() const { return state_; }
   /// Where the time went.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/random.hpp"
 #include "sim/worker_pool.hpp"
 
 namespace scout::sim {
@@ -36,10 +37,14 @@ float wall_offset_u(double radius_u) {
 struct RobotBatch::Robot {
   std::unique_ptr<b2World> world;
   b2Body* body = nullptr;
+  // Imperfect motion only: the robot's stream of motion errors and pushes, and the part of its
+  // displacement the odometry has not sensed (true position minus believed one, Box2D units).
+  core::Rng motion_rng{0};
+  Eigen::Vector2d unsensed_u = Eigen::Vector2d::Zero();
 };
 
 RobotParams RobotParams::from_world(const worlds::World& world) {
-  return {world.robot, world.controller, world.physics};
+  return {world.robot, world.controller, world.physics, world.motion, world.pushes};
 }
 
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
@@ -72,8 +77,10 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  const bool continuous =
-      params.body.max_speed_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
+  // A push adds its velocity change to the drive's.
+  const double fastest_mps =
+      params.body.max_speed_mps + (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
+  const bool continuous = fastest_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
   for (int i = 0; i < count; ++i) {
     Robot& r = robots_[i];
     r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
@@ -110,8 +117,10 @@ int RobotBatch::threads() const { return pool_->threads(); }
 const grid::FloorFrame& RobotBatch::frame() const { return frame_; }
 const RobotParams& RobotBatch::params() const { return params_; }
 
-void RobotBatch::place(int robot, const grid::Cell& cell) {
+void RobotBatch::place(int robot, const grid::Cell& cell, std::uint64_t motion_seed) {
   Robot& r = robots_[robot];
+  r.motion_rng = core::Rng(motion_seed);
+  r.unsensed_u.setZero();
   const Eigen::Vector2d u = frame_.cell_centre_px(cell) * kUnitsPerPx;
   r.body->SetTransform(b2Vec2(static_cast<float>(u.x()), static_cast<float>(u.y())), 0.0f);
   r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
@@ -130,10 +139,147 @@ Eigen::Vector2d RobotBatch::position_m(int robot) const {
 
 grid::Cell RobotBatch::grid_pose(int robot) const { return frame_.grid_pose(position_px(robot)); }
 
+grid::Cell RobotBatch::odometry_pose(int robot) const {
+  return frame_.grid_pose(position_px(robot) - robots_[robot].unsensed_u / kUnitsPerPx);
+}
+
+grid::Cell RobotBatch::agent_pose(int robot) const {
+  return params_.motion.pose == worlds::PoseSource::Odometry ? odometry_pose(robot) : grid_pose(robot);
+}
+
 bool RobotBatch::touching_wall(int robot) const {
   for (const b2ContactEdge* e = robots_[robot].body->GetContactList(); e != nullptr; e = e->next)
     if (e->contact->IsTouching()) return true;
   return false;
+}
+
+// What every move of a batch shares: the world's constants in Box2D units, and the bookkeeping
+// after each tick.
+struct RobotBatch::MoveContext {
+  const RobotBatch& batch;
+  float dt;
+  double units_per_m;
+  double tolerance_u;
+  double max_speed_u;
+  double kp;
+
+  explicit MoveContext(const RobotBatch& b)
+      : batch(b),
+        dt(static_cast<float>(b.params_.physics.dt_s)),
+        units_per_m(kUnitsPerPx / b.frame_.pixel_size_m),
+        tolerance_u(b.params_.controller.tolerance_px * kUnitsPerPx),
+        max_speed_u(b.params_.body.max_speed_mps * units_per_m),
+        kp(b.params_.controller.kp_per_s) {}
+
+  // The saturated P-control law: velocity toward `error` (units), kp x distance capped at the
+  // speed limit.
+  Eigen::Vector2d command(const Eigen::Vector2d& error, double distance) const {
+    const double speed = std::min(max_speed_u, kp * distance);
+    return error * (speed / distance);
+  }
+
+  // After a tick that started at `p`: the speed reached, the tick trace, the border and the walls.
+  void after_tick(int robot, const b2Vec2& p, double& peak_speed_u, MoveResult& out,
+                  std::vector<Eigen::Vector2d>* trace) const {
+    const b2Body* body = batch.robots_[robot].body;
+    // The speed reached is the distance actually travelled in the tick (a contact that stops
+    // the body mid-tick leaves zero velocity behind, but not zero travel), or the velocity
+    // left, whichever is larger.
+    const b2Vec2 now = body->GetPosition();
+    const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
+    peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(body->GetLinearVelocity().Length())});
+    const double x = now.x / kUnitsPerPx, y = now.y / kUnitsPerPx;
+    if (trace != nullptr) trace->emplace_back(x, y);
+    const grid::FloorFrame& frame = batch.frame_;
+    out.beyond_border_px =
+        std::max({out.beyond_border_px, 0.5 - x, x - (frame.width_px - 0.5), 0.5 - y, y - (frame.height_px - 0.5)});
+    if (!out.touched_wall) out.touched_wall = batch.touching_wall(robot);
+  }
+};
+
+// The paper's robot: the controller closes its loop on the true position, so every move settles
+// on its commanded cell (a wall or the tick bound permitting).
+void RobotBatch::move_exact(const MoveContext& c, int i, const grid::Cell& command, MoveResult& out,
+                            std::vector<Eigen::Vector2d>* trace) {
+  Robot& r = robots_[i];
+  const grid::Cell target_cell = grid_pose(i) + command;
+  const Eigen::Vector2d target = frame_.cell_centre_px(target_cell) * kUnitsPerPx;
+  double peak_speed_u = 0.0;
+  for (;;) {
+    const b2Vec2 p = r.body->GetPosition();
+    const Eigen::Vector2d error(target.x() - p.x, target.y() - p.y);
+    const double distance = error.norm();
+    if (distance <= c.tolerance_u) {
+      out.settled = true;
+      break;
+    }
+    if (out.ticks >= params_.physics.max_ticks_per_move) break;
+    // Saturated P-control of velocity: the body still collides, so a wall stops it.
+    const Eigen::Vector2d v = c.command(error, distance);
+    r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
+    r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
+    ++out.ticks;
+    c.after_tick(i, p, peak_speed_u, out, trace);
+  }
+  out.peak_speed_mps = peak_speed_u / c.units_per_m;
+}
+
+// Imperfect motion (docs/SCENARIOS.md § Imperfect motion). The controller closes its loop on odometry:
+// the true position minus what the wheels did not sense. Each move draws a scale s and a heading
+// error theta, and the wheels' motion reaches the floor as s R(theta) times the commanded
+// velocity; the difference is unsensed, so the move settles where odometry says the target is
+// and lands off it. A push is felt (the wheels turn with it): the controller corrects it, and
+// traction absorbs the push's velocity with time constant traction_s.
+void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& command, MoveResult& out,
+                                std::vector<Eigen::Vector2d>* trace) {
+  Robot& r = robots_[i];
+  const worlds::MotionSpec& motion = params_.motion;
+  const worlds::PushSpec& pushes = params_.pushes;
+  // Seven draws in a fixed order for every move, zero ones included, so that a robot's k-th
+  // move always uses the same part of its stream.
+  const double scale = 1.0 + motion.scale_sd * core::standard_normal(r.motion_rng);
+  const double heading = motion.heading_sd_deg * (M_PI / 180.0) * core::standard_normal(r.motion_rng);
+  const bool push_drawn = core::uniform01(r.motion_rng) < pushes.probability;
+  const int push_tick =
+      static_cast<int>(core::uniform_below(r.motion_rng, static_cast<std::uint64_t>(std::max(pushes.within_ticks, 1))));
+  const double push_angle = 2.0 * M_PI * core::uniform01(r.motion_rng);
+  const bool pushed = push_drawn && command != grid::Cell::Zero();  // no move, no push
+  const double cos_h = std::cos(heading), sin_h = std::sin(heading);
+  // Velocity change of the push (impulse / mass), Box2D units per second.
+  const double push_speed_u = pushes.impulse_ns / params_.body.mass_kg * c.units_per_m;
+  const double traction_per_tick = std::exp(-params_.physics.dt_s / pushes.traction_s);
+
+  if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // re-localised before each move
+  const Eigen::Vector2d target = frame_.cell_centre_px(odometry_pose(i) + command) * kUnitsPerPx;
+  Eigen::Vector2d push_velocity_u = Eigen::Vector2d::Zero();
+  double peak_speed_u = 0.0;
+  for (;;) {
+    const b2Vec2 p = r.body->GetPosition();
+    const Eigen::Vector2d believed = Eigen::Vector2d(p.x, p.y) - r.unsensed_u;
+    const Eigen::Vector2d error = target - believed;
+    const double distance = error.norm();
+    const bool push_pending = pushed && out.ticks <= push_tick;
+    if (distance <= c.tolerance_u && !push_pending) {
+      out.settled = true;
+      break;
+    }
+    if (out.ticks >= params_.physics.max_ticks_per_move) break;
+    const Eigen::Vector2d commanded = distance > 0.0 ? c.command(error, distance) : Eigen::Vector2d::Zero();
+    const Eigen::Vector2d wheels(scale * (cos_h * commanded.x() - sin_h * commanded.y()),
+                                 scale * (sin_h * commanded.x() + cos_h * commanded.y()));
+    if (pushed && out.ticks == push_tick) {
+      push_velocity_u = push_speed_u * Eigen::Vector2d(std::cos(push_angle), std::sin(push_angle));
+      out.pushed = true;
+    }
+    const Eigen::Vector2d v = wheels + push_velocity_u;
+    r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
+    r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
+    ++out.ticks;
+    r.unsensed_u += (wheels - commanded) * static_cast<double>(c.dt);
+    push_velocity_u *= traction_per_tick;
+    c.after_tick(i, p, peak_speed_u, out, trace);
+  }
+  out.peak_speed_mps = peak_speed_u / c.units_per_m;
 }
 
 void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results,
@@ -144,52 +290,23 @@ void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult
   if (!tick_positions_px.empty() && tick_positions_px.size() < commands.size())
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(tick_positions_px.size()) + " tick traces for " +
                                 std::to_string(commands.size()) + " commands");
-  const float dt = static_cast<float>(params_.physics.dt_s);
-  const double units_per_m = kUnitsPerPx / frame_.pixel_size_m;
-  const double tolerance_u = params_.controller.tolerance_px * kUnitsPerPx;
-  const double max_speed_u = params_.body.max_speed_mps * units_per_m;
-  const double kp = params_.controller.kp_per_s;
+  const MoveContext context(*this);
+  const bool exact = params_.exact();
   const int n = static_cast<int>(commands.size());
 
   // Each robot lives in its own world, so robots are independent work items: no
   // synchronisation per tick, and the result does not depend on the thread count.
   pool_->parallel_for(n, 8, [&](int i) {
-    Robot& r = robots_[i];
     MoveResult& out = results[i];
     out = MoveResult{};
-    const grid::Cell target_cell = grid_pose(i) + commands[i];
-    const Eigen::Vector2d target = frame_.cell_centre_px(target_cell) * kUnitsPerPx;
-    double peak_speed_u = 0.0;
-    for (;;) {
-      const b2Vec2 p = r.body->GetPosition();
-      const Eigen::Vector2d error(target.x() - p.x, target.y() - p.y);
-      const double distance = error.norm();
-      if (distance <= tolerance_u) {
-        out.settled = true;
-        break;
-      }
-      if (out.ticks >= params_.physics.max_ticks_per_move) break;
-      // Saturated P-control of velocity: the body still collides, so a wall stops it.
-      const double speed = std::min(max_speed_u, kp * distance);
-      const Eigen::Vector2d v = error * (speed / distance);
-      r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
-      r.world->Step(dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
-      ++out.ticks;
-      // The speed reached is the distance actually travelled in the tick (a contact that stops
-      // the body mid-tick leaves zero velocity behind, but not zero travel), or the velocity
-      // left, whichever is larger.
-      const b2Vec2 now = r.body->GetPosition();
-      const double travelled = Eigen::Vector2d(now.x - p.x, now.y - p.y).norm() / dt;
-      peak_speed_u = std::max({peak_speed_u, travelled, static_cast<double>(r.body->GetLinearVelocity().Length())});
-      const double x = now.x / kUnitsPerPx, y = now.y / kUnitsPerPx;
-      if (!tick_positions_px.empty()) tick_positions_px[i].emplace_back(x, y);
-      out.beyond_border_px =
-          std::max({out.beyond_border_px, 0.5 - x, x - (frame_.width_px - 0.5), 0.5 - y, y - (frame_.height_px - 0.5)});
-      if (!out.touched_wall) out.touched_wall = touching_wall(i);
+    std::vector<Eigen::Vector2d>* trace = tick_positions_px.empty() ? nullptr : &tick_positions_px[i];
+    if (exact) {
+      move_exact(context, i, commands[i], out, trace);
+    } else {
+      move_perturbed(context, i, commands[i], out, trace);
     }
-    out.peak_speed_mps = peak_speed_u / units_per_m;
     // The robot comes to rest on its cell (or where the wall stopped it) before the next move.
-    r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+    robots_[i].body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
   });
 }
 

@@ -3,6 +3,7 @@
 /// walls around its floor and one disc-shaped robot. A move command is executed by a velocity
 /// controller ticking the world at a fixed dt until the robot settles on the commanded cell or a
 /// tick bound is reached. Box2D stays behind this header.
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -18,6 +19,11 @@ struct RobotParams {
   worlds::RobotSpec body;             ///< disc radius, mass, speed limit (the start is the caller's)
   worlds::ControllerSpec controller;  ///< gain and settling tolerance
   worlds::PhysicsSpec physics;        ///< tick, solver iterations, tick bound per move
+  worlds::MotionSpec motion;          ///< unsensed scale and heading errors of each move, the pose the agent reads
+  worlds::PushSpec pushes;            ///< random pushes during moves
+
+  /// Every move lands on its commanded cell (no motion error, no pushes): the paper's robot.
+  bool exact() const { return motion.exact() && pushes.none(); }
 
   static RobotParams from_world(const worlds::World& world);
 };
@@ -29,6 +35,7 @@ struct MoveResult {
   bool touched_wall = false;      ///< touched a wall during the move
   double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
   double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
+  bool pushed = false;            ///< a push hit the robot during the move
 };
 
 /// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical
@@ -47,11 +54,15 @@ class RobotBatch {
   const RobotParams& params() const;
 
   /// Puts robot `robot` at rest on the centre of `cell` (the start of a rollout: the only
-  /// placement that is not driven).
-  void place(int robot, const grid::Cell& cell);
+  /// placement that is not driven), with its odometry exact. `motion_seed` seeds the robot's
+  /// motion errors and pushes (one stream per robot, so that its moves never depend on the
+  /// batch); unused in an exact world.
+  void place(int robot, const grid::Cell& cell, std::uint64_t motion_seed = 0);
 
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
-  /// i < commands.size(), all in one call; results[i] tells how it went. Targets are not
+  /// i < commands.size(), all in one call; results[i] tells how it went. In a world with motion
+  /// errors the move starts from the pose the robot believes it is at (odometry_pose(): the true
+  /// one when the world's `motion.pose` is `localised`) and lands near the target, not on it. Targets are not
   /// clamped: a command past the floor's edge ends against the wall. With `tick_positions_px`
   /// (one vector per commanded robot), robot i appends its centre (pixels) after every tick: the
   /// motion between grid poses, for animations.
@@ -63,6 +74,11 @@ class RobotBatch {
   Eigen::Vector2d position_m(int robot) const;
   /// The grid pose of the actual position (what the agent reads).
   grid::Cell grid_pose(int robot) const;
+  /// The grid pose dead reckoning believes: the true position minus the odometry's unsensed
+  /// error (equal to grid_pose() in an exact world and after a localised move).
+  grid::Cell odometry_pose(int robot) const;
+  /// The pose the agent reads: grid_pose() or odometry_pose(), as the world's `motion.pose` says.
+  grid::Cell agent_pose(int robot) const;
   /// True while the robot touches a wall.
   bool touching_wall(int robot) const;
 
@@ -72,6 +88,12 @@ class RobotBatch {
 
  private:
   struct Robot;
+  struct MoveContext;
+  void move_exact(const MoveContext& c, int robot, const grid::Cell& command, MoveResult& out,
+                  std::vector<Eigen::Vector2d>* trace);
+  void move_perturbed(const MoveContext& c, int robot, const grid::Cell& command, MoveResult& out,
+                      std::vector<Eigen::Vector2d>* trace);
+
   grid::FloorFrame frame_;
   RobotParams params_;
   std::unique_ptr<Robot[]> robots_;

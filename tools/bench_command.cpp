@@ -78,6 +78,7 @@ struct SimBatch {
   std::size_t area = 0;
   std::vector<std::uint8_t> floor_pixels;
   std::vector<grid::Cell> starts;
+  std::vector<std::uint64_t> motion_seeds;  // each robot's motion errors and pushes (worlds that have them)
 };
 
 SimBatch gather_sim_batch(const BenchOptions& opt) {
@@ -93,12 +94,14 @@ SimBatch gather_sim_batch(const BenchOptions& opt) {
   core::Rng rng(b.world.seed);
   b.floor_pixels.resize(b.area * b.n);
   b.starts.resize(b.n);
+  b.motion_seeds.resize(b.n);
   for (int i = 0; i < b.n; ++i) {
     const int index = b.world.floor.index
                           ? *b.world.floor.index
                           : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(b.floors.size())));
     std::copy_n(b.floors.images.image(index), b.area, b.floor_pixels.data() + b.area * i);
     b.starts[i] = env::draw_start(b.world, b.frame, rng);
+    b.motion_seeds[i] = rng();
   }
   return b;
 }
@@ -144,7 +147,7 @@ void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vecto
     }
   std::vector<sim::MoveResult> results(n);
   f.physics = median(time_repeats(opt.repeats, [&](int) {
-    for (int i = 0; i < n; ++i) robots.place(i, b.starts[i]);
+    for (int i = 0; i < n; ++i) robots.place(i, b.starts[i], b.motion_seeds[i]);
     for (int m = 0; m < moves; ++m) robots.move(commands[m], results);
   }));
   // Camera alone: the recorded poses rendered and read back.
@@ -170,7 +173,8 @@ SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
   const auto engine = make_engine(b.world, b.frame, b.n);
   // One recorded batch gives the commands and poses that the physics-only and camera-only runs replay.
   learn::RandomPolicy recorded_policy(sim_seeds(b.n, -1));
-  const std::vector<learn::RolloutRecord> recorded = engine->run(b.floor_pixels, b.starts, recorded_policy, true);
+  const std::vector<learn::RolloutRecord> recorded =
+      engine->run(b.floor_pixels, b.starts, b.motion_seeds, recorded_policy, true);
   count_moves(recorded, f);
   // Physics and camera together: whole rollouts of mode (i), nothing recorded. One line on
   // stderr says the timing has begun (what a caller can wait for before signalling).
@@ -178,7 +182,7 @@ SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
   engine->reset_timing();
   f.together = median(time_repeats(opt.repeats, [&](int r) {
     learn::RandomPolicy policy(sim_seeds(b.n, r));
-    engine->run(b.floor_pixels, b.starts, policy, false);
+    engine->run(b.floor_pixels, b.starts, b.motion_seeds, policy, false);
   }));
   time_sim_parts(opt, b, recorded, f);
   f.camera_description = engine->camera_description();

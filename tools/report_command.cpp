@@ -288,15 +288,17 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
                                    images.pixels.begin() + static_cast<std::ptrdiff_t>(area * n));
   std::vector<grid::Cell> starts(n);
   std::vector<std::uint64_t> policy_seeds(n);
+  std::vector<std::uint64_t> motion_seeds(n);
   for (int i = 0; i < n; ++i) {
     const std::uint64_t seed_i = core::derive_seed(seed, static_cast<std::uint64_t>(i));
     core::Rng start_rng(core::derive_seed(seed_i, streams::kRunStart));
     starts[i] = env::draw_start(world, frame, start_rng);
     policy_seeds[i] = core::derive_seed(seed_i, streams::kRunPolicy);
+    motion_seeds[i] = core::derive_seed(seed_i, streams::kRunMotion);
   }
   const auto engine = make_engine(world, frame, n);
   agent->begin(frame, world.camera.patch_px, policy_seeds, /*greedy=*/false, agent->learned().goals);
-  const std::vector<learn::RolloutRecord> records = engine->run(floors, starts, agent->policy());
+  const std::vector<learn::RolloutRecord> records = engine->run(floors, starts, motion_seeds, agent->policy());
   const std::vector<float> probabilities = agent->classify(engine->state(), n);
   const int classes = agent->classes();
 

@@ -234,21 +234,23 @@ void drive_batch(const RunOptions& opt, const RunSetup& setup, std::span<const e
   std::vector<std::uint8_t> batch_floors(area * n);
   std::vector<grid::Cell> starts(n);
   std::vector<std::uint64_t> policy_seeds(n);
+  std::vector<std::uint64_t> motion_seeds(n);
   for (int i = 0; i < n; ++i) {
     std::copy_n(setup.floors.images.image(runs[i].index), area, batch_floors.data() + area * i);
     starts[i] = runs[i].start;
     policy_seeds[i] = runs[i].policy_seed;
+    motion_seeds[i] = runs[i].motion_seed;
   }
   learn::TrainedAgent* agent = setup.agent.get();
   std::vector<learn::RolloutRecord> records;
   std::vector<float> probabilities;  // n * D with a checkpoint
   if (agent) {
     agent->begin(setup.frame, setup.world.camera.patch_px, policy_seeds, opt.greedy, opt.heat_map && !opt.no_images);
-    records = engine.run(batch_floors, starts, agent->policy());
+    records = engine.run(batch_floors, starts, motion_seeds, agent->policy());
     probabilities = agent->classify(engine.state(), n);
   } else {
     learn::RandomPolicy policy(policy_seeds);
-    records = engine.run(batch_floors, starts, policy);
+    records = engine.run(batch_floors, starts, motion_seeds, policy);
   }
   const std::size_t classes = agent ? static_cast<std::size_t>(agent->classes()) : 0;
   for (int i = 0; i < n; ++i) {

@@ -32,6 +32,16 @@
 
 namespace scout::worlds {
 
+const char* to_string(PoseSource source) {
+  switch (source) {
+    case PoseSource::Localised:
+      return "localised";
+    case PoseSource::Odometry:
+      return "odometry";
+  }
+  return "?";
+}
+
 const char* to_string(Split split) {
   switch (split) {
     case Split::Train:
@@ -154,12 +164,14 @@ enum class Type {
   IndexOrRandom,  // floor.index: an integer in [lo, hi], or random
   PngPath,        // floor.image, resolved against the file
   StartOrRandom,  // robot.start: [x, y] or random
+  PoseName,       // motion.pose: localised or odometry
 };
 
 /// The member a row reads and writes: its alternative is the one at the row's Type's position.
 template <class Spec>
 using Member = std::variant<int Spec::*, double Spec::*, std::uint64_t Spec::*, std::string Spec::*, Split Spec::*,
-                            std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*>;
+                            std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*,
+                            PoseSource Spec::*>;
 
 /// The interval a value must lie in; integers take closed ones only.
 struct Bounds {
@@ -249,6 +261,28 @@ constexpr Row<PhysicsSpec> kPhysicsRows[] = {
      "a move not settled after this many ticks ends where the robot is"},
 };
 
+// The scenario sections: their defaults are the paper's exact world, and to_yaml writes a
+// section only when it differs from them, so that the text of every world without it is unchanged.
+constexpr Row<MotionSpec> kMotionRows[] = {
+    {"scale_sd", Type::Number, &MotionSpec::scale_sd, closed(0, 0.5), "", "",
+     "each move's displacement is scaled by 1 + N(0, scale_sd²), unsensed (wheel slip, wheel radius)"},
+    {"heading_sd_deg", Type::Number, &MotionSpec::heading_sd_deg, closed(0, 45), "", "degrees",
+     "each move's displacement is rotated by N(0, heading_sd_deg²), unsensed"},
+    {"pose", Type::PoseName, &MotionSpec::pose, {}, "", "",
+     "the agent's pose l: `localised` (the cell it is in: the paper's) or `odometry` (the commanded cells)"},
+};
+
+constexpr Row<PushSpec> kPushRows[] = {
+    {"probability", Type::Number, &PushSpec::probability, closed(0, 1), "", "",
+     "chance that a move is pushed"},
+    {"impulse_ns", Type::Number, &PushSpec::impulse_ns, left_open(0, 1e4), "", "N·s",
+     "the push: a velocity change of impulse / mass in a uniformly drawn direction"},
+    {"within_ticks", Type::Integer, &PushSpec::within_ticks, closed(1, 100000), "", "ticks",
+     "the push comes at a tick drawn uniformly from the move's first `within_ticks`; the move lasts until then"},
+    {"traction_s", Type::Number, &PushSpec::traction_s, left_open(0, 100), "", "s",
+     "time constant of the push's velocity, which the wheels' traction absorbs"},
+};
+
 /// Fields at the top level, beside the sections.
 constexpr Row<World> kTopRows[] = {
     {"seed", Type::Unsigned, &World::seed, {}, "", "", "run seed; the command line's `--seed` overrides it"},
@@ -273,7 +307,8 @@ constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
   return true;
 }
 static_assert(well_formed(kFloorRows) && well_formed(kRobotRows) && well_formed(kControllerRows) &&
-              well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) && well_formed(kTopRows));
+              well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) &&
+              well_formed(kMotionRows) && well_formed(kPushRows) && well_formed(kTopRows));
 
 /// A table as a span, the one shape the code that walks every section takes.
 template <class Spec, std::size_t N>
@@ -291,6 +326,8 @@ void for_each_section(W& world, F&& f) {
   f(std::string_view("camera"), rows_of(kCameraRows), world.camera);
   f(std::string_view("task"), rows_of(kTaskRows), world.task);
   f(std::string_view("physics"), rows_of(kPhysicsRows), world.physics);
+  f(std::string_view("motion"), rows_of(kMotionRows), world.motion);
+  f(std::string_view("pushes"), rows_of(kPushRows), world.pushes);
   f(std::string_view(), rows_of(kTopRows), world);
 }
 
@@ -339,6 +376,7 @@ std::string interval_text(Type type, const Bounds& b) {
     case Type::SplitName:
     case Type::PngPath:
     case Type::StartOrRandom:
+    case Type::PoseName:
       break;
   }
   return {};
@@ -362,6 +400,8 @@ std::string_view type_text(Type type) {
       return "integer or `random`";
     case Type::StartOrRandom:
       return "`[x, y]` or `random`";
+    case Type::PoseName:
+      return "`localised` or `odometry`";
   }
   return {};
 }
@@ -399,6 +439,8 @@ std::string value_text(const Row<Spec>& row, const Spec& spec) {
       return start ? "[" + std::to_string(start->first) + ", " + std::to_string(start->second) + "]"
                    : std::string("random");
     }
+    case Type::PoseName:
+      return to_string(spec.*std::get<PoseSource Spec::*>(row.member));
   }
   return {};
 }
@@ -444,6 +486,7 @@ class Loader {
   std::optional<int> read_index(const Field& f, const Bounds& range) const;
   fs::path read_png(const Field& f) const;
   std::optional<std::pair<int, int>> read_start(const Field& f) const;
+  PoseSource read_pose(const Field& f) const;
 
   /// Reads one field into its member, as its row says.
   template <class Spec>
@@ -724,6 +767,14 @@ std::optional<std::pair<int, int>> Loader::read_start(const Field& f) const {
   return std::make_pair(xy[0], xy[1]);
 }
 
+PoseSource Loader::read_pose(const Field& f) const {
+  const std::string s = f.value.IsScalar() ? f.value.Scalar() : std::string();
+  for (const PoseSource source : {PoseSource::Localised, PoseSource::Odometry}) {
+    if (s == to_string(source)) return source;
+  }
+  fail_field(f.line, f.dotted, "localised or odometry", describe(f.value));
+}
+
 template <class Spec>
 void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const {
   const Bounds& range = row.range;
@@ -752,6 +803,9 @@ void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const 
       return;
     case Type::StartOrRandom:
       spec.*std::get<std::optional<std::pair<int, int>> Spec::*>(row.member) = read_start(f);
+      return;
+    case Type::PoseName:
+      spec.*std::get<PoseSource Spec::*>(row.member) = read_pose(f);
       return;
   }
 }
@@ -845,7 +899,6 @@ void Loader::read(const YAML::Node& root) {
     const int line = line_of(key);
     if (!key.IsScalar()) fail(line, "expected section names (" + join(keys) + "), got " + describe(key) + " as a key");
     const std::string name = key.Scalar();
-    if (name == "perturbation") fail(line, "perturbation: not yet supported (slip and push are future work)");
     if (std::find(keys.begin(), keys.end(), name) == keys.end()) {
       fail_field(line, clip(name), "a section among " + join(keys), "unknown key \"" + clip(name) + "\"");
     }
@@ -982,6 +1035,23 @@ void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
         out << "random";
       }
       return;
+    case Type::PoseName:
+      out << to_string(spec.*std::get<PoseSource Spec::*>(row.member));
+      return;
+  }
+}
+
+/// The scenario sections are written only when they differ from the exact world (their defaults).
+template <class Spec>
+bool section_written(const Spec& spec) {
+  if constexpr (std::is_same_v<Spec, MotionSpec>) {
+    return spec.scale_sd != 0.0 || spec.heading_sd_deg != 0.0 || spec.pose != PoseSource::Localised;
+  } else if constexpr (std::is_same_v<Spec, PushSpec>) {
+    const PushSpec defaults;
+    return spec.probability != defaults.probability || spec.impulse_ns != defaults.impulse_ns ||
+           spec.within_ticks != defaults.within_ticks || spec.traction_s != defaults.traction_s;
+  } else {
+    return true;
   }
 }
 
@@ -1073,6 +1143,7 @@ std::string to_yaml(const World& world) {
   YAML::Emitter out;
   out << YAML::BeginMap;
   for_each_section(world, [&out](std::string_view section, auto rows, const auto& spec) {
+    if (!section_written(spec)) return;
     if (!section.empty()) out << YAML::Key << std::string(section) << YAML::Value << YAML::BeginMap;
     for (const auto& row : rows) {
       if (!written(row, spec)) continue;

@@ -64,6 +64,34 @@ struct PhysicsSpec {
   int max_ticks_per_move = 120;  ///< a move that has not settled after this many ticks ends where the robot is
 };
 
+/// What the agent reads as its own pose when moves do not land exactly (docs/SCENARIOS.md § Imperfect
+/// motion).
+enum class PoseSource {
+  Localised,  ///< the cell the robot is really in (a localised robot; the paper's l)
+  Odometry,   ///< the cell dead reckoning believes it is in: the chain of commanded cells
+};
+const char* to_string(PoseSource source);
+
+/// Imperfect motion: each move is executed with a scale and a heading error the robot does not
+/// sense (wheel slip, miscalibrated wheels). The defaults are exact moves: today's worlds.
+struct MotionSpec {
+  double scale_sd = 0.0;        ///< standard deviation of the per-move scale error of the displacement
+  double heading_sd_deg = 0.0;  ///< standard deviation of the per-move heading error, degrees
+  PoseSource pose = PoseSource::Localised;
+  /// True when every move lands on its commanded cell's centre (within the controller's tolerance).
+  bool exact() const { return scale_sd == 0.0 && heading_sd_deg == 0.0; }
+};
+
+/// Random pushes: an impulse on the robot during a move, which the controller corrects (it feels
+/// the push through its wheels) until the move settles or runs out of ticks.
+struct PushSpec {
+  double probability = 0.0;  ///< chance that a move is pushed
+  double impulse_ns = 1.0;   ///< the push's impulse, newton-seconds (a velocity change of impulse / mass)
+  int within_ticks = 10;     ///< the push comes at a tick drawn uniformly from the move's first `within_ticks`
+  double traction_s = 0.1;   ///< time constant with which the wheels' traction absorbs the push's velocity
+  bool none() const { return probability == 0.0; }
+};
+
 /// A loaded, validated world file.
 struct World {
   std::filesystem::path file;  ///< the file it was read from (as given)
@@ -73,8 +101,14 @@ struct World {
   CameraSpec camera;
   TaskSpec task;
   PhysicsSpec physics;
+  MotionSpec motion;
+  PushSpec pushes;
   std::uint64_t seed = 0;            ///< run seed; the command line's --seed overrides it
   std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
+
+  /// True when every move lands where it was commanded: no motion error, no pushes (the paper's
+  /// world; the camera then sees exact crops at grid poses).
+  bool ideal_motion() const { return motion.exact() && pushes.none(); }
 };
 
 /// One field of the world file, as the schema table in worlds/README.md lists it. The loader's

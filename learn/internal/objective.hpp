@@ -17,13 +17,15 @@
 
 namespace scout::learn {
 
-/// The robots of one batch: robot r drives over floors[r] from starts[r], sampling with seeds[r].
+/// The robots of one batch: robot r drives over floors[r] from starts[r], sampling with seeds[r],
+/// its motion errors and pushes (worlds that have them) from motion_seeds[r].
 struct RolloutBatch {
   int count = 0;
   std::vector<std::uint8_t> floors;  ///< count * H * W bytes
   std::vector<std::int64_t> labels;  ///< one per robot
   std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
+  std::vector<std::uint64_t> motion_seeds;
 };
 
 /// N robots per image: robot i*N + k drives over image indices[i]. These are robots

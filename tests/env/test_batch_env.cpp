@@ -2,7 +2,9 @@
 // step leave in the arrays, partial resets, the tick hook, and bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
 #include "env/batch_env.hpp"
@@ -19,6 +21,9 @@ worlds::World small_world(int patch_px) {
   w.camera.patch_px = patch_px;
   return w;
 }
+
+// Motion seeds for an exact world, where they change nothing.
+std::vector<std::uint64_t> no_motion(std::size_t count) { return std::vector<std::uint64_t>(count, 0); }
 
 // Floor i's pixel (x, y) is (31 * i + 7 * x + 13 * y) % 251 + 1: never 0, different per robot.
 std::vector<std::uint8_t> floors(int count) {
@@ -54,7 +59,7 @@ TEST(BatchEnv, ResetAndStepFillTheArraysWithWhatTheCameraSaw) {
   BatchEnv env(small_world(3), kFloor, 8);
   const std::vector<std::uint8_t> f = floors(3);
   const std::vector<grid::Cell> starts = {{2, 2}, {15, 0}, {8, 6}};
-  env.reset(f, starts);
+  env.reset(f, starts, no_motion(starts.size()));
   ASSERT_EQ(env.count(), 3);
   EXPECT_EQ(std::vector<grid::Cell>(env.poses().begin(), env.poses().end()), starts);
   EXPECT_EQ(env.seen()[0].count(), 9);
@@ -80,13 +85,13 @@ TEST(BatchEnv, ResetAndStepFillTheArraysWithWhatTheCameraSaw) {
 TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {
   BatchEnv env(small_world(3), kFloor, 4);
   std::vector<std::uint8_t> f = floors(3);
-  env.reset(f, std::vector<grid::Cell>{{2, 2}, {5, 5}, {9, 9}});
+  env.reset(f, std::vector<grid::Cell>{{2, 2}, {5, 5}, {9, 9}}, no_motion(3));
   env.step(std::vector<grid::Cell>{{2, 0}, {2, 0}, {-2, 0}});
   const grid::RevealMask kept = env.seen()[0];
   const std::vector<std::uint8_t> fresh = floors(5);  // robot 1 gets floor 4's image
   const std::size_t area = static_cast<std::size_t>(kFloor.area_px());
   const std::vector<std::uint8_t> floor4(fresh.begin() + area * 4, fresh.end());
-  env.reset_robots(std::vector<int>{1}, floor4, std::vector<grid::Cell>{{0, 0}});
+  env.reset_robots(std::vector<int>{1}, floor4, std::vector<grid::Cell>{{0, 0}}, no_motion(1));
   EXPECT_EQ(env.poses()[0], grid::Cell(4, 2));
   EXPECT_EQ(env.poses()[1], grid::Cell(0, 0));
   EXPECT_EQ(env.moves()[0], 1);
@@ -95,12 +100,13 @@ TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {
   EXPECT_EQ(env.seen()[1].count(), 4);
   std::copy(floor4.begin(), floor4.end(), f.begin() + static_cast<std::ptrdiff_t>(area));
   expect_consistent(env, f);
-  EXPECT_THROW(env.reset_robots(std::vector<int>{3}, floor4, std::vector<grid::Cell>{{0, 0}}), std::invalid_argument);
+  EXPECT_THROW(env.reset_robots(std::vector<int>{3}, floor4, std::vector<grid::Cell>{{0, 0}}, no_motion(1)),
+               std::invalid_argument);
 }
 
 TEST(BatchEnv, TheTickHookSeesEveryTickOfEveryRobot) {
   BatchEnv env(small_world(3), kFloor, 2);
-  env.reset(floors(2), std::vector<grid::Cell>{{2, 2}, {5, 5}});
+  env.reset(floors(2), std::vector<grid::Cell>{{2, 2}, {5, 5}}, no_motion(2));
   std::vector<int> calls(2, 0);
   std::vector<std::size_t> seen_ticks(2, 0);
   std::vector<Eigen::Vector2d> last(2);
@@ -119,12 +125,65 @@ TEST(BatchEnv, TheTickHookSeesEveryTickOfEveryRobot) {
   EXPECT_EQ(calls, (std::vector<int>{1, 1}));
 }
 
+// With imperfect motion the camera samples the floor where the robot really is (bilinearly,
+// render::sample_patch_bilinear within its stated grey level), and the agent writes what it saw
+// at the pose it reads (here its odometry's), not where it is.
+TEST(BatchEnv, WithImperfectMotionTheCameraLooksFromTheTruePosition) {
+  worlds::World world = small_world(4);
+  world.motion.scale_sd = 0.2;
+  world.motion.heading_sd_deg = 10.0;
+  world.motion.pose = worlds::PoseSource::Odometry;
+  const int robots = 8;
+  BatchEnv env(world, kFloor, robots);
+  const std::vector<std::uint8_t> f = floors(robots);
+  std::vector<grid::Cell> starts;
+  std::vector<std::uint64_t> seeds;
+  for (int i = 0; i < robots; ++i) {
+    starts.emplace_back(4 + i, 3 + i % 5);
+    seeds.push_back(1000 + static_cast<std::uint64_t>(i));
+  }
+  env.reset(f, starts, seeds);
+  const int m = 4;
+  const std::size_t area = static_cast<std::size_t>(kFloor.area_px());
+  std::vector<std::uint8_t> expected(m * m), crop(m * m);
+  int off_cell_centre = 0, differs_from_crop = 0;
+  for (int k = 0; k < 12; ++k) {
+    std::vector<grid::Cell> commands(robots);
+    for (int i = 0; i < robots; ++i) {
+      const grid::Cell at = env.poses()[i];
+      commands[i] = k % 2 ? grid::Cell(at.x() < 8 ? 2 : -2, 0) : grid::Cell(0, at.y() < 6 ? 2 : -2);
+    }
+    env.step(commands);
+    for (int i = 0; i < robots; ++i) {
+      const Eigen::Vector2d p = env.position_px(i);
+      render::sample_patch_bilinear(f.data() + area * i, kFloor.width_px, kFloor.height_px, m,
+                                    {static_cast<float>(p.x()), static_cast<float>(p.y())}, expected.data());
+      const std::uint8_t* patch = env.patches().data() + static_cast<std::size_t>(i) * m * m;
+      for (int q = 0; q < m * m; ++q) ASSERT_LE(std::abs(patch[q] - expected[q]), 1) << "robot " << i << " pixel " << q;
+      // y holds the patch at the window of the pose the agent reads.
+      const grid::Cell pose = env.poses()[i];
+      const grid::Window w = grid::camera_window(pose, m, kFloor);
+      const std::uint8_t* y = env.revealed().data() + area * i;
+      for (int yy = w.y0; yy < w.y1; ++yy)
+        for (int xx = w.x0; xx < w.x1; ++xx)
+          ASSERT_EQ(y[yy * kFloor.width_px + xx], patch[(yy - pose.y() + m / 2) * m + (xx - pose.x() + m / 2)]);
+      off_cell_centre += (p - kFloor.cell_centre_px(pose)).norm() > 0.1 ? 1 : 0;
+      render::crop_patch(f.data() + area * i, kFloor.width_px, kFloor.height_px, m, {pose.x(), pose.y()}, crop.data());
+      differs_from_crop += std::equal(crop.begin(), crop.end(), patch) ? 0 : 1;
+    }
+  }
+  EXPECT_GT(off_cell_centre, robots * 12 / 2) << "the motion errors should leave most robots off their cells' centres";
+  EXPECT_GT(differs_from_crop, robots * 12 / 2) << "the camera should see sub-pixel views, not crops";
+}
+
 TEST(BatchEnv, BadInputIsRefused) {
   BatchEnv env(small_world(3), kFloor, 2);
-  EXPECT_THROW(env.reset(floors(3), std::vector<grid::Cell>{{0, 0}, {1, 1}, {2, 2}}), std::invalid_argument);
-  EXPECT_THROW(env.reset(floors(1), std::vector<grid::Cell>{{0, 0}, {1, 1}}), std::invalid_argument);
-  EXPECT_THROW(env.reset(floors(1), std::vector<grid::Cell>{{16, 0}}), std::invalid_argument);
-  env.reset(floors(2), std::vector<grid::Cell>{{0, 0}, {1, 1}});
+  EXPECT_THROW(env.reset(floors(3), std::vector<grid::Cell>{{0, 0}, {1, 1}, {2, 2}}, no_motion(3)),
+               std::invalid_argument);
+  EXPECT_THROW(env.reset(floors(1), std::vector<grid::Cell>{{0, 0}, {1, 1}}, no_motion(2)), std::invalid_argument);
+  EXPECT_THROW(env.reset(floors(1), std::vector<grid::Cell>{{16, 0}}, no_motion(1)), std::invalid_argument);
+  EXPECT_THROW(env.reset(floors(1), std::vector<grid::Cell>{{0, 0}}, no_motion(2)), std::invalid_argument);
+  env.reset(floors(2), std::vector<grid::Cell>{{0, 0}, {1, 1}}, no_motion(2));
   EXPECT_THROW(env.step(std::vector<grid::Cell>{{1, 0}}), std::invalid_argument);
   EXPECT_THROW(BatchEnv(small_world(3), kFloor, 0), std::invalid_argument);
 }

@@ -558,7 +558,7 @@ void check_chi(bool learned_goals) {
   sampling.learned_goals = learned_goals;
   sampling.learned_actions = true;
   policy.begin(batch.seeds, sampling);
-  const auto records = engine.run(batch.floors, batch.starts, policy, /*record=*/true);
+  const auto records = engine.run(batch.floors, batch.starts, batch.motion_seeds, policy, /*record=*/true);
   const torch::Tensor log_pi = policy.log_pi();
   ASSERT_EQ(log_pi.size(0), robots);
 

@@ -372,7 +372,7 @@ TEST_F(Evaluation, TheTrainedAgentDrivesAndClassifiesABatch) {
   RolloutEngine engine(world, frame, 5);
   auto drive = [&](bool greedy) {
     agent->begin(frame, world.camera.patch_px, seeds, greedy, true);
-    const auto records = engine.run(floors.pixels, starts, agent->policy());
+    const auto records = engine.run(floors.pixels, starts, std::vector<std::uint64_t>(starts.size()), agent->policy());
     std::vector<grid::Cell> goals;
     for (const RolloutRecord& r : records)
       for (const StepRecord& s : r.steps) goals.push_back(s.goal);

@@ -62,7 +62,7 @@ std::pair<torch::Tensor, torch::Tensor> inputs_after_a_rollout(std::uint64_t see
   const RolloutBatch batch = make_batch(digits, indices, 1, world, frame, seed);
   RolloutEngine engine(world, frame, batch.count);
   RandomPolicy random(batch.seeds);
-  engine.run(batch.floors, batch.starts, random, false);
+  engine.run(batch.floors, batch.starts, batch.motion_seeds, random, false);
   const BatchState& state = engine.state();
   const int area = frame.area_px();
   torch::Tensor input = torch::empty({batch.count, 4, kSide, kSide});

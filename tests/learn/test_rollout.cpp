@@ -27,6 +27,7 @@ struct Batch {
   std::vector<std::uint8_t> floors;
   std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
+  std::vector<std::uint64_t> motion_seeds;
 };
 
 Batch random_batch(int count, std::uint64_t seed) {
@@ -37,6 +38,7 @@ Batch random_batch(int count, std::uint64_t seed) {
   for (int i = 0; i < count; ++i) {
     b.starts.push_back(env::draw_start(world, kFloor, rng));
     b.seeds.push_back(core::derive_seed(seed, static_cast<std::uint64_t>(i)));
+    b.motion_seeds.push_back(core::derive_seed(seed + 1000, static_cast<std::uint64_t>(i)));
   }
   return b;
 }
@@ -48,7 +50,7 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
   for (std::uint64_t seed : {1u, 2u, 3u}) {
     const Batch b = random_batch(240, seed);
     RandomPolicy policy(b.seeds);
-    const auto records = engine.run(b.floors, b.starts, policy);
+    const auto records = engine.run(b.floors, b.starts, b.motion_seeds, policy);
     ASSERT_EQ(records.size(), 240u);
     for (int i = 0; i < 240; ++i) {
       const RolloutRecord& rec = records[i];
@@ -91,7 +93,7 @@ TEST(Rollout, PhysicsAndTheExactGridModelRevealIdenticalPixels) {
 std::vector<RolloutRecord> run_batch(const Batch& b, int count, RolloutEngine& engine) {
   RandomPolicy policy(std::span(b.seeds.data(), count));
   return engine.run(std::span(b.floors.data(), static_cast<std::size_t>(count) * kFloor.area_px()),
-                    std::span(b.starts.data(), count), policy);
+                    std::span(b.starts.data(), count), std::span(b.motion_seeds.data(), count), policy);
 }
 
 void expect_same_trajectory(const RolloutRecord& a, const RolloutRecord& b) {
@@ -226,12 +228,13 @@ TEST(RolloutEngine, RefusesBadBatches) {
   RolloutEngine engine(world, kFloor, 4);
   const Batch b = random_batch(5, 1);
   RandomPolicy policy(b.seeds);
-  EXPECT_THROW(engine.run(b.floors, b.starts, policy), std::invalid_argument);  // 5 robots > 4
+  EXPECT_THROW(engine.run(b.floors, b.starts, b.motion_seeds, policy), std::invalid_argument);  // 5 robots > 4
   std::vector<grid::Cell> off{{28, 0}};
-  EXPECT_THROW(engine.run(std::span(b.floors.data(), static_cast<std::size_t>(kFloor.area_px())), off, policy),
+  const std::vector<std::uint64_t> seed{0};
+  EXPECT_THROW(engine.run(std::span(b.floors.data(), static_cast<std::size_t>(kFloor.area_px())), off, seed, policy),
                std::invalid_argument);
   std::vector<grid::Cell> one{{3, 3}};
-  EXPECT_THROW(engine.run(std::span(b.floors.data(), 10), one, policy), std::invalid_argument);
+  EXPECT_THROW(engine.run(std::span(b.floors.data(), 10), one, seed, policy), std::invalid_argument);
 }
 
 }  // namespace

@@ -19,13 +19,15 @@ namespace scout::testing {
 /// `lines` say where a world was read from, not what it says: for_each_world_field leaves them
 /// out, and a test that parses both worlds from the same origin compares them itself.
 [[maybe_unused]] inline void world_members_are_listed(const worlds::World& w) {
-  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, seed, lines] = w;
+  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, seed, lines] = w;
   [[maybe_unused]] const auto& [dataset, split, index, image, pixel_size_m] = w.floor;
   [[maybe_unused]] const auto& [radius_m, mass_kg, max_speed_mps, start] = w.robot;
   [[maybe_unused]] const auto& [kp_per_s, tolerance_px] = w.controller;
   [[maybe_unused]] const auto& [patch_px] = w.camera;
   [[maybe_unused]] const auto& [episodes, steps, step_px] = w.task;
   [[maybe_unused]] const auto& [dt_s, velocity_iterations, position_iterations, max_ticks_per_move] = w.physics;
+  [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose] = w.motion;
+  [[maybe_unused]] const auto& [probability, impulse_ns, within_ticks, traction_s] = w.pushes;
 }
 
 /// Calls f(dotted name, a's value, b's value) for every field a world file sets, in the order of
@@ -51,6 +53,13 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("physics.velocity_iterations", a.physics.velocity_iterations, b.physics.velocity_iterations);
   f("physics.position_iterations", a.physics.position_iterations, b.physics.position_iterations);
   f("physics.max_ticks_per_move", a.physics.max_ticks_per_move, b.physics.max_ticks_per_move);
+  f("motion.scale_sd", a.motion.scale_sd, b.motion.scale_sd);
+  f("motion.heading_sd_deg", a.motion.heading_sd_deg, b.motion.heading_sd_deg);
+  f("motion.pose", a.motion.pose, b.motion.pose);
+  f("pushes.probability", a.pushes.probability, b.pushes.probability);
+  f("pushes.impulse_ns", a.pushes.impulse_ns, b.pushes.impulse_ns);
+  f("pushes.within_ticks", a.pushes.within_ticks, b.pushes.within_ticks);
+  f("pushes.traction_s", a.pushes.traction_s, b.pushes.traction_s);
   f("seed", a.seed, b.seed);
 }
 

@@ -240,8 +240,8 @@ TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) { expect_error(GetP
 
 const BadCase kBadCases[] = {
     {"UnknownTopLevelKey", "floor: {}\nrobott: {}\n",
-     "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, seed, got unknown "
-     "key"},
+     "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, motion, pushes, "
+     "seed, got unknown key"},
     {"UnknownNestedKey", "robot:\n  radius_m: 1\n  radius: 1\n",
      "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key "
      "\"radius\""},
@@ -351,8 +351,14 @@ const BadCase kBadCases[] = {
      "w.yaml:2: floor.index: expected no index with floor.image, got 3"},
     {"ImageNotPng", "floor:\n  image: floor.jpg\n", "w.yaml:2: floor.image: expected a .png file, got floor.jpg"},
     {"ImageOnlyExtension", "floor:\n  image: .png\n", "w.yaml:2: floor.image: expected a .png file, got .png"},
-    {"PerturbationRefused", "task: {}\nperturbation:\n  slip: 0.1\n",
-     "w.yaml:2: perturbation: not yet supported (slip and push are future work)"},
+    {"MotionPoseIsANameOfTwo", "motion:\n  pose: true\n",
+     "w.yaml:2: motion.pose: expected localised or odometry, got true"},
+    {"MotionScaleAboveHalf", "motion: {scale_sd: 0.6}\n",
+     "w.yaml:1: motion.scale_sd: expected a number in [0, 0.5], got 0.6"},
+    {"PushProbabilityAboveOne", "pushes:\n  probability: 1.5\n",
+     "w.yaml:2: pushes.probability: expected a number in [0, 1], got 1.5"},
+    {"PushWithinZeroTicks", "pushes:\n  within_ticks: 0\n",
+     "w.yaml:2: pushes.within_ticks: expected an integer in [1, 100000], got 0"},
     {"SyntaxError", "floor:\n  dataset: mnist\nrobot: [1, 2\n", "w.yaml:4: YAML syntax error: "},
     {"SyntaxErrorBadIndent", "floor:\n  dataset: mnist\n    split: test\n", "w.yaml:3: YAML syntax error: "},
     {"EmptyText", "", "w.yaml:1: expected a map of sections (floor, robot, ...)"},
@@ -790,6 +796,27 @@ TEST(WorldFile, ToYamlTextOfEveryFieldSetIsPinned) {
   EXPECT_EQ(to_yaml(World{}), kDefaultYaml);
 }
 
+// The scenario sections: written after physics when they differ from their defaults (a world
+// that does not use them keeps the text above), every field of the section then.
+TEST(WorldFile, ToYamlWritesAScenarioSectionOnlyWhenItIsUsed) {
+  const World motion = parse_world("motion: {heading_sd_deg: 7.5}\n", "/data/worlds/w.yaml");
+  const std::string text = to_yaml(motion);
+  EXPECT_NE(text.find("physics:"), std::string::npos);
+  EXPECT_NE(text.find("\nmotion:\n  scale_sd: 0\n  heading_sd_deg: 7.5\n  pose: localised\nseed: 0\n"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("pushes:"), std::string::npos) << text;
+  expect_same_world(parse_world(text, "/elsewhere/w.yaml"), motion);
+
+  const World pushes = parse_world("pushes: {within_ticks: 3}\nmotion: {pose: localised}\n", "/data/worlds/w.yaml");
+  const std::string pushed = to_yaml(pushes);
+  EXPECT_EQ(pushed.find("motion:"), std::string::npos) << "motion at its defaults is not written";
+  EXPECT_NE(pushed.find("\npushes:\n  probability: 0\n  impulse_ns: 1\n  within_ticks: 3\n  traction_s: 0.1\n"),
+            std::string::npos)
+      << pushed;
+  expect_same_world(parse_world(pushed, "/elsewhere/w.yaml"), pushes);
+}
+
 // --- The schema: the code's table, its messages and worlds/README.md agree ------------------
 
 /// The cells of a Markdown table row, trimmed ("\|" is a '|' inside a cell).
@@ -888,13 +915,17 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   for (const std::string& name : top) sections += (sections.empty() ? "" : ", ") + name;
   expect_error("no_such_key: 1\n", "w.yaml:1: no_such_key: expected a section among " + sections + ", got");
 
-  // to_yaml writes the fields in the schema's order (a default world has no image).
+  // to_yaml writes the fields in the schema's order (a default world has no image; the scenario
+  // sections are written when they differ from their defaults, as here).
   std::string order;
   for (const FieldInfo& f : world_schema()) {
     if (f.name != "image") order += std::string(f.section.empty() ? "" : "  ") + std::string(f.name) + ":";
   }
+  World scenario;
+  scenario.motion.pose = PoseSource::Odometry;
+  scenario.pushes.probability = 0.5;
   std::string written;
-  std::istringstream yaml(to_yaml(World{}));
+  std::istringstream yaml(to_yaml(scenario));
   for (std::string line; std::getline(yaml, line);) {
     if (line.find(": ") != std::string::npos) written += line.substr(0, line.find(':') + 1);
   }

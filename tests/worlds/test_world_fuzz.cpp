@@ -89,12 +89,21 @@ void expect_valid(const World& w, const std::string& text) {
 std::set<std::string> written_keys(const World& w) {
   std::set<std::string> keys;
   const bool png = !w.floor.image.empty();
+  // A scenario section is written only when a field of it differs from its default.
+  std::set<std::string> varied_scenarios;
+  const World defaults;
+  scout::testing::for_each_world_field(w, defaults, [&](const char* name, const auto& x, const auto& y) {
+    const std::string dotted(name);
+    const std::string section = dotted.substr(0, dotted.find('.'));
+    if ((section == "motion" || section == "pushes") && !(x == y)) varied_scenarios.insert(section);
+  });
   for (const FieldInfo& f : world_schema()) {
     const std::string section(f.section), name(f.name);
     if (section.empty()) {
       keys.insert(name);
       continue;
     }
+    if ((section == "motion" || section == "pushes") && varied_scenarios.count(section) == 0) continue;
     keys.insert(section);
     if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
       continue;
@@ -355,6 +364,8 @@ class Fuzzer {
                                             "camera",
                                             "task",
                                             "physics",
+                                            "motion",
+                                            "pushes",
                                             "seed",
                                             "perturbation",
                                             "dataset",
@@ -416,6 +427,8 @@ class Fuzzer {
                                             std::string(1, '\0')};
   const std::vector<std::string> kSeparators = {" ", "", "\n", "\n  ", "\n    ", ", ", "\r\n"};
   const std::vector<std::string> kValues = {"random",
+                                            "odometry",
+                                            "localised",
                                             "[1, 2]",
                                             "[1, 2, 3]",
                                             "{}",
@@ -491,6 +504,8 @@ class Fuzzer {
       {"camera", {"patch_px"}},
       {"task", {"episodes", "steps", "step_px"}},
       {"physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"}},
+      {"motion", {"scale_sd", "heading_sd_deg", "pose"}},
+      {"pushes", {"probability", "impulse_ns", "within_ticks", "traction_s"}},
       {"seed", {}}};
   const std::vector<char> kInterestingChars = {'[', ']', '{',  '}',  ':', '-', '#', '"', '\'', '&', '*', '!',
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
@@ -519,6 +534,8 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
            "camera: {patch_px: 9}\n"
            "task: {episodes: 7, steps: 3, step_px: 4}\n"
            "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
+           "motion: {scale_sd: 0.15, heading_sd_deg: 7.5, pose: odometry}\n"
+           "pushes: {probability: 0.25, impulse_ns: 2.5, within_ticks: 4, traction_s: 0.3}\n"
            "seed: 18446744073709551615\n",
            tally));
   ASSERT_TRUE(
