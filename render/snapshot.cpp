@@ -19,10 +19,11 @@ namespace scout::render {
 namespace {
 
 // Colours, BGR.
-const cv::Scalar kRobotColour(255, 0, 0);   // blue: the camera window
-const cv::Scalar kRimColour(255, 160, 90);  // light blue: the robot's disc in videos
-const cv::Scalar kGoalColour(0, 200, 0);    // green: the goal window
-const cv::Scalar kPathColour(0, 140, 255);  // orange: the path and its poses
+const cv::Scalar kRobotColour(255, 0, 0);       // blue: the camera window
+const cv::Scalar kRimColour(255, 160, 90);      // light blue: the robot's disc in videos
+const cv::Scalar kGoalColour(0, 200, 0);        // green: the goal window
+const cv::Scalar kPathColour(0, 140, 255);      // orange: the path and its poses
+const cv::Scalar kTruePathColour(255, 220, 0);  // cyan: where the robot really went
 const cv::Scalar kPanelBackground(32, 32, 32);
 const cv::Scalar kBarColour(150, 150, 150);
 const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
@@ -257,6 +258,14 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   // Thin lines relative to a pixel block, but never thinner than one output pixel.
   const int line_px = std::max(1, s / 6);
   const int dot_radius_px = std::max(1, s / 5);
+  // Fixed point, 1/16 output pixel: a sub-pixel path is drawn where it is, not on pixel centres.
+  const auto exact_point = [s](const FloorPoint& p) {
+    return cv::Point(static_cast<int>(std::lround(p.x * s * 16.0)), static_cast<int>(std::lround(p.y * s * 16.0)));
+  };
+  for (std::size_t i = 1; i < snapshot.true_path.size(); ++i) {
+    cv::line(map, exact_point(snapshot.true_path[i - 1]), exact_point(snapshot.true_path[i]), kTruePathColour,
+             std::max(1, s / 10), cv::LINE_AA, 4);
+  }
   for (std::size_t i = 1; i < snapshot.path.size(); ++i) {
     cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s), kPathColour, line_px,
              cv::LINE_AA);

@@ -19,11 +19,15 @@ struct Snapshot {
   const std::uint8_t* floor = nullptr;  ///< floor image, width * height bytes
   int width_px = 0;
   int height_px = 0;
-  const std::uint8_t* revealed = nullptr;      ///< width * height, non-zero where seen so far
-  int patch_px = 6;                            ///< m: size of the robot's and the goal's squares
-  PixelPose robot;                             ///< current grid pose (blue square: the camera window)
-  std::optional<PixelPose> goal;               ///< current goal (green square), if any
-  std::vector<PixelPose> path;                 ///< grid poses visited so far, in order (drawn as a line)
+  const std::uint8_t* revealed = nullptr;  ///< width * height, non-zero where seen so far
+  int patch_px = 6;                        ///< m: size of the robot's and the goal's squares
+  PixelPose robot;                         ///< current grid pose (blue square: the camera window)
+  std::optional<PixelPose> goal;           ///< current goal (green square), if any
+  std::vector<PixelPose> path;             ///< grid poses visited so far, in order (drawn as a line)
+  /// Where the robot's centre really went (continuous floor pixels, e.g. every physics tick), in
+  /// worlds where it differs from `path`: imperfect motion, pushes. Drawn as a thin cyan line
+  /// under the path; empty: none.
+  std::vector<FloorPoint> true_path;
   std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
   std::span<const float> goal_probabilities;   ///< optional goal distribution pi_g over the floor's pixels
                                                ///< (width*height, row-major); drawn as a heat map

@@ -111,8 +111,8 @@ struct AgentOverlay {
 };
 
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
-                  const grid::FloorFrame& frame, int patch_px, int scale, const AgentOverlay& overlay,
-                  std::vector<std::string>& written) {
+                  const grid::FloorFrame& frame, int patch_px, int scale, bool exact_motion,
+                  const AgentOverlay& overlay, std::vector<std::string>& written) {
   for (const learn::SnapshotRecord& snap : record.snapshots) {
     render::Snapshot s;
     s.floor = floor;
@@ -124,6 +124,14 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
     for (std::size_t p = 0; p < snap.path_length; ++p)
       s.path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
+    if (!exact_motion) {  // the true centre's path, every tick up to this picture's last move
+      std::size_t ticks = 1;
+      for (std::size_t k = 0; k + 1 < snap.path_length && k < record.steps.size(); ++k)
+        ticks += static_cast<std::size_t>(record.steps[k].result.ticks);
+      for (std::size_t t = 0; t < std::min(ticks, record.tick_path_px.size()); ++t)
+        s.true_path.push_back(
+            {static_cast<float>(record.tick_path_px[t].x()), static_cast<float>(record.tick_path_px[t].y())});
+    }
     s.scale = scale;
     const bool final_image = !snap.goal;
     // The bars show the final prediction on every picture of the run (the classifier is asked
@@ -215,14 +223,15 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                                    .robot_radius_px = world.robot.radius_m / world.floor.pixel_size_m,
                                    .scale = opt.scale,
                                    .class_probabilities = p,
-                                   .fps = opt.fps});
+                                   .fps = opt.fps,
+                                   .exact_motion = world.ideal_motion()});
   }
   if (!opt.no_images) {
     interrupt_token().throw_if_requested();
     const AgentOverlay overlay{
         .class_probabilities = p, .agent = opt.heat_map ? setup.agent.get() : nullptr, .robot = robot};
-    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale, overlay,
-                 out.images);
+    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale,
+                 world.ideal_motion(), overlay, out.images);
   }
 }
 

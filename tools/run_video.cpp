@@ -25,6 +25,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
     s.revealed = seen.data().data();
     s.robot = {.x = static_cast<int>(std::floor(body_px.x())), .y = static_cast<int>(std::floor(body_px.y()))};
     s.body = render::Snapshot::Body{.x_px = body_px.x(), .y_px = body_px.y(), .radius_px = run.robot_radius_px};
+    if (!run.exact_motion) s.true_path.push_back({static_cast<float>(body_px.x()), static_cast<float>(body_px.y())});
     video.add(render::draw_snapshot(s));
     ++frames;
   };

@@ -19,6 +19,7 @@ struct RunAnimation {
   int scale = 10;
   std::span<const float> class_probabilities;  ///< the final prediction (empty: no panel)
   double fps = 30;
+  bool exact_motion = true;  ///< false: imperfect motion or pushes, and the true path is drawn too
 };
 
 /// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame
