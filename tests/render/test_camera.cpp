@@ -11,6 +11,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -37,12 +38,19 @@ Floors random_floors(int width, int height, int count, unsigned seed) {
   return floors;
 }
 
-std::vector<std::uint8_t> cpu_patches(const Floors& floors, int patch_px, const std::vector<PixelPose>& poses) {
+// The CPU reference's patches, robot i over floor i at where[i]: crop_patch at grid poses,
+// sample_patch_bilinear at continuous centres.
+template <class Where>
+std::vector<std::uint8_t> cpu_patches(const Floors& floors, int patch_px, const std::vector<Where>& where) {
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
-  std::vector<std::uint8_t> patches(poses.size() * patch_bytes);
-  for (std::size_t i = 0; i < poses.size(); ++i) {
-    crop_patch(floors.image(static_cast<int>(i)), floors.width, floors.height, patch_px, poses[i],
-               patches.data() + i * patch_bytes);
+  std::vector<std::uint8_t> patches(where.size() * patch_bytes);
+  for (std::size_t i = 0; i < where.size(); ++i) {
+    const std::uint8_t* floor = floors.image(static_cast<int>(i));
+    if constexpr (std::is_same_v<Where, PixelPose>) {
+      crop_patch(floor, floors.width, floors.height, patch_px, where[i], patches.data() + i * patch_bytes);
+    } else {
+      sample_patch_bilinear(floor, floors.width, floors.height, patch_px, where[i], patches.data() + i * patch_bytes);
+    }
   }
   return patches;
 }
@@ -69,16 +77,6 @@ std::vector<PixelPose> random_poses(int count, int width, int height, unsigned s
   std::vector<PixelPose> poses(static_cast<std::size_t>(count));
   for (PixelPose& pose : poses) pose = {x(random), y(random)};
   return poses;
-}
-
-std::vector<std::uint8_t> cpu_patches_at(const Floors& floors, int patch_px, const std::vector<FloorPoint>& centres) {
-  const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * patch_px;
-  std::vector<std::uint8_t> patches(centres.size() * patch_bytes);
-  for (std::size_t i = 0; i < centres.size(); ++i) {
-    sample_patch_bilinear(floors.image(static_cast<int>(i)), floors.width, floors.height, patch_px, centres[i],
-                          patches.data() + i * patch_bytes);
-  }
-  return patches;
 }
 
 std::vector<std::uint8_t> gl_patches_at(PatchCamera& camera, const std::vector<FloorPoint>& centres) {
@@ -435,7 +433,7 @@ TEST(PatchCameraCaptureAt, AtCellCentresEqualsCaptureAndTheCpuCropBitForBit) {
     EXPECT_TRUE(same_patches(crop, gl_patches_at(camera, centres), m, poses));
     EXPECT_TRUE(same_patches(crop, gl_patches(camera, poses), m, poses));
     EXPECT_TRUE(same_patches(crop, gl_patches_at(camera, centres), m, poses));
-    EXPECT_TRUE(same_patches(crop, cpu_patches_at(floors, m, centres), m, poses));
+    EXPECT_TRUE(same_patches(crop, cpu_patches(floors, m, centres), m, poses));
   }
 }
 
@@ -483,7 +481,7 @@ TEST(PatchCameraCaptureAt, SubPixelCentresMatchTheBilinearReference) {
       camera.load_floors(floors.bytes, c.robots);
       const std::vector<FloorPoint> centres =
           random_centres(c.robots, c.width, c.height, static_cast<float>(c.m) + 2.0f, ++seed);
-      const std::vector<std::uint8_t> expected = cpu_patches_at(floors, c.m, centres);
+      const std::vector<std::uint8_t> expected = cpu_patches(floors, c.m, centres);
       const std::vector<std::uint8_t> actual = gl_patches_at(camera, centres);
       ASSERT_EQ(expected.size(), actual.size());
       const Difference d = difference(expected, actual);
