@@ -14,9 +14,10 @@ using core::Clock;
 using core::seconds_since;
 
 BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
-    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots), exact_motion_(world.ideal_motion()) {
+    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots) {
   if (max_robots <= 0) throw std::invalid_argument("BatchEnv: max_robots must be positive");
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
+  exact_motion_ = robots_->params().exact();
   camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots);
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
   poses_.resize(max_robots);
@@ -30,6 +31,11 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   sim_results_.resize(max_robots);
   results_.resize(max_robots);
   ticks_.resize(max_robots);
+  for (int y = 0; y < frame.height_px; ++y)
+    for (int x = 0; x < frame.width_px; ++x)
+      if (world.obstacles.covers(x + 0.5, y + 0.5))
+        obstacle_pixels_.push_back(static_cast<std::size_t>(y) * frame.width_px + x);
+  obstacle_shade_ = static_cast<std::uint8_t>(world.obstacles.shade);
 }
 
 BatchEnv::~BatchEnv() = default;
@@ -58,6 +64,7 @@ void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid:
                      std::uint64_t motion_seed) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
+  for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
   std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
   robots_->place(robot, start, motion_seed);
   poses_[robot] = robots_->agent_pose(robot);
@@ -133,7 +140,8 @@ void BatchEnv::step(std::span<const grid::Cell> commands) {
                    .touched_wall = r.touched_wall,
                    .peak_speed_mps = r.peak_speed_mps,
                    .beyond_border_px = r.beyond_border_px,
-                   .pushed = r.pushed};
+                   .pushed = r.pushed,
+                   .blocked = r.blocked};
     poses_[i] = robots_->agent_pose(i);
     ++moves_[i];
     timing_.ticks += results_[i].ticks;

@@ -37,6 +37,7 @@ struct MoveResult {
   double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
   double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
   bool pushed = false;            ///< a push hit the robot during the move (worlds with `pushes`)
+  bool blocked = false;           ///< an obstacle stopped the robot (worlds with `obstacles`)
 };
 
 /// Sees every physics tick of a step: called once per robot after the step, in robot order, with
@@ -98,7 +99,8 @@ class BatchEnv {
   /// The pose each robot's agent reads (METHOD.md's l): the grid pose of its actual position, or
   /// in a world with `motion.pose: odometry` the one its odometry believes.
   std::span<const grid::Cell> poses() const;
-  /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes.
+  /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes (obstacles, in
+  /// a world with them, in their shade: what the camera saw).
   std::span<const std::uint8_t> revealed() const;
   std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
   std::span<const int> moves() const;                ///< step() calls since each robot's reset (a zero command counts)
@@ -127,8 +129,12 @@ class BatchEnv {
   std::vector<grid::RevealMask> seen_;
   std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
+  // Floor pixels whose centre lies on an obstacle (world `obstacles`), and the grey the camera sees
+  // there: painted over each floor the camera holds. Empty without obstacles.
+  std::vector<std::size_t> obstacle_pixels_;
+  std::uint8_t obstacle_shade_ = 0;
   std::vector<std::uint8_t> patches_;
-  bool exact_motion_;                           // moves land on cells: the camera crops at grid poses
+  bool exact_motion_ = true;                    // moves land on cells: the camera crops at grid poses
   std::vector<render::PixelPose> pixel_poses_;  // exact worlds: the grid poses the camera crops at
   std::vector<render::FloorPoint> centres_;     // otherwise: the true centres it samples at
   std::vector<int> moves_;

@@ -345,9 +345,9 @@ struct PatchCamera::Impl {
     return linked;
   }
 
+  // capture()'s program only: capture_at()'s (which needs GL_ARB_texture_gather) is linked on
+  // its first use, so that a GL without that extension still runs exact worlds.
   void create_programs() {
-    bilinear_program = link_program(kBilinearVertexShader, kBilinearFragmentShader);
-    // capture()'s program last, so that it is the one bound when setting up ends.
     program = link_program(kVertexShader, kFragmentShader);
     bind_crop();
   }
@@ -362,6 +362,7 @@ struct PatchCamera::Impl {
   }
 
   void bind_bilinear() {
+    if (bilinear_program == 0) bilinear_program = link_program(kBilinearVertexShader, kBilinearFragmentShader);
     glUseProgram(bilinear_program);
     glBindVertexArray(centre_vertex_array);
     bilinear_bound = true;

@@ -24,6 +24,7 @@ const cv::Scalar kRimColour(255, 160, 90);      // light blue: the robot's disc 
 const cv::Scalar kGoalColour(0, 200, 0);        // green: the goal window
 const cv::Scalar kPathColour(0, 140, 255);      // orange: the path and its poses
 const cv::Scalar kTruePathColour(255, 220, 0);  // cyan: where the robot really went
+const cv::Vec3b kObstacleColour(40, 50, 170);   // brick red: an obstacle
 const cv::Scalar kPanelBackground(32, 32, 32);
 const cv::Scalar kBarColour(150, 150, 150);
 const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
@@ -251,6 +252,7 @@ Picture draw_snapshot(const Snapshot& snapshot) {
       const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
       cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
       if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
+      if (snapshot.obstacles != nullptr && snapshot.obstacles[index] != 0) colour = kObstacleColour;
       map(cv::Rect(x * s, y * s, s, s)).setTo(colour);
     }
   }

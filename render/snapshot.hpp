@@ -28,6 +28,9 @@ struct Snapshot {
   /// worlds where it differs from `path`: imperfect motion, pushes. Drawn as a thin cyan line
   /// under the path; empty: none.
   std::vector<FloorPoint> true_path;
+  /// Floor pixels covered by obstacles (width * height, non-zero: an obstacle), drawn in brick
+  /// red whether seen or not; null: none.
+  const std::uint8_t* obstacles = nullptr;
   std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
   std::span<const float> goal_probabilities;   ///< optional goal distribution pi_g over the floor's pixels
                                                ///< (width*height, row-major); drawn as a heat map

@@ -32,11 +32,40 @@ float wall_offset_u(double radius_u) {
   return static_cast<float>(radius_u) + b2_polygonRadius - b2_linearSlop + kWallClearance_u;
 }
 
+// One static body holding every obstacle of the world as a fixture, in Box2D units. (A box's
+// polygon carries Box2D's skin of b2_polygonRadius, 0.1 px: the robot stops that much earlier.)
+b2Body* add_obstacles(b2World& world, const worlds::ObstacleSpec& spec) {
+  b2BodyDef def;
+  b2Body* body = world.CreateBody(&def);
+  const float u = static_cast<float>(kUnitsPerPx);
+  for (const worlds::BoxObstacle& b : spec.boxes) {
+    b2PolygonShape box;
+    box.SetAsBox(0.5f * b.w * u, 0.5f * b.h * u, b2Vec2((b.x + 0.5f * b.w) * u, (b.y + 0.5f * b.h) * u), 0.0f);
+    body->CreateFixture(&box, 0.0f);
+  }
+  for (const worlds::DiscObstacle& d : spec.discs) {
+    b2CircleShape disc;
+    disc.m_p.Set(static_cast<float>(d.x) * u, static_cast<float>(d.y) * u);
+    disc.m_radius = static_cast<float>(d.r) * u;
+    body->CreateFixture(&disc, 0.0f);
+  }
+  return body;
+}
+
+// A tick that moved the centre less than this while touching an obstacle means the obstacle
+// holds it: the move ends there (pixels).
+constexpr double kBlockedTravel_px = 0.02;
+
+// The smallest scale a move's displacement takes (motion.scale_sd's normal is clamped there).
+constexpr double kMinScale = 0.05;
+
 }  // namespace
 
 struct RobotBatch::Robot {
   std::unique_ptr<b2World> world;
   b2Body* body = nullptr;
+  b2Body* walls = nullptr;
+  b2Body* obstacles = nullptr;  // null in a world without obstacles
   // Imperfect motion only: the robot's stream of motion errors and pushes, and the part of its
   // displacement the odometry has not sensed (true position minus believed one, Box2D units).
   core::Rng motion_rng{0};
@@ -44,7 +73,7 @@ struct RobotBatch::Robot {
 };
 
 RobotParams RobotParams::from_world(const worlds::World& world) {
-  return {world.robot, world.controller, world.physics, world.motion, world.pushes};
+  return {world.robot, world.controller, world.physics, world.motion, world.pushes, world.obstacles};
 }
 
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
@@ -77,9 +106,10 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  // A push adds its velocity change to the drive's.
-  const double fastest_mps =
-      params.body.max_speed_mps + (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
+  // A scale error can speed the drive up (four standard deviations are counted), and a push adds
+  // its velocity change.
+  const double fastest_mps = params.body.max_speed_mps * (1.0 + 4.0 * params.motion.scale_sd) +
+                             (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
   const bool continuous = fastest_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
   for (int i = 0; i < count; ++i) {
     Robot& r = robots_[i];
@@ -88,10 +118,11 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
     r.world->SetContinuousPhysics(continuous);
 
     b2BodyDef wall_def;
-    b2Body* walls = r.world->CreateBody(&wall_def);
+    r.walls = r.world->CreateBody(&wall_def);
     b2ChainShape loop;
     loop.CreateLoop(corners, 4);
-    walls->CreateFixture(&loop, 0.0f);
+    r.walls->CreateFixture(&loop, 0.0f);
+    if (!params.obstacles.none()) r.obstacles = add_obstacles(*r.world, params.obstacles);
 
     b2BodyDef body_def;
     body_def.type = b2_dynamicBody;
@@ -148,8 +179,17 @@ grid::Cell RobotBatch::agent_pose(int robot) const {
 }
 
 bool RobotBatch::touching_wall(int robot) const {
-  for (const b2ContactEdge* e = robots_[robot].body->GetContactList(); e != nullptr; e = e->next)
-    if (e->contact->IsTouching()) return true;
+  const Robot& r = robots_[robot];
+  for (const b2ContactEdge* e = r.body->GetContactList(); e != nullptr; e = e->next)
+    if (e->other == r.walls && e->contact->IsTouching()) return true;
+  return false;
+}
+
+bool RobotBatch::touching_obstacle(int robot) const {
+  const Robot& r = robots_[robot];
+  if (r.obstacles == nullptr) return false;
+  for (const b2ContactEdge* e = r.body->GetContactList(); e != nullptr; e = e->next)
+    if (e->other == r.obstacles && e->contact->IsTouching()) return true;
   return false;
 }
 
@@ -194,6 +234,10 @@ struct RobotBatch::MoveContext {
     out.beyond_border_px =
         std::max({out.beyond_border_px, 0.5 - x, x - (frame.width_px - 0.5), 0.5 - y, y - (frame.height_px - 0.5)});
     if (!out.touched_wall) out.touched_wall = batch.touching_wall(robot);
+    // Held by an obstacle: the move ends at contact rather than pushing until the tick bound.
+    if (batch.robots_[robot].obstacles != nullptr && travelled * dt < kBlockedTravel_px * kUnitsPerPx &&
+        batch.touching_obstacle(robot))
+      out.blocked = true;
   }
 };
 
@@ -220,6 +264,7 @@ void RobotBatch::move_exact(const MoveContext& c, int i, const grid::Cell& comma
     r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
     ++out.ticks;
     c.after_tick(i, p, peak_speed_u, out, trace);
+    if (out.blocked) break;
   }
   out.peak_speed_mps = peak_speed_u / c.units_per_m;
 }
@@ -237,19 +282,21 @@ void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& c
   const worlds::PushSpec& pushes = params_.pushes;
   // Seven draws in a fixed order for every move, zero ones included, so that a robot's k-th
   // move always uses the same part of its stream.
-  const double scale = 1.0 + motion.scale_sd * core::standard_normal(r.motion_rng);
+  // The scale is kept above 0.05: a move never runs backwards (scale_sd <= 0.3 makes a clamp rarer than 1 in 1000).
+  const double scale = std::max(kMinScale, 1.0 + motion.scale_sd * core::standard_normal(r.motion_rng));
   const double heading = motion.heading_sd_deg * (M_PI / 180.0) * core::standard_normal(r.motion_rng);
   const bool push_drawn = core::uniform01(r.motion_rng) < pushes.probability;
   const int push_tick =
       static_cast<int>(core::uniform_below(r.motion_rng, static_cast<std::uint64_t>(std::max(pushes.within_ticks, 1))));
   const double push_angle = 2.0 * M_PI * core::uniform01(r.motion_rng);
-  const bool pushed = push_drawn && command != grid::Cell::Zero();  // no move, no push
+  if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // re-localised before each move
+  if (command == grid::Cell::Zero()) return;                                 // no move: it stays, no tick, no push
+  const bool pushed = push_drawn;
   const double cos_h = std::cos(heading), sin_h = std::sin(heading);
   // Velocity change of the push (impulse / mass), Box2D units per second.
   const double push_speed_u = pushes.impulse_ns / params_.body.mass_kg * c.units_per_m;
   const double traction_per_tick = std::exp(-params_.physics.dt_s / pushes.traction_s);
 
-  if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // re-localised before each move
   const Eigen::Vector2d target = frame_.cell_centre_px(odometry_pose(i) + command) * kUnitsPerPx;
   Eigen::Vector2d push_velocity_u = Eigen::Vector2d::Zero();
   double peak_speed_u = 0.0;
@@ -275,11 +322,21 @@ void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& c
     r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
     r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
     ++out.ticks;
-    r.unsensed_u += (wheels - commanded) * static_cast<double>(c.dt);
+    // The unsensed part of what the drive really did: the wheels believe they moved
+    // (s R(theta))^-1 times the drive's displacement. Measured from the displacement, so that a
+    // wall or an obstacle that stops the body stops the odometry too (it is sensed).
+    const b2Vec2 now = r.body->GetPosition();
+    const Eigen::Vector2d drive =
+        Eigen::Vector2d(now.x - p.x, now.y - p.y) - push_velocity_u * static_cast<double>(c.dt);
+    const Eigen::Vector2d believed_drive((cos_h * drive.x() + sin_h * drive.y()) / scale,
+                                         (-sin_h * drive.x() + cos_h * drive.y()) / scale);
+    r.unsensed_u += drive - believed_drive;
     push_velocity_u *= traction_per_tick;
     c.after_tick(i, p, peak_speed_u, out, trace);
+    if (out.blocked) break;
   }
   out.peak_speed_mps = peak_speed_u / c.units_per_m;
+  if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // where it is, it knows
 }
 
 void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results,

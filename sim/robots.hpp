@@ -21,6 +21,7 @@ struct RobotParams {
   worlds::PhysicsSpec physics;        ///< tick, solver iterations, tick bound per move
   worlds::MotionSpec motion;          ///< unsensed scale and heading errors of each move, the pose the agent reads
   worlds::PushSpec pushes;            ///< random pushes during moves
+  worlds::ObstacleSpec obstacles;     ///< static bodies on the floor
 
   /// Every move lands on its commanded cell (no motion error, no pushes): the paper's robot.
   bool exact() const { return motion.exact() && pushes.none(); }
@@ -36,6 +37,7 @@ struct MoveResult {
   double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
   double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
   bool pushed = false;            ///< a push hit the robot during the move
+  bool blocked = false;           ///< an obstacle stopped the robot: the move ended at contact
 };
 
 /// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical
@@ -81,6 +83,8 @@ class RobotBatch {
   grid::Cell agent_pose(int robot) const;
   /// True while the robot touches a wall.
   bool touching_wall(int robot) const;
+  /// True while the robot touches an obstacle.
+  bool touching_obstacle(int robot) const;
 
   /// Closest approach of the robot's centre to the floor's border-pixel centres: the walls
   /// stop the centre `wall_margin_px()` beyond them (Box2D's contact skin), never further.

@@ -14,6 +14,7 @@
 
 #include "core/memory.hpp"
 #include "core/random.hpp"
+#include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
 #include "learn/distributed.hpp"
@@ -101,7 +102,9 @@ SimBatch gather_sim_batch(const BenchOptions& opt) {
                           : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(b.floors.size())));
     std::copy_n(b.floors.images.image(index), b.area, b.floor_pixels.data() + b.area * i);
     b.starts[i] = env::draw_start(b.world, b.frame, rng);
-    b.motion_seeds[i] = rng();
+    // Derived, not drawn from `rng`: the floors and starts stay those of every earlier bench.
+    b.motion_seeds[i] =
+        core::derive_seed(core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)), streams::kRobotMotion);
   }
   return b;
 }

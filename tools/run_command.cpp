@@ -94,6 +94,9 @@ std::string run_json(const env::PlannedRun& run, const learn::RolloutRecord& rec
     step["command"] = cell_json(s.command);
     step["ticks"] = s.result.ticks;
     step["settled"] = s.result.settled;
+    // Only where a scenario section made them happen, so that an exact world's file is as before.
+    if (s.result.pushed) step["pushed"] = true;
+    if (s.result.blocked) step["blocked"] = true;
     step["pose_m"] = json::array({s.pose_m.x(), s.pose_m.y()});
     step["grid_pose"] = cell_json(s.grid_pose);
     step["revealed_px"] = s.revealed_px;
@@ -110,8 +113,14 @@ struct AgentOverlay {
   int robot = 0;
 };
 
+/// What the world's scenario sections add to a run's pictures.
+struct ScenarioMarks {
+  bool true_path = false;                   ///< imperfect motion or pushes: where the robot really went
+  const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask; null: none
+};
+
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
-                  const grid::FloorFrame& frame, int patch_px, int scale, bool exact_motion,
+                  const grid::FloorFrame& frame, int patch_px, int scale, const ScenarioMarks& marks,
                   const AgentOverlay& overlay, std::vector<std::string>& written) {
   for (const learn::SnapshotRecord& snap : record.snapshots) {
     render::Snapshot s;
@@ -124,7 +133,8 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
     for (std::size_t p = 0; p < snap.path_length; ++p)
       s.path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
-    if (!exact_motion) {  // the true centre's path, every tick up to this picture's last move
+    s.obstacles = marks.obstacles;
+    if (marks.true_path) {  // the true centre's path, every tick up to this picture's last move
       std::size_t ticks = 1;
       for (std::size_t k = 0; k + 1 < snap.path_length && k < record.steps.size(); ++k)
         ticks += static_cast<std::size_t>(record.steps[k].result.ticks);
@@ -168,6 +178,7 @@ struct RunSetup {
   worlds::World world;
   worlds::FloorSet floors;
   grid::FloorFrame frame;
+  std::vector<std::uint8_t> obstacle_mask;  // H * W, 1 on an obstacle; empty without obstacles
 };
 
 RunSetup gather_run(const RunOptions& opt) {
@@ -193,6 +204,13 @@ RunSetup gather_run(const RunOptions& opt) {
         fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
                     render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
                     frame.height_px, render::kMaxPictureSidePx, opt.scale));
+  if (!setup.world.obstacles.none()) {
+    setup.obstacle_mask.resize(static_cast<std::size_t>(setup.frame.area_px()));
+    for (int y = 0; y < setup.frame.height_px; ++y)
+      for (int x = 0; x < setup.frame.width_px; ++x)
+        setup.obstacle_mask[static_cast<std::size_t>(y) * setup.frame.width_px + x] =
+            setup.world.obstacles.covers(x + 0.5, y + 0.5) ? 1 : 0;
+  }
   return setup;
 }
 
@@ -214,6 +232,8 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
   out.moves += static_cast<long>(rec.steps.size());
   out.revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
   const worlds::World& world = setup.world;
+  const ScenarioMarks marks{.true_path = !world.ideal_motion(),
+                            .obstacles = setup.obstacle_mask.empty() ? nullptr : setup.obstacle_mask.data()};
   if (out.video) {
     interrupt_token().throw_if_requested();
     append_run_frames(*out.video, {.record = &rec,
@@ -224,14 +244,15 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                                    .scale = opt.scale,
                                    .class_probabilities = p,
                                    .fps = opt.fps,
-                                   .exact_motion = world.ideal_motion()});
+                                   .exact_motion = world.ideal_motion(),
+                                   .obstacles = marks.obstacles});
   }
   if (!opt.no_images) {
     interrupt_token().throw_if_requested();
     const AgentOverlay overlay{
         .class_probabilities = p, .agent = opt.heat_map ? setup.agent.get() : nullptr, .robot = robot};
-    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale,
-                 world.ideal_motion(), overlay, out.images);
+    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale, marks, overlay,
+                 out.images);
   }
 }
 

@@ -19,13 +19,17 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.scale = run.scale;
   s.class_probabilities = run.class_probabilities;
   s.prediction_pending = true;
+  s.obstacles = run.obstacles;
   s.path.push_back({.x = record.start.x(), .y = record.start.y()});
   int frames = 0;
   auto draw = [&](const Eigen::Vector2d& body_px) {
     s.revealed = seen.data().data();
     s.robot = {.x = static_cast<int>(std::floor(body_px.x())), .y = static_cast<int>(std::floor(body_px.y()))};
     s.body = render::Snapshot::Body{.x_px = body_px.x(), .y_px = body_px.y(), .radius_px = run.robot_radius_px};
-    if (!run.exact_motion) s.true_path.push_back({static_cast<float>(body_px.x()), static_cast<float>(body_px.y())});
+    const render::FloorPoint here{static_cast<float>(body_px.x()), static_cast<float>(body_px.y())};
+    // Held frames repeat the last point: kept once, so that a long run draws in linear time.
+    if (!run.exact_motion && (s.true_path.empty() || s.true_path.back().x != here.x || s.true_path.back().y != here.y))
+      s.true_path.push_back(here);
     video.add(render::draw_snapshot(s));
     ++frames;
   };

@@ -19,7 +19,8 @@ struct RunAnimation {
   int scale = 10;
   std::span<const float> class_probabilities;  ///< the final prediction (empty: no panel)
   double fps = 30;
-  bool exact_motion = true;  ///< false: imperfect motion or pushes, and the true path is drawn too
+  bool exact_motion = true;                 ///< false: imperfect motion or pushes, and the true path is drawn too
+  const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask, drawn on every frame; null: none
 };
 
 /// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <limits>
 #include <optional>
@@ -165,13 +166,15 @@ enum class Type {
   PngPath,        // floor.image, resolved against the file
   StartOrRandom,  // robot.start: [x, y] or random
   PoseName,       // motion.pose: localised or odometry
+  BoxList,        // obstacles.boxes: [[x, y, w, h], ...]
+  DiscList,       // obstacles.discs: [[x, y, r], ...]
 };
 
 /// The member a row reads and writes: its alternative is the one at the row's Type's position.
 template <class Spec>
 using Member = std::variant<int Spec::*, double Spec::*, std::uint64_t Spec::*, std::string Spec::*, Split Spec::*,
                             std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*,
-                            PoseSource Spec::*>;
+                            PoseSource Spec::*, std::vector<BoxObstacle> Spec::*, std::vector<DiscObstacle> Spec::*>;
 
 /// The interval a value must lie in; integers take closed ones only.
 struct Bounds {
@@ -264,8 +267,8 @@ constexpr Row<PhysicsSpec> kPhysicsRows[] = {
 // The scenario sections: their defaults are the paper's exact world, and to_yaml writes a
 // section only when it differs from them, so that the text of every world without it is unchanged.
 constexpr Row<MotionSpec> kMotionRows[] = {
-    {"scale_sd", Type::Number, &MotionSpec::scale_sd, closed(0, 0.5), "", "",
-     "each move's displacement is scaled by 1 + N(0, scale_sd²), unsensed (wheel slip, wheel radius)"},
+    {"scale_sd", Type::Number, &MotionSpec::scale_sd, closed(0, 0.3), "", "",
+     "each move's displacement is scaled by 1 + N(0, scale_sd²) (at least 0.05), unsensed (wheel slip, wheel radius)"},
     {"heading_sd_deg", Type::Number, &MotionSpec::heading_sd_deg, closed(0, 45), "", "degrees",
      "each move's displacement is rotated by N(0, heading_sd_deg²), unsensed"},
     {"pose", Type::PoseName, &MotionSpec::pose, {}, "", "",
@@ -275,12 +278,22 @@ constexpr Row<MotionSpec> kMotionRows[] = {
 constexpr Row<PushSpec> kPushRows[] = {
     {"probability", Type::Number, &PushSpec::probability, closed(0, 1), "", "",
      "chance that a move is pushed"},
-    {"impulse_ns", Type::Number, &PushSpec::impulse_ns, left_open(0, 1e4), "", "N·s",
+    {"impulse_ns", Type::Number, &PushSpec::impulse_ns, left_open(0, 100), "", "N·s",
      "the push: a velocity change of impulse / mass in a uniformly drawn direction"},
-    {"within_ticks", Type::Integer, &PushSpec::within_ticks, closed(1, 100000), "", "ticks",
+    {"within_ticks", Type::Integer, &PushSpec::within_ticks, closed(1, 100000),
+     "and at most `physics.max_ticks_per_move` when `probability` > 0", "ticks",
      "the push comes at a tick drawn uniformly from the move's first `within_ticks`; the move lasts until then"},
     {"traction_s", Type::Number, &PushSpec::traction_s, left_open(0, 100), "", "s",
      "time constant of the push's velocity, which the wheels' traction absorbs"},
+};
+
+constexpr Row<ObstacleSpec> kObstacleRows[] = {
+    {"boxes", Type::BoxList, &ObstacleSpec::boxes, {}, "at most 64, each on the floor, w and h at least 1", "pixels",
+     "box obstacles `[x, y, w, h]`: the floor pixels [x, x + w) × [y, y + h)"},
+    {"discs", Type::DiscList, &ObstacleSpec::discs, {}, "at most 64, centres on the floor, r in (0, 1000]", "pixels",
+     "disc obstacles `[x, y, r]`: centre (continuous: a cell's centre is x + 0.5) and radius"},
+    {"shade", Type::Integer, &ObstacleSpec::shade, closed(0, 255), "", "",
+     "the grey level the camera sees on an obstacle"},
 };
 
 /// Fields at the top level, beside the sections.
@@ -308,7 +321,8 @@ constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
 }
 static_assert(well_formed(kFloorRows) && well_formed(kRobotRows) && well_formed(kControllerRows) &&
               well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) &&
-              well_formed(kMotionRows) && well_formed(kPushRows) && well_formed(kTopRows));
+              well_formed(kMotionRows) && well_formed(kPushRows) && well_formed(kObstacleRows) &&
+              well_formed(kTopRows));
 
 /// A table as a span, the one shape the code that walks every section takes.
 template <class Spec, std::size_t N>
@@ -328,6 +342,7 @@ void for_each_section(W& world, F&& f) {
   f(std::string_view("physics"), rows_of(kPhysicsRows), world.physics);
   f(std::string_view("motion"), rows_of(kMotionRows), world.motion);
   f(std::string_view("pushes"), rows_of(kPushRows), world.pushes);
+  f(std::string_view("obstacles"), rows_of(kObstacleRows), world.obstacles);
   f(std::string_view(), rows_of(kTopRows), world);
 }
 
@@ -377,6 +392,8 @@ std::string interval_text(Type type, const Bounds& b) {
     case Type::PngPath:
     case Type::StartOrRandom:
     case Type::PoseName:
+    case Type::BoxList:
+    case Type::DiscList:
       break;
   }
   return {};
@@ -402,6 +419,10 @@ std::string_view type_text(Type type) {
       return "`[x, y]` or `random`";
     case Type::PoseName:
       return "`localised` or `odometry`";
+    case Type::BoxList:
+      return "list of `[x, y, w, h]` integers";
+    case Type::DiscList:
+      return "list of `[x, y, r]` numbers";
   }
   return {};
 }
@@ -441,6 +462,9 @@ std::string value_text(const Row<Spec>& row, const Spec& spec) {
     }
     case Type::PoseName:
       return to_string(spec.*std::get<PoseSource Spec::*>(row.member));
+    case Type::BoxList:
+    case Type::DiscList:
+      return "[]";  // the docs' default: none
   }
   return {};
 }
@@ -487,6 +511,8 @@ class Loader {
   fs::path read_png(const Field& f) const;
   std::optional<std::pair<int, int>> read_start(const Field& f) const;
   PoseSource read_pose(const Field& f) const;
+  std::vector<BoxObstacle> read_boxes(const Field& f) const;
+  std::vector<DiscObstacle> read_discs(const Field& f) const;
 
   /// Reads one field into its member, as its row says.
   template <class Spec>
@@ -775,6 +801,53 @@ PoseSource Loader::read_pose(const Field& f) const {
   fail_field(f.line, f.dotted, "localised or odometry", describe(f.value));
 }
 
+std::vector<BoxObstacle> Loader::read_boxes(const Field& f) const {
+  const std::string expected = "a list of at most 64 boxes [x, y, w, h] (integers, pixels: x, y >= 0, w, h >= 1)";
+  if (!f.value.IsSequence() || f.value.size() > static_cast<std::size_t>(kMaxObstacles))
+    fail_field(f.line, f.dotted, expected, describe(f.value));
+  std::vector<BoxObstacle> boxes;
+  for (std::size_t i = 0; i < f.value.size(); ++i) {
+    const YAML::Node box = f.value[i];
+    if (!box.IsSequence() || box.size() != 4)
+      fail_field(f.line, f.dotted, expected, "box " + std::to_string(i + 1) + " = " + describe(box));
+    std::array<int, 4> v{};
+    for (std::size_t k = 0; k < 4; ++k) {
+      const auto t = integer_text(box[k]);
+      const std::uint64_t lo = k < 2 ? 0 : 1;
+      if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude < lo || t->magnitude > 100000)
+        fail_field(f.line, f.dotted, expected,
+                   "box " + std::to_string(i + 1) + " " + "xywh"[k] + " = " + describe(box[k]));
+      v[k] = static_cast<int>(t->magnitude);
+    }
+    boxes.push_back({v[0], v[1], v[2], v[3]});
+  }
+  return boxes;
+}
+
+std::vector<DiscObstacle> Loader::read_discs(const Field& f) const {
+  const std::string expected = "a list of at most 64 discs [x, y, r] (numbers, pixels: x, y >= 0, r in (0, 1000])";
+  if (!f.value.IsSequence() || f.value.size() > static_cast<std::size_t>(kMaxObstacles))
+    fail_field(f.line, f.dotted, expected, describe(f.value));
+  std::vector<DiscObstacle> discs;
+  for (std::size_t i = 0; i < f.value.size(); ++i) {
+    const YAML::Node disc = f.value[i];
+    if (!disc.IsSequence() || disc.size() != 3)
+      fail_field(f.line, f.dotted, expected, "disc " + std::to_string(i + 1) + " = " + describe(disc));
+    std::array<double, 3> v{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      bool out_of_range = false;
+      const auto n = number_text(disc[k], out_of_range);
+      const bool ok = n && (k < 2 ? *n >= 0.0 && *n <= 100000.0 : *n > 0.0 && *n <= 1000.0);
+      if (!ok)
+        fail_field(f.line, f.dotted, expected,
+                   "disc " + std::to_string(i + 1) + " " + "xyr"[k] + " = " + describe(disc[k]));
+      v[k] = *n;
+    }
+    discs.push_back({v[0], v[1], v[2]});
+  }
+  return discs;
+}
+
 template <class Spec>
 void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const {
   const Bounds& range = row.range;
@@ -806,6 +879,12 @@ void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const 
       return;
     case Type::PoseName:
       spec.*std::get<PoseSource Spec::*>(row.member) = read_pose(f);
+      return;
+    case Type::BoxList:
+      spec.*std::get<std::vector<BoxObstacle> Spec::*>(row.member) = read_boxes(f);
+      return;
+    case Type::DiscList:
+      spec.*std::get<std::vector<DiscObstacle> Spec::*>(row.member) = read_discs(f);
       return;
   }
 }
@@ -941,6 +1020,20 @@ void Loader::read(const YAML::Node& root) {
                    (it == world_.lines.end() ? " (the default)" : ""));
   }
 
+  // A push drawn after the move's last tick would never land: the stated rate would be a lie.
+  if (world_.pushes.probability > 0.0 && world_.pushes.within_ticks > world_.physics.max_ticks_per_move) {
+    const auto it = world_.lines.find("pushes.within_ticks");
+    const int line = it != world_.lines.end()                           ? it->second
+                     : world_.lines.count("physics.max_ticks_per_move") ? world_.lines.at("physics.max_ticks_per_move")
+                     : world_.lines.count("pushes")                     ? world_.lines.at("pushes")
+                                                                        : 1;
+    fail_field(line, "pushes.within_ticks",
+               "at most physics.max_ticks_per_move = " + std::to_string(world_.physics.max_ticks_per_move) +
+                   " (a push must come while the move lasts)",
+               std::to_string(world_.pushes.within_ticks) +
+                   (world_.lines.count("pushes.within_ticks") ? "" : " (the default)"));
+  }
+
   // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
   // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
@@ -1038,6 +1131,19 @@ void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
     case Type::PoseName:
       out << to_string(spec.*std::get<PoseSource Spec::*>(row.member));
       return;
+    case Type::BoxList:
+      out << YAML::Flow << YAML::BeginSeq;
+      for (const BoxObstacle& b : spec.*std::get<std::vector<BoxObstacle> Spec::*>(row.member))
+        out << YAML::Flow << YAML::BeginSeq << b.x << b.y << b.w << b.h << YAML::EndSeq;
+      out << YAML::EndSeq;
+      return;
+    case Type::DiscList:
+      out << YAML::Flow << YAML::BeginSeq;
+      for (const DiscObstacle& d : spec.*std::get<std::vector<DiscObstacle> Spec::*>(row.member))
+        out << YAML::Flow << YAML::BeginSeq << format_double(d.x) << format_double(d.y) << format_double(d.r)
+            << YAML::EndSeq;
+      out << YAML::EndSeq;
+      return;
   }
 }
 
@@ -1045,7 +1151,11 @@ void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
 template <class Spec>
 bool section_written(const Spec& spec) {
   if constexpr (std::is_same_v<Spec, MotionSpec>) {
-    return spec.scale_sd != 0.0 || spec.heading_sd_deg != 0.0 || spec.pose != PoseSource::Localised;
+    const MotionSpec defaults;
+    return spec.scale_sd != defaults.scale_sd || spec.heading_sd_deg != defaults.heading_sd_deg ||
+           spec.pose != defaults.pose;
+  } else if constexpr (std::is_same_v<Spec, ObstacleSpec>) {
+    return !spec.none() || spec.shade != ObstacleSpec{}.shade;
   } else if constexpr (std::is_same_v<Spec, PushSpec>) {
     const PushSpec defaults;
     return spec.probability != defaults.probability || spec.impulse_ns != defaults.impulse_ns ||
@@ -1127,6 +1237,25 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
                               int_range(1, std::max(smallest, 1)) + " (the floor is " + size + " pixels), got " +
                               std::to_string(world.camera.patch_px) + (given ? "" : " (the default)")));
   }
+  for (std::size_t i = 0; i < world.obstacles.boxes.size(); ++i) {
+    const BoxObstacle& b = world.obstacles.boxes[i];
+    if (b.x + b.w > floor_width_px || b.y + b.h > floor_height_px) {
+      const int line = field_line(world, "obstacles.boxes", "obstacles");
+      throw InputError(one_line(fmt::format(
+          "{}:{}: obstacles.boxes: expected boxes within the floor ({} pixels: x + w <= {}, y + h <= {}), got box {} "
+          "= [{}, {}, {}, {}]",
+          origin, line, size, floor_width_px, floor_height_px, i + 1, b.x, b.y, b.w, b.h)));
+    }
+  }
+  for (std::size_t i = 0; i < world.obstacles.discs.size(); ++i) {
+    const DiscObstacle& d = world.obstacles.discs[i];
+    if (d.x > floor_width_px || d.y > floor_height_px) {
+      const int line = field_line(world, "obstacles.discs", "obstacles");
+      throw InputError(one_line(
+          fmt::format("{}:{}: obstacles.discs: expected centres on the floor ({} pixels), got disc {} = [{}, {}, {}]",
+                      origin, line, size, i + 1, format_double(d.x), format_double(d.y), format_double(d.r))));
+    }
+  }
   if (world.robot.start) {
     const auto [x, y] = *world.robot.start;
     if (x < 0 || y < 0 || x >= floor_width_px || y >= floor_height_px) {
@@ -1136,7 +1265,30 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
                                 std::to_string(floor_height_px - 1) + "] (the floor is " + size + " pixels), got [" +
                                 std::to_string(x) + ", " + std::to_string(y) + "]"));
     }
+    // The robot's disc must fit there: a start on or beside an obstacle would overlap its body.
+    const double radius_px = world.robot.radius_m / world.floor.pixel_size_m;
+    const double clearance = world.obstacles.clearance_px(x + 0.5, y + 0.5);
+    if (clearance < radius_px) {
+      const int line = field_line(world, "robot.start", "robot");
+      throw InputError(one_line(fmt::format(
+          "{}:{}: robot.start: expected a cell whose centre is at least the robot's radius ({} px) from every "
+          "obstacle, got [{}, {}], {} px from one",
+          origin, line, format_double(radius_px), x, y, fmt::format("{:.3g}", clearance))));
+    }
   }
+}
+
+bool ObstacleSpec::covers(double x, double y) const { return clearance_px(x, y) == 0.0; }
+
+double ObstacleSpec::clearance_px(double x, double y) const {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const BoxObstacle& b : boxes) {
+    const double dx = std::max({b.x - x, 0.0, x - (b.x + b.w)});
+    const double dy = std::max({b.y - y, 0.0, y - (b.y + b.h)});
+    nearest = std::min(nearest, std::hypot(dx, dy));
+  }
+  for (const DiscObstacle& d : discs) nearest = std::min(nearest, std::max(0.0, std::hypot(x - d.x, y - d.y) - d.r));
+  return nearest;
 }
 
 std::string to_yaml(const World& world) {

@@ -9,6 +9,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -92,6 +93,41 @@ struct PushSpec {
   bool none() const { return probability == 0.0; }
 };
 
+/// A box obstacle: the floor pixels [x, x + w) x [y, y + h).
+struct BoxObstacle {
+  int x = 0;
+  int y = 0;
+  int w = 1;
+  int h = 1;
+  bool operator==(const BoxObstacle&) const = default;
+};
+
+/// A disc obstacle: centre (x, y) in continuous floor pixels (a cell's centre is (x + 0.5, y + 0.5)),
+/// radius r pixels.
+struct DiscObstacle {
+  double x = 0.5;
+  double y = 0.5;
+  double r = 1.0;
+  bool operator==(const DiscObstacle&) const = default;
+};
+
+/// The most obstacles of each kind a world holds.
+inline constexpr int kMaxObstacles = 64;
+
+/// Static obstacles on the floor (docs/SCENARIOS.md § Obstacles): bodies that stop the robot, and
+/// that the downward camera sees instead of the floor. The default is none: today's worlds.
+struct ObstacleSpec {
+  std::vector<BoxObstacle> boxes;
+  std::vector<DiscObstacle> discs;
+  int shade = 128;  ///< the grey level the camera sees on an obstacle
+  bool none() const { return boxes.empty() && discs.empty(); }
+  /// True when the floor point (x, y) (continuous pixels) lies on an obstacle.
+  bool covers(double x, double y) const;
+  /// The distance from (x, y) to the nearest obstacle's edge, pixels (0 inside one; +infinity
+  /// without obstacles).
+  double clearance_px(double x, double y) const;
+};
+
 /// A loaded, validated world file.
 struct World {
   std::filesystem::path file;  ///< the file it was read from (as given)
@@ -103,6 +139,7 @@ struct World {
   PhysicsSpec physics;
   MotionSpec motion;
   PushSpec pushes;
+  ObstacleSpec obstacles;
   std::uint64_t seed = 0;            ///< run seed; the command line's --seed overrides it
   std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
 

@@ -176,6 +176,33 @@ TEST(BatchEnv, WithImperfectMotionTheCameraLooksFromTheTruePosition) {
   EXPECT_GT(differs_from_crop, robots * 12 / 2) << "the camera should see sub-pixel views, not crops";
 }
 
+// The camera over an obstacle sees the obstacle (its shade), not the floor under it.
+TEST(BatchEnv, TheCameraSeesObstaclesInTheirShade) {
+  worlds::World world = small_world(10);
+  world.obstacles.boxes = {{8, 4, 3, 3}};
+  world.obstacles.shade = 0;  // black, unlike any pixel of floors(), which are never 0
+  BatchEnv env(world, kFloor, 1);
+  const std::vector<std::uint8_t> f = floors(1);
+  std::vector<std::uint8_t> painted = f;
+  for (int y = 4; y < 7; ++y)
+    for (int x = 8; x < 11; ++x) painted[static_cast<std::size_t>(y) * kFloor.width_px + x] = 0;
+  std::vector<std::uint8_t> crop(100);
+  const auto zeros = [&env] {
+    return static_cast<int>(std::count(env.patches().begin(), env.patches().end(), std::uint8_t{0}));
+  };
+  // At (3, 5) the window spans x = -2 .. 7: two columns off the floor, the box (x >= 8) outside.
+  env.reset(f, std::vector<grid::Cell>{{3, 5}}, no_motion(1));
+  EXPECT_EQ(zeros(), 20);
+  // One pixel right (the disc still clear of the box) the window spans x = -1 .. 8: the box's
+  // first column (rows 4 .. 6) comes in, in its shade.
+  env.step(std::vector<grid::Cell>{{1, 0}});
+  ASSERT_EQ(env.poses()[0], grid::Cell(4, 5));
+  ASSERT_FALSE(env.last_results()[0].blocked);
+  EXPECT_EQ(zeros(), 10 + 3);
+  render::crop_patch(painted.data(), kFloor.width_px, kFloor.height_px, 10, {4, 5}, crop.data());
+  EXPECT_TRUE(std::equal(crop.begin(), crop.end(), env.patches().begin()));
+}
+
 TEST(BatchEnv, BadInputIsRefused) {
   BatchEnv env(small_world(3), kFloor, 2);
   EXPECT_THROW(env.reset(floors(3), std::vector<grid::Cell>{{0, 0}, {1, 1}, {2, 2}}, no_motion(3)),

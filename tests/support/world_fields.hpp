@@ -19,7 +19,8 @@ namespace scout::testing {
 /// `lines` say where a world was read from, not what it says: for_each_world_field leaves them
 /// out, and a test that parses both worlds from the same origin compares them itself.
 [[maybe_unused]] inline void world_members_are_listed(const worlds::World& w) {
-  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, seed, lines] = w;
+  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, obstacles, seed,
+                                lines] = w;
   [[maybe_unused]] const auto& [dataset, split, index, image, pixel_size_m] = w.floor;
   [[maybe_unused]] const auto& [radius_m, mass_kg, max_speed_mps, start] = w.robot;
   [[maybe_unused]] const auto& [kp_per_s, tolerance_px] = w.controller;
@@ -28,6 +29,7 @@ namespace scout::testing {
   [[maybe_unused]] const auto& [dt_s, velocity_iterations, position_iterations, max_ticks_per_move] = w.physics;
   [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose] = w.motion;
   [[maybe_unused]] const auto& [probability, impulse_ns, within_ticks, traction_s] = w.pushes;
+  [[maybe_unused]] const auto& [boxes, discs, shade] = w.obstacles;
 }
 
 /// Calls f(dotted name, a's value, b's value) for every field a world file sets, in the order of
@@ -60,6 +62,9 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("pushes.impulse_ns", a.pushes.impulse_ns, b.pushes.impulse_ns);
   f("pushes.within_ticks", a.pushes.within_ticks, b.pushes.within_ticks);
   f("pushes.traction_s", a.pushes.traction_s, b.pushes.traction_s);
+  f("obstacles.boxes", a.obstacles.boxes, b.obstacles.boxes);
+  f("obstacles.discs", a.obstacles.discs, b.obstacles.discs);
+  f("obstacles.shade", a.obstacles.shade, b.obstacles.shade);
   f("seed", a.seed, b.seed);
 }
 

@@ -241,7 +241,7 @@ TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) { expect_error(GetP
 const BadCase kBadCases[] = {
     {"UnknownTopLevelKey", "floor: {}\nrobott: {}\n",
      "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, motion, pushes, "
-     "seed, got unknown key"},
+     "obstacles, seed, got unknown key"},
     {"UnknownNestedKey", "robot:\n  radius_m: 1\n  radius: 1\n",
      "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key "
      "\"radius\""},
@@ -353,10 +353,23 @@ const BadCase kBadCases[] = {
     {"ImageOnlyExtension", "floor:\n  image: .png\n", "w.yaml:2: floor.image: expected a .png file, got .png"},
     {"MotionPoseIsANameOfTwo", "motion:\n  pose: true\n",
      "w.yaml:2: motion.pose: expected localised or odometry, got true"},
-    {"MotionScaleAboveHalf", "motion: {scale_sd: 0.6}\n",
-     "w.yaml:1: motion.scale_sd: expected a number in [0, 0.5], got 0.6"},
+    {"MotionScaleAboveAThird", "motion: {scale_sd: 0.35}\n",
+     "w.yaml:1: motion.scale_sd: expected a number in [0, 0.3], got 0.35"},
+    {"PushAfterTheMovesLastTick", "physics: {max_ticks_per_move: 8}\npushes: {probability: 0.5}\n",
+     "w.yaml:1: pushes.within_ticks: expected at most physics.max_ticks_per_move = 8 (a push must come while the move "
+     "lasts), got 10 (the default)"},
     {"PushProbabilityAboveOne", "pushes:\n  probability: 1.5\n",
      "w.yaml:2: pushes.probability: expected a number in [0, 1], got 1.5"},
+    {"ObstacleBoxOfThree", "obstacles:\n  boxes: [[1, 2, 3]]\n",
+     "w.yaml:2: obstacles.boxes: expected a list of at most 64 boxes [x, y, w, h] (integers, pixels: x, y >= 0, w, h "
+     ">= 1), got box 1 = "},
+    {"ObstacleBoxOfWidthZero", "obstacles:\n  boxes: [[1, 2, 0, 3]]\n",
+     "w.yaml:2: obstacles.boxes: expected a list of at most 64 boxes [x, y, w, h] (integers, pixels: x, y >= 0, w, h "
+     ">= 1), got box 1 w = 0"},
+    {"ObstacleDiscNegativeRadius", "obstacles: {discs: [[4, 4, -1]]}\n",
+     "w.yaml:1: obstacles.discs: expected a list of at most 64 discs [x, y, r] (numbers, pixels: x, y >= 0, r in (0, "
+     "1000]), got disc 1 r = -1"},
+    {"ObstacleBoxesNotAList", "obstacles: {boxes: 3}\n", "w.yaml:1: obstacles.boxes: expected a list of at most 64"},
     {"PushWithinZeroTicks", "pushes:\n  within_ticks: 0\n",
      "w.yaml:2: pushes.within_ticks: expected an integer in [1, 100000], got 0"},
     {"SyntaxError", "floor:\n  dataset: mnist\nrobot: [1, 2\n", "w.yaml:4: YAML syntax error: "},
@@ -541,6 +554,36 @@ TEST(WorldFile, StartOffTheFloorNamesItsLine) {
   EXPECT_THROW(check_against_floor(below, 28, 28), InputError);
   const World random = parse_world("robot: {start: random}\n", "w.yaml");
   EXPECT_NO_THROW(check_against_floor(random, 6, 6));
+}
+
+TEST(WorldFile, ObstaclesOffTheFloorOrOnTheStartNameTheirLine) {
+  const World box = parse_world("obstacles:\n  boxes: [[2, 2, 3, 3], [25, 0, 4, 2]]\n", "w.yaml");
+  try {
+    check_against_floor(box, 28, 28);
+    FAIL() << "accepted a box reaching x = 29 on a 28 px floor";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "w.yaml:2: obstacles.boxes: expected boxes within the floor (28x28 pixels: x + w <= 28, y + h <= 28), "
+              "got box 2 = [25, 0, 4, 2]");
+  }
+  EXPECT_NO_THROW(check_against_floor(box, 29, 28));
+  const World disc = parse_world("obstacles: {discs: [[14, 30.5, 1]]}\n", "w.yaml");
+  EXPECT_THROW(check_against_floor(disc, 28, 28), InputError);
+  // The default robot's radius is 2.5 px: a start 2 px from a box overlaps it.
+  const World start = parse_world("robot: {start: [10, 10]}\nobstacles: {boxes: [[12, 10, 2, 2]]}\n", "w.yaml");
+  try {
+    check_against_floor(start, 28, 28);
+    FAIL() << "accepted a start 1.5 px from a box";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "w.yaml:1: robot.start: expected a cell whose centre is at least the robot's radius (2.5 px) from every "
+              "obstacle, got [10, 10], 1.5 px from one");
+  }
+  const World clear = parse_world("robot: {start: [5, 10]}\nobstacles: {boxes: [[12, 10, 2, 2]]}\n", "w.yaml");
+  EXPECT_NO_THROW(check_against_floor(clear, 28, 28));
+  EXPECT_DOUBLE_EQ(clear.obstacles.clearance_px(5.5, 10.5), 6.5);
+  EXPECT_TRUE(clear.obstacles.covers(13.9, 11.9));
+  EXPECT_FALSE(clear.obstacles.covers(14.1, 11.9));
 }
 
 // --- Paths -----------------------------------------------------------------------------------
@@ -924,6 +967,7 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   World scenario;
   scenario.motion.pose = PoseSource::Odometry;
   scenario.pushes.probability = 0.5;
+  scenario.obstacles.shade = 7;
   std::string written;
   std::istringstream yaml(to_yaml(scenario));
   for (std::string line; std::getline(yaml, line);) {

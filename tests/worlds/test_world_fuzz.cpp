@@ -95,7 +95,8 @@ std::set<std::string> written_keys(const World& w) {
   scout::testing::for_each_world_field(w, defaults, [&](const char* name, const auto& x, const auto& y) {
     const std::string dotted(name);
     const std::string section = dotted.substr(0, dotted.find('.'));
-    if ((section == "motion" || section == "pushes") && !(x == y)) varied_scenarios.insert(section);
+    if ((section == "motion" || section == "pushes" || section == "obstacles") && !(x == y))
+      varied_scenarios.insert(section);
   });
   for (const FieldInfo& f : world_schema()) {
     const std::string section(f.section), name(f.name);
@@ -103,7 +104,8 @@ std::set<std::string> written_keys(const World& w) {
       keys.insert(name);
       continue;
     }
-    if ((section == "motion" || section == "pushes") && varied_scenarios.count(section) == 0) continue;
+    if ((section == "motion" || section == "pushes" || section == "obstacles") && varied_scenarios.count(section) == 0)
+      continue;
     keys.insert(section);
     if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
       continue;
@@ -366,6 +368,7 @@ class Fuzzer {
                                             "physics",
                                             "motion",
                                             "pushes",
+                                            "obstacles",
                                             "seed",
                                             "perturbation",
                                             "dataset",
@@ -428,6 +431,9 @@ class Fuzzer {
   const std::vector<std::string> kSeparators = {" ", "", "\n", "\n  ", "\n    ", ", ", "\r\n"};
   const std::vector<std::string> kValues = {"random",
                                             "odometry",
+                                            "[[1, 2, 3, 4]]",
+                                            "[[20, 20, 2.5], [3, 4, 0.5]]",
+                                            "[[0, 0, 0, 1]]",
                                             "localised",
                                             "[1, 2]",
                                             "[1, 2, 3]",
@@ -506,6 +512,7 @@ class Fuzzer {
       {"physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"}},
       {"motion", {"scale_sd", "heading_sd_deg", "pose"}},
       {"pushes", {"probability", "impulse_ns", "within_ticks", "traction_s"}},
+      {"obstacles", {"boxes", "discs", "shade"}},
       {"seed", {}}};
   const std::vector<char> kInterestingChars = {'[', ']', '{',  '}',  ':', '-', '#', '"', '\'', '&', '*', '!',
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
@@ -536,6 +543,7 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
            "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
            "motion: {scale_sd: 0.15, heading_sd_deg: 7.5, pose: odometry}\n"
            "pushes: {probability: 0.25, impulse_ns: 2.5, within_ticks: 4, traction_s: 0.3}\n"
+           "obstacles: {boxes: [[1, 2, 3, 4], [20, 0, 1, 1]], discs: [[10.5, 7.25, 2]], shade: 200}\n"
            "seed: 18446744073709551615\n",
            tally));
   ASSERT_TRUE(
