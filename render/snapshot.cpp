@@ -201,6 +201,33 @@ class HeatLegend {
 
 }  // namespace
 
+namespace {
+
+// The true path (cyan, sub-pixel), then the path of poses (orange lines and dots) over it.
+void draw_paths(cv::Mat& map, const Snapshot& snapshot) {
+  const int s = snapshot.scale;
+  // Thin lines relative to a pixel block, but never thinner than one output pixel.
+  const int line_px = std::max(1, s / 6);
+  const int dot_radius_px = std::max(1, s / 5);
+  // Fixed point, 1/16 output pixel: a sub-pixel path is drawn where it is, not on pixel centres.
+  const auto exact_point = [s](const FloorPoint& p) {
+    return cv::Point(static_cast<int>(std::lround(p.x * s * 16.0)), static_cast<int>(std::lround(p.y * s * 16.0)));
+  };
+  for (std::size_t i = 1; i < snapshot.true_path.size(); ++i) {
+    cv::line(map, exact_point(snapshot.true_path[i - 1]), exact_point(snapshot.true_path[i]), kTruePathColour,
+             std::max(1, s / 10), cv::LINE_AA, 4);
+  }
+  for (std::size_t i = 1; i < snapshot.path.size(); ++i) {
+    cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s), kPathColour, line_px,
+             cv::LINE_AA);
+  }
+  for (const PixelPose& pose : snapshot.path) {
+    cv::circle(map, pixel_centre(pose, s), dot_radius_px, kPathColour, cv::FILLED, cv::LINE_AA);
+  }
+}
+
+}  // namespace
+
 Picture draw_snapshot(const Snapshot& snapshot) {
   if (snapshot.floor == nullptr) throw std::invalid_argument("draw_snapshot: floor is null");
   if (snapshot.width_px <= 0 || snapshot.height_px <= 0) {
@@ -257,24 +284,7 @@ Picture draw_snapshot(const Snapshot& snapshot) {
     }
   }
 
-  // Thin lines relative to a pixel block, but never thinner than one output pixel.
-  const int line_px = std::max(1, s / 6);
-  const int dot_radius_px = std::max(1, s / 5);
-  // Fixed point, 1/16 output pixel: a sub-pixel path is drawn where it is, not on pixel centres.
-  const auto exact_point = [s](const FloorPoint& p) {
-    return cv::Point(static_cast<int>(std::lround(p.x * s * 16.0)), static_cast<int>(std::lround(p.y * s * 16.0)));
-  };
-  for (std::size_t i = 1; i < snapshot.true_path.size(); ++i) {
-    cv::line(map, exact_point(snapshot.true_path[i - 1]), exact_point(snapshot.true_path[i]), kTruePathColour,
-             std::max(1, s / 10), cv::LINE_AA, 4);
-  }
-  for (std::size_t i = 1; i < snapshot.path.size(); ++i) {
-    cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s), kPathColour, line_px,
-             cv::LINE_AA);
-  }
-  for (const PixelPose& pose : snapshot.path) {
-    cv::circle(map, pixel_centre(pose, s), dot_radius_px, kPathColour, cv::FILLED, cv::LINE_AA);
-  }
+  draw_paths(map, snapshot);
   // The robot's window last, so that it stays visible when it meets the goal.
   const int outline_px = std::max(1, s / 5);
   if (snapshot.goal) draw_window(map, snapshot, *snapshot.goal, outline_px, kGoalColour);

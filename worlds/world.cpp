@@ -17,6 +17,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <set>
@@ -527,6 +528,13 @@ class Loader {
   /// The floor's rules across fields: a data set or an image, and paths resolved.
   void finish_floor(const std::vector<Field>& fields);
 
+  /// The rules across sections (the robot's size in pixels, pushes within a move, a controller
+  /// that settles), once every section is read.
+  void check_across_fields() const;
+
+  /// The line of the first of `fields` the file gave, else 1: where a message about them points.
+  int first_line(std::initializer_list<const char*> fields) const;
+
   fs::path resolve(const fs::path& relative, const Field& f) const;
 
   const fs::path& origin_;
@@ -1003,31 +1011,31 @@ void Loader::read(const YAML::Node& root) {
     }
   }
   if (!floor_seen) world_.floor.dataset = "mnist";  // no floor section: the paper's floor
+  check_across_fields();
+}
 
+int Loader::first_line(std::initializer_list<const char*> fields) const {
+  for (const char* field : fields)
+    if (const auto it = world_.lines.find(field); it != world_.lines.end()) return it->second;
+  return 1;
+}
+
+void Loader::check_across_fields() const {
   // The robot's size in pixels: Box2D runs in tenths of a pixel and is tuned for bodies of 0.1 to
   // 10 of its units, so a radius of 0.5 to 100 pixels.
   const double radius_px = world_.robot.radius_m / world_.floor.pixel_size_m;
   if (radius_px < 0.5 || radius_px > 100.0) {
-    const auto it = world_.lines.find("robot.radius_m");
-    const int line = it != world_.lines.end()                   ? it->second
-                     : world_.lines.count("floor.pixel_size_m") ? world_.lines.at("floor.pixel_size_m")
-                                                                : 1;
-    fail_field(line, "robot.radius_m",
+    fail_field(first_line({"robot.radius_m", "floor.pixel_size_m"}), "robot.radius_m",
                "a radius of 0.5 to 100 pixels (" + format_double(0.5 * world_.floor.pixel_size_m) + " to " +
                    format_double(100.0 * world_.floor.pixel_size_m) + " m at pixel_size_m " +
                    format_double(world_.floor.pixel_size_m) + ")",
                format_double(world_.robot.radius_m) + " m = " + fmt::format("{:.3g}", radius_px) + " px" +
-                   (it == world_.lines.end() ? " (the default)" : ""));
+                   (world_.lines.count("robot.radius_m") ? "" : " (the default)"));
   }
 
   // A push drawn after the move's last tick would never land: the stated rate would be a lie.
   if (world_.pushes.probability > 0.0 && world_.pushes.within_ticks > world_.physics.max_ticks_per_move) {
-    const auto it = world_.lines.find("pushes.within_ticks");
-    const int line = it != world_.lines.end()                           ? it->second
-                     : world_.lines.count("physics.max_ticks_per_move") ? world_.lines.at("physics.max_ticks_per_move")
-                     : world_.lines.count("pushes")                     ? world_.lines.at("pushes")
-                                                                        : 1;
-    fail_field(line, "pushes.within_ticks",
+    fail_field(first_line({"pushes.within_ticks", "physics.max_ticks_per_move", "pushes"}), "pushes.within_ticks",
                "at most physics.max_ticks_per_move = " + std::to_string(world_.physics.max_ticks_per_move) +
                    " (a push must come while the move lasts)",
                std::to_string(world_.pushes.within_ticks) +
@@ -1038,11 +1046,7 @@ void Loader::read(const YAML::Node& root) {
   // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
   if (gain_per_tick >= 2.0) {
-    const auto it = world_.lines.find("controller.kp_per_s");
-    const int line = it != world_.lines.end()             ? it->second
-                     : world_.lines.count("physics.dt_s") ? world_.lines.at("physics.dt_s")
-                                                          : 1;
-    fail_field(line, "controller.kp_per_s",
+    fail_field(first_line({"controller.kp_per_s", "physics.dt_s"}), "controller.kp_per_s",
                "less than 2 / physics.dt_s = " + format_double(2.0 / world_.physics.dt_s) +
                    " (kp_per_s * dt_s = 1 lands in one tick; 2 or more never settles)",
                format_double(world_.controller.kp_per_s) +
