@@ -202,7 +202,7 @@ std::int64_t conv(std::int64_t in, std::int64_t out, std::int64_t kernel, bool b
 
 // A dense stack and its 1x1 head (agent/networks.cpp's planners).
 std::int64_t planner(const NetworkConfig& c, std::int64_t head_channels) {
-  const std::int64_t in = c.image_channels + 3;
+  const std::int64_t in = planner_channels(c);
   std::int64_t n = 0;
   for (int k = 0; k < c.planner_depth; ++k) n += conv(in + std::int64_t{k} * c.planner_width, c.planner_width, 3, true);
   return n + conv(in + std::int64_t{c.planner_depth} * c.planner_width, head_channels, 1, true);

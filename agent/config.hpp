@@ -109,11 +109,19 @@ struct NetworkConfig {
   ClassifierKind classifier = ClassifierKind::Paper;
   int classifier_width = 16;  ///< first block's channels (doubling each block); ResNet-18: stem width
   int classifier_depth = 3;   ///< classifier blocks (ResNet-18: ignored, always 4 stages of 2)
+  /// The planners also read o, the occupancy channel (docs/SCENARIOS.md § Obstacles): 1 on the
+  /// cells where the robot cannot stand beside its run's obstacles, 0 elsewhere.
+  bool occupancy = false;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
   bool operator==(const NetworkConfig&) const = default;
 };
+
+/// Input channels of both planners: y (c), l, h, g_l, and o with `occupancy`.
+inline int planner_channels(const NetworkConfig& config) {
+  return config.image_channels + 3 + (config.occupancy ? 1 : 0);
+}
 
 /// The agent's trainable parameters (all three networks) for `config`, counted without building
 /// them: what a checkpoint of this config must hold, and the base of memory estimates. A test

@@ -326,4 +326,32 @@ AgentImpl::AgentImpl(const NetworkConfig& config) : config_(config) {
   classifier = register_module("classifier", make_classifier(config_));
 }
 
+void copy_adding_occupancy(const AgentImpl& from, AgentImpl& to) {
+  NetworkConfig widened = from.config();
+  widened.occupancy = true;
+  if (from.config().occupancy || !(widened == to.config()))
+    throw std::invalid_argument(
+        "copy_adding_occupancy: the target must be the source's networks with the occupancy "
+        "channel added");
+  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs...]: o is channel
+  // `at` of every planner convolution's input, and the channels after it move up by one.
+  const std::int64_t at = planner_channels(from.config());
+  torch::NoGradGuard no_grad;
+  const auto source = from.named_parameters(/*recurse=*/true);
+  for (auto& item : to.named_parameters(/*recurse=*/true)) {
+    const torch::Tensor& src = source[item.key()];
+    torch::Tensor& dst = item.value();
+    if (src.sizes() == dst.sizes()) {
+      dst.copy_(src);
+      continue;
+    }
+    const bool planner = item.key().rfind("goal.", 0) == 0 || item.key().rfind("action.", 0) == 0;
+    if (!planner || src.dim() != 4 || dst.size(1) != src.size(1) + 1)
+      throw std::invalid_argument("copy_adding_occupancy: " + item.key() + " does not widen by one input channel");
+    dst.zero_();
+    dst.narrow(1, 0, at).copy_(src.narrow(1, 0, at));
+    dst.narrow(1, at + 1, src.size(1) - at).copy_(src.narrow(1, at, src.size(1) - at));
+  }
+}
+
 }  // namespace scout::agent

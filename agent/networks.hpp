@@ -9,9 +9,6 @@
 
 namespace scout::agent {
 
-/// Number of input channels of both planners: y (c), l, h, g_l.
-inline int planner_channels(const NetworkConfig& config) { return config.image_channels + 3; }
-
 /// r DenseNet-style blocks (conv 3x3 -> ReLU, output concatenated to the input), d channels each.
 /// No normalisation: one robot's output never depends on the others in its batch.
 class DenseStackImpl : public torch::nn::Module {
@@ -27,9 +24,9 @@ class DenseStackImpl : public torch::nn::Module {
 TORCH_MODULE(DenseStack);
 
 /// f1 and f2, one network with two heads: a dense stack, then a 1 x 1 convolution.
-/// - f1, the goal planner: u_g [B, c+3, H, W] -> goal logits [B, H*W], one per floor pixel
+/// - f1, the goal planner: u_g [B, planner_channels, H, W] -> goal logits [B, H*W], one per floor pixel
 ///   (softmax over them, row-major);
-/// - f2, the action planner: u_a [B, c+3, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical),
+/// - f2, the action planner: u_a [B, planner_channels, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical),
 ///   the head's two maps averaged over the floor.
 class PlannerImpl : public torch::nn::Module {
  public:
@@ -68,5 +65,12 @@ class AgentImpl : public torch::nn::Module {
   NetworkConfig config_;
 };
 TORCH_MODULE(Agent);
+
+/// Copies `from`'s weights into `to`, whose config is `from`'s with the occupancy channel added:
+/// every planner convolution of `to` reads one more input channel, o, whose weights are set to
+/// zero, so that `to` computes exactly what `from` does whatever o holds, and training can learn
+/// to use it (fine-tuning a model trained without obstacles: `scout train --init-from`). Throws
+/// std::invalid_argument when the configs differ otherwise.
+void copy_adding_occupancy(const AgentImpl& from, AgentImpl& to);
 
 }  // namespace scout::agent

@@ -22,7 +22,8 @@ void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, 
   for (std::size_t i = 0; i < n; ++i) dst[i] = view.seen[i] != 0 ? pixel_value(view.revealed[i]) : 0.0f;
 }
 
-void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst) {
+void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst,
+                         bool occupancy) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   float* y = dst;
   float* l = dst + n;
@@ -40,6 +41,14 @@ void write_planner_input(const grid::FloorFrame& frame, int patch_px, const Robo
   // robot would see standing on the goal.
   std::fill(g, g + n, 1.0f);
   if (view.goal != nullptr) fill_window(grid::camera_window(*view.goal, patch_px, frame), frame.width_px, 0.0f, g);
+
+  if (!occupancy) return;
+  float* o = dst + 4 * n;
+  if (view.occupied == nullptr) {
+    std::fill(o, o + n, 0.0f);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) o[i] = view.occupied[i] != 0 ? 1.0f : 0.0f;
+  }
 }
 
 }  // namespace scout::agent

@@ -13,6 +13,7 @@ struct RobotView {
   const std::uint8_t* seen = nullptr;      ///< 1 where seen so far, 0 elsewhere
   grid::Cell pose;                         ///< current grid pose
   const grid::Cell* goal = nullptr;        ///< goal for g_l; null: no goal yet (g_l all ones)
+  const std::uint8_t* occupied = nullptr;  ///< o: 1 where the robot cannot stand; null: no obstacles (o all zeros)
 };
 
 /// A floor byte as the networks see it: p / 255 - 0.5 (METHOD.md § Symbols).
@@ -21,9 +22,11 @@ inline float pixel_value(std::uint8_t p) { return static_cast<float>(p) / 255.0f
 /// y: pixel_value(revealed) where seen, 0 elsewhere. Writes H * W floats (c = 1).
 void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, float* dst);
 
-/// u = concat(y, l, h, g_l): writes 4 * H * W floats, channel-major.
-/// l: 0 on the camera window at the pose, 1 elsewhere; h: 0 where seen, 1 elsewhere;
-/// g_l: 0 on the m x m window around the goal, 1 elsewhere (all ones without a goal).
-void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst);
+/// u = concat(y, l, h, g_l), and o after them with `occupancy`: writes 4 (5) * H * W floats,
+/// channel-major. l: 0 on the camera window at the pose, 1 elsewhere; h: 0 where seen, 1
+/// elsewhere; g_l: 0 on the m x m window around the goal, 1 elsewhere (all ones without a goal);
+/// o: 1 where view.occupied says the robot cannot stand, 0 elsewhere.
+void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst,
+                         bool occupancy = false);
 
 }  // namespace scout::agent

@@ -21,6 +21,10 @@ inline constexpr std::uint64_t kRobotStart = 1;   ///< the robot's start cell
 inline constexpr std::uint64_t kRobotPolicy = 2;  ///< the robot's goal and axis choices
 inline constexpr std::uint64_t kRobotMotion = 3;  ///< the robot's motion errors and pushes (worlds that have them)
 
+// Below a run's or a robot's motion seed (kRunMotion, kRobotMotion), which also seeds the
+// robot's motion errors and pushes directly:
+inline constexpr std::uint64_t kMotionObstacles = 1;  ///< the run's random boxes (env::run_obstacles)
+
 // A training run's seed; below it, then the stage and the epoch:
 inline constexpr std::uint64_t kTrainOrder = 11;       ///< data order of (stage, epoch)
 inline constexpr std::uint64_t kTrainBatch = 12;       ///< batch streams of (stage, epoch), then the batch index

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "core/timing.hpp"
+#include "env/runs.hpp"
 #include "render/camera.hpp"
 #include "sim/robots.hpp"
 
@@ -14,7 +15,7 @@ using core::Clock;
 using core::seconds_since;
 
 BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
-    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots) {
+    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots), world_(world) {
   if (max_robots <= 0) throw std::invalid_argument("BatchEnv: max_robots must be positive");
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
   exact_motion_ = robots_->params().exact();
@@ -36,6 +37,9 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
       if (world.obstacles.covers(x + 0.5, y + 0.5))
         obstacle_pixels_.push_back(static_cast<std::size_t>(y) * frame.width_px + x);
   obstacle_shade_ = static_cast<std::uint8_t>(world.obstacles.shade);
+  if (!world.obstacles.none()) occupied_.resize(area * max_robots);
+  if (!world.obstacles.none() && world.obstacles.random_boxes == 0)
+    fixed_occupied_ = occupied_cells(world, frame, world.obstacles);
 }
 
 BatchEnv::~BatchEnv() = default;
@@ -48,6 +52,10 @@ std::span<const std::uint8_t> BatchEnv::patches() const {
 std::span<const grid::Cell> BatchEnv::poses() const { return {poses_.data(), static_cast<std::size_t>(count_)}; }
 std::span<const std::uint8_t> BatchEnv::revealed() const {
   return {revealed_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
+}
+std::span<const std::uint8_t> BatchEnv::occupied() const {
+  if (occupied_.empty()) return {};
+  return {occupied_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
 }
 std::span<const grid::RevealMask> BatchEnv::seen() const { return {seen_.data(), static_cast<std::size_t>(count_)}; }
 std::span<const int> BatchEnv::moves() const { return {moves_.data(), static_cast<std::size_t>(count_)}; }
@@ -65,6 +73,20 @@ void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid:
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
+  if (world_.obstacles.random_boxes > 0) {
+    // The run's own layout, drawn from its motion seed as every caller that drew its start did.
+    const worlds::ObstacleSpec layout = run_obstacles(world_, frame_, motion_seed);
+    robots_->set_obstacles(robot, layout);
+    for (const worlds::BoxObstacle& b : layout.boxes)
+      for (int y = b.y; y < b.y + b.h; ++y)
+        std::fill_n(floors_.begin() + static_cast<std::ptrdiff_t>(area * robot + y * frame_.width_px + b.x), b.w,
+                    obstacle_shade_);
+    const std::vector<std::uint8_t> occupied = occupied_cells(world_, frame_, layout);
+    std::copy(occupied.begin(), occupied.end(), occupied_.begin() + static_cast<std::ptrdiff_t>(area * robot));
+  } else if (!fixed_occupied_.empty()) {
+    std::copy(fixed_occupied_.begin(), fixed_occupied_.end(),
+              occupied_.begin() + static_cast<std::ptrdiff_t>(area * robot));
+  }
   std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
   robots_->place(robot, start, motion_seed);
   poses_[robot] = robots_->agent_pose(robot);

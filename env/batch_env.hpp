@@ -102,6 +102,9 @@ class BatchEnv {
   /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes (obstacles, in
   /// a world with them, in their shade: what the camera saw).
   std::span<const std::uint8_t> revealed() const;
+  /// o: 1 on each cell where the robot's disc would overlap one of its run's obstacles, 0
+  /// elsewhere, count * H * W bytes (env::occupied_cells); empty in a world without obstacles.
+  std::span<const std::uint8_t> occupied() const;
   std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
   std::span<const int> moves() const;                ///< step() calls since each robot's reset (a zero command counts)
   std::span<const MoveResult> last_results() const;  ///< how each robot's last move went
@@ -129,10 +132,14 @@ class BatchEnv {
   std::vector<grid::RevealMask> seen_;
   std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
-  // Floor pixels whose centre lies on an obstacle (world `obstacles`), and the grey the camera sees
-  // there: painted over each floor the camera holds. Empty without obstacles.
+  worlds::World world_;
+  // Floor pixels whose centre lies on one of the world's fixed obstacles, and the grey the camera
+  // sees there: painted over each floor the camera holds (a run's random boxes are painted as it
+  // is placed). Empty without obstacles.
   std::vector<std::size_t> obstacle_pixels_;
   std::uint8_t obstacle_shade_ = 0;
+  std::vector<std::uint8_t> fixed_occupied_;  // o of the fixed obstacles (H * W), in a world without random boxes
+  std::vector<std::uint8_t> occupied_;        // o per robot (max_robots * H * W), in a world with obstacles
   std::vector<std::uint8_t> patches_;
   bool exact_motion_ = true;                    // moves land on cells: the camera crops at grid poses
   std::vector<render::PixelPose> pixel_poses_;  // exact worlds: the grid poses the camera crops at

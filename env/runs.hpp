@@ -12,16 +12,40 @@
 
 namespace scout::env {
 
-/// The start cell of a rollout: the world file's, or uniform over the floor from `rng`.
+/// The obstacles of one run (docs/SCENARIOS.md § Obstacles): the world's fixed boxes and discs,
+/// and `obstacles.random_boxes` boxes drawn from derive_seed(motion_seed, kMotionObstacles), sides
+/// uniform in [random_box_min_px, random_box_max_px], positions uniform over the floor. A draw
+/// that leaves the world's fixed start, or (with a random start) every cell, too close to a box
+/// for the robot's disc is drawn again; after 1000 such draws, InputError. Without random boxes,
+/// the world's obstacles. The result is a concrete layout (its random_boxes is 0).
+worlds::ObstacleSpec run_obstacles(const worlds::World& world, const grid::FloorFrame& frame,
+                                   std::uint64_t motion_seed);
+
+/// True where the robot's disc centred on the cell would overlap an obstacle of `layout` (its
+/// centre is nearer to one than the robot's radius): H * W bytes, 1 there, 0 elsewhere. The
+/// planners' occupancy channel o (docs/SCENARIOS.md § Obstacles).
+std::vector<std::uint8_t> occupied_cells(const worlds::World& world, const grid::FloorFrame& frame,
+                                         const worlds::ObstacleSpec& layout);
+
+/// The start cell of a rollout: the world file's, or uniform over the cells where the robot's disc
+/// fits beside the run's obstacles `layout` (run_obstacles), from `rng`.
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, const worlds::ObstacleSpec& layout,
+                      core::Rng& rng);
+/// The start of the run whose motion seed is `motion_seed`: beside its layout (run_obstacles).
+grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t motion_seed,
+                      core::Rng& rng);
+/// The same beside the world's fixed obstacles, for a world without random boxes (std::logic_error
+/// for one with them: its starts depend on each run's layout).
 grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng);
 
 /// One run of a sequence.
 struct PlannedRun {
-  std::uint64_t seed = 0;         ///< derive_seed(sequence seed, k)
-  int index = 0;                  ///< the digit, in its split
-  grid::Cell start;               ///< drawn from derive_seed(seed, kRunStart) (or the world's start)
-  std::uint64_t policy_seed = 0;  ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
-  std::uint64_t motion_seed = 0;  ///< derive_seed(seed, kRunMotion): the run's motion errors and pushes
+  std::uint64_t seed = 0;          ///< derive_seed(sequence seed, k)
+  int index = 0;                   ///< the digit, in its split
+  grid::Cell start;                ///< drawn from derive_seed(seed, kRunStart) (or the world's start)
+  worlds::ObstacleSpec obstacles;  ///< the run's obstacles (run_obstacles of its motion seed)
+  std::uint64_t policy_seed = 0;   ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
+  std::uint64_t motion_seed = 0;   ///< derive_seed(seed, kRunMotion): the run's motion errors and pushes
 };
 
 /// The runs of one sequence seed over a split of `split_size` digits. With `index: random` run k

@@ -242,6 +242,8 @@ void VectorEnv::write(const VectorOutputs& out) const {
     for (std::size_t k = 0; k < patches.size(); ++k) out.patch[k] = patches[k] * kScale;
   if (out.revealed)
     for (std::size_t k = 0; k < revealed.size(); ++k) out.revealed[k] = revealed[k] * kScale;
+  if (out.occupied && !env_->occupied().empty())
+    std::copy(env_->occupied().begin(), env_->occupied().end(), out.occupied);
   for (int i = 0; i < num_envs_; ++i) {
     const grid::Cell pose = env_->poses()[i];
     if (out.pose) {

@@ -65,6 +65,9 @@ struct VectorOutputs {
   float* reward = nullptr;               ///< N (step)
   std::uint8_t* terminated = nullptr;    ///< N (step)
   std::uint8_t* truncated = nullptr;     ///< N (step): always 0
+  /// N x H x W, o: 1 where the robot's disc cannot stand beside its run's obstacles (written in a
+  /// world with obstacles only: VectorEnv::has_obstacles)
+  std::uint8_t* occupied = nullptr;
 };
 
 /// The action of one step (spans of num_envs rows).
@@ -91,6 +94,8 @@ class VectorEnv {
 
   int num_envs() const { return num_envs_; }
   int patch_px() const { return world_.camera.patch_px; }
+  /// The world has obstacles (fixed or drawn per run): observations then carry o.
+  bool has_obstacles() const { return !world_.obstacles.none(); }
   int width() const { return frame_.width_px; }
   int height() const { return frame_.height_px; }
   int classes() const { return classes_; }      ///< D: the split's largest label + 1 (0: unlabelled)

@@ -85,8 +85,9 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<g
   float* data = input.data_ptr<float>();
   for (int i = 0; i < count; ++i) {
     agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i],
-                          episode > 0 ? &state.goal[i] : nullptr};
-    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area);
+                          episode > 0 ? &state.goal[i] : nullptr, state.occupied_cells(i)};
+    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area,
+                               agent_.config().occupancy);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);
@@ -136,8 +137,9 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   for (int r = 0; r < k; ++r) {
     const auto i = static_cast<std::size_t>(rows_[r]);
     agent::RobotView view{state.revealed_image(static_cast<int>(i)), state.seen[i].data().data(), state.pose[i],
-                          &state.goal[i]};
-    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area);
+                          &state.goal[i], state.occupied_cells(static_cast<int>(i))};
+    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area,
+                               agent_.config().occupancy);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);

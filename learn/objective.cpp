@@ -31,10 +31,10 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
       batch.labels[r] = data.labels[image];
       const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + r);
-      core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
-      batch.starts[r] = env::draw_start(world, frame, start_rng);
       batch.seeds[r] = core::derive_seed(robot_seed, streams::kRobotPolicy);
       batch.motion_seeds[r] = core::derive_seed(robot_seed, streams::kRobotMotion);
+      core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
+      batch.starts[r] = env::draw_start(world, frame, batch.motion_seeds[r], start_rng);
     }
   }
   return batch;

@@ -67,6 +67,7 @@ void RolloutEngine::refresh_state() {
   state_.pose = env_->poses();
   state_.seen = env_->seen();
   state_.revealed = env_->revealed();
+  state_.occupied = env_->occupied();
   state_.goal = std::span<const grid::Cell>(goals_.data(), static_cast<std::size_t>(state_.count));
 }
 

@@ -26,9 +26,16 @@ struct BatchState {
   std::span<const grid::Cell> goal;        ///< current goal per robot
   std::span<const grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
   std::span<const std::uint8_t> revealed;  ///< y as bytes: count * H * W, the floor where seen, 0 elsewhere
+  /// o as bytes: count * H * W, 1 where the robot cannot stand (env::BatchEnv::occupied); empty in
+  /// a world without obstacles.
+  std::span<const std::uint8_t> occupied;
 
   const std::uint8_t* revealed_image(int robot) const {
     return revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
+  }
+  /// Robot `robot`'s o, or null in a world without obstacles.
+  const std::uint8_t* occupied_cells(int robot) const {
+    return occupied.empty() ? nullptr : occupied.data() + static_cast<std::size_t>(robot) * frame.area_px();
   }
 };
 

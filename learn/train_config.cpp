@@ -40,10 +40,11 @@ constexpr int kMaxDigits = 100000000;
 
 /// The member a row reads and writes: its alternative follows the row's SettingType (Integer
 /// takes either of the first two).
-using Member = std::variant<int TrainConfig::*, int agent::NetworkConfig::*, double TrainConfig::*, bool TrainConfig::*,
-                            std::uint64_t TrainConfig::*, std::array<int, 3> TrainConfig::*,
-                            std::array<bool, 3> TrainConfig::*, agent::ClassifierKind agent::NetworkConfig::*,
-                            agent::Precision TrainConfig::*, worlds::World TrainConfig::*, fs::path TrainConfig::*>;
+using Member =
+    std::variant<int TrainConfig::*, int agent::NetworkConfig::*, double TrainConfig::*, bool TrainConfig::*,
+                 std::uint64_t TrainConfig::*, std::array<int, 3> TrainConfig::*, std::array<bool, 3> TrainConfig::*,
+                 agent::ClassifierKind agent::NetworkConfig::*, agent::Precision TrainConfig::*,
+                 worlds::World TrainConfig::*, fs::path TrainConfig::*, bool agent::NetworkConfig::*>;
 
 struct Row {
   TrainSetting setting;
@@ -60,7 +61,7 @@ constexpr auto kNone = SettingCommands::None;
 constexpr Row row(std::string_view key, std::string_view section, SettingType type, Member member, double lo, double hi,
                   std::string_view option, std::string_view value_name, std::string_view help, SettingCommands commands,
                   OnResume on_resume, Agreement agreement, bool lo_open = false, bool hi_open = false,
-                  bool shows_default = true) {
+                  bool shows_default = true, bool stored_unless_default = false) {
   return {TrainSetting{.key = key,
                        .section = section,
                        .type = type,
@@ -74,7 +75,8 @@ constexpr Row row(std::string_view key, std::string_view section, SettingType ty
                        .commands = commands,
                        .shows_default = shows_default,
                        .on_resume = on_resume,
-                       .agreement = agreement},
+                       .agreement = agreement,
+                       .stored_unless_default = stored_unless_default},
           member};
 }
 
@@ -99,6 +101,9 @@ constexpr Row kRows[] = {
         "--classifier-width", "", "Classifier's first block width (doubles each block)", kBoth, R::Kept, A::Networks),
     row("classifier_depth", "network", T::Integer, &NetworkConfig::classifier_depth, 1, agent::kMaxClassifierDepth,
         "--classifier-depth", "", "Classifier blocks", kBoth, R::Kept, A::Networks),
+    row("occupancy", "network", T::Flag, &NetworkConfig::occupancy, 0, 0, "--occupancy", "",
+        "Planners also read the occupancy channel o: where the robot cannot stand beside its run's obstacles "
+        "(beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true, /*stored_unless_default=*/true),
     row("pretrain_epochs", "", T::Integer, &TrainConfig::pretrain_epochs, 0, kMaxEpochs, "--pretrain-epochs", "",
         "Epochs of the classifier on full images, first", kTrain, R::Kept, A::Training),
     row("epochs", "", T::Epochs, &TrainConfig::epochs, 0, kMaxEpochs, "--epochs", "I,II,III", "Epochs of modes i,ii,iii",
@@ -136,8 +141,12 @@ constexpr bool well_formed() {
   for (const Row& r : kRows) {
     const TrainSetting& s = r.setting;
     const std::size_t want = kIndex[static_cast<int>(s.type)];
-    if (r.member.index() != want && !(s.type == SettingType::Integer && r.member.index() == 1)) return false;
-    if ((r.member.index() == 1 || r.member.index() == 7) != (s.section == "network")) return false;
+    if (r.member.index() != want && !(s.type == SettingType::Integer && r.member.index() == 1) &&
+        !(s.type == SettingType::Flag && r.member.index() == 11))
+      return false;
+    if ((r.member.index() == 1 || r.member.index() == 7 || r.member.index() == 11) != (s.section == "network"))
+      return false;
+    if (s.stored_unless_default && s.type != SettingType::Flag) return false;
     if (s.type == SettingType::Integer || s.type == SettingType::Epochs) {
       if (s.lo_open || s.hi_open || s.lo > s.hi || static_cast<double>(static_cast<int>(s.lo)) != s.lo ||
           static_cast<double>(static_cast<int>(s.hi)) != s.hi)
@@ -161,6 +170,10 @@ const Row& row_of(const TrainSetting& setting) {
 int& integer_at(TrainConfig& c, const Member& m) {
   if (const auto* p = std::get_if<int TrainConfig::*>(&m)) return c.**p;
   return c.network.*std::get<int NetworkConfig::*>(m);
+}
+bool& flag_at(TrainConfig& c, const Member& m) {
+  if (const auto* p = std::get_if<bool TrainConfig::*>(&m)) return c.**p;
+  return c.network.*std::get<bool NetworkConfig::*>(m);
 }
 template <class V>
 V& at(TrainConfig& c, const Member& m) {
@@ -251,7 +264,7 @@ json value_json(const TrainConfig& config, const Row& r) {
     case SettingType::Number:
       return at<double>(c, r.member);
     case SettingType::Flag:
-      return at<bool>(c, r.member);
+      return flag_at(c, r.member);
     case SettingType::Unsigned:
       return at<std::uint64_t>(c, r.member);
     case SettingType::Epochs:
@@ -285,7 +298,7 @@ void read_value(const json& parent, const Row& r, TrainConfig& c, At&& at_key) {
       at<double>(c, r.member) = at_key(parent, key).template get<double>();
       return;
     case SettingType::Flag:
-      at<bool>(c, r.member) = at_key(parent, key).template get<bool>();
+      flag_at(c, r.member) = at_key(parent, key).template get<bool>();
       return;
     case SettingType::Unsigned:
       at<std::uint64_t>(c, r.member) = at_key(parent, key).template get<std::uint64_t>();
@@ -393,7 +406,7 @@ std::string setting_text(const TrainConfig& config, const TrainSetting& s) {
     case SettingType::Number:
       return fmt::format("{}", at<double>(c, r.member));  // 0.001, 0 (JSON would write 0.0)
     case SettingType::Flag:
-      return at<bool>(c, r.member) ? "on" : "off";
+      return flag_at(c, r.member) ? "on" : "off";
     case SettingType::Epochs: {
       const std::array<int, 3>& e = at<std::array<int, 3>>(c, r.member);
       return fmt::format("{},{},{}", e[0], e[1], e[2]);
@@ -438,7 +451,7 @@ void set_setting(TrainConfig& config, const TrainSetting& s, const std::string& 
       }
       case SettingType::Flag:
         if (text != "on" && text != "off") throw std::invalid_argument("");
-        at<bool>(config, r.member) = text == "on";
+        flag_at(config, r.member) = text == "on";
         return;
       case SettingType::Unsigned: {
         std::uint64_t value = 0;
@@ -506,6 +519,8 @@ std::string TrainConfig::to_json() const {
   json j;
   for (const Row& r : kRows) {
     json& parent = r.setting.section.empty() ? j : j[std::string(r.setting.section)];
+    // Off is the default of a flag added after files without it were written: those stay as they were.
+    if (r.setting.stored_unless_default && !flag_at(const_cast<TrainConfig&>(*this), r.member)) continue;
     parent[std::string(r.setting.key)] = value_json(*this, r);
     if (r.setting.type == SettingType::World) parent["world_file"] = world.file.string();
   }
@@ -528,6 +543,7 @@ TrainConfig TrainConfig::from_json(const std::string& text, const std::string& o
     };
     for (const Row& r : kRows) {
       const json& parent = r.setting.section.empty() ? j : at_key(j, r.setting.section.data());
+      if (r.setting.stored_unless_default && !parent.contains(r.setting.key.data())) continue;  // off
       read_value(parent, r, c, at_key);
     }
   } catch (const InputError& e) {
@@ -565,7 +581,7 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
   const double element = config.precision == agent::Precision::Float32 ? 4 : 2;
   // A dense stack keeps each block's concatenated input and its ReLU output for backward.
   double planner = 0;
-  const double planner_in = n.image_channels + 3.0;
+  const double planner_in = agent::planner_channels(n);
   for (int k = 0; k <= n.planner_depth; ++k) planner += planner_in + k * double(n.planner_width);
   planner += n.planner_depth * double(n.planner_width);
   planner *= area * element;

@@ -113,6 +113,9 @@ struct TrainSetting {
   bool shows_default = true;  ///< --help shows the default (not for the seed: the world file's)
   OnResume on_resume = OnResume::Kept;
   Agreement agreement = Agreement::Training;
+  /// A flag added after checkpoints without it were written: stored only when on, and a config
+  /// without it reads off, so that older files and every file with it off stay as they were.
+  bool stored_unless_default = false;
 };
 
 /// The table, in the order to_json writes it.

@@ -520,13 +520,27 @@ struct Trainer::Impl {
 
 Trainer::Trainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
-Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool force_memory)
+Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool force_memory,
+                 const Checkpoint* initial_weights)
     : impl_(std::make_unique<Impl>()) {
   config.validate();
   impl_->force_memory = force_memory;
   impl_->config = config;
   impl_->run_dir = std::move(run_dir);
   impl_->setup(threads, /*new_run=*/true);
+  if (initial_weights) {
+    // setup() takes D and c from the data: they must be the model's for its weights to fit.
+    const agent::NetworkConfig& has = initial_weights->info().config.network;
+    const agent::NetworkConfig& data = impl_->config.network;
+    if (has.classes != data.classes || has.image_channels != data.image_channels)
+      throw InputError(fmt::format("{}: the model has {} classes of {}-channel images, the training data {} of {}",
+                                   initial_weights->file().string(), has.classes, has.image_channels, data.classes,
+                                   data.image_channels));
+    if (has == data)
+      initial_weights->contents().load_into(*impl_->agent, nullptr);
+    else  // the model's networks with the occupancy channel added, its weights zero
+      agent::copy_adding_occupancy(*initial_weights->contents().networks(), *impl_->agent);
+  }
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const fs::path& run_dir, int threads, const ResumeOptions& options) {

@@ -109,8 +109,11 @@ class Trainer {
  public:
   /// A new run. `run_dir` must exist; nothing is written until run() finishes a batch or epoch.
   /// Refuses (InputError) a config whose estimated memory (estimate_training_bytes) exceeds what
-  /// the machine has available, unless `force_memory`.
-  Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads, bool force_memory = false);
+  /// the machine has available, unless `force_memory`. With `initial_weights` (a model or
+  /// checkpoint whose networks are `config.network`), the networks start from its weights instead
+  /// of the seed's initialisation, with a fresh optimizer: fine-tuning a trained agent.
+  Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads, bool force_memory = false,
+          const Checkpoint* initial_weights = nullptr);
   /// Continues RUN/checkpoint.pt with what `options` changes. `threads` 0: the run's own count
   /// (LibTorch's sums depend on it: only the same count continues bit for bit), else one per
   /// core for checkpoints that do not record it. Throws InputError for a bad or foreign

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -34,9 +35,10 @@ struct Observation {
   const std::int32_t* pose = nullptr;
   const std::uint8_t* seen = nullptr;
   const float* revealed = nullptr;
+  const std::uint8_t* occupied = nullptr;  // o, in worlds with obstacles; null: all zeros
 
   Observation(const Array<std::int32_t>& pose_a, const Array<std::uint8_t>& seen_a, const Array<float>& revealed_a,
-              int patch) {
+              int patch, const std::optional<Array<std::uint8_t>>& occupied_a = std::nullopt) {
     if (seen_a.ndim() != 3 || seen_a.shape(0) < 1)
       throw InputError("obs['seen']: expected shape (num_envs, H, W) with num_envs >= 1");
     n = static_cast<int>(seen_a.shape(0));
@@ -49,6 +51,12 @@ struct Observation {
       throw InputError("obs['revealed']: expected the shape of obs['seen']");
     if (patch < 1 || patch > std::min(height, width) * 2 + 1)
       throw InputError("obs['patch']: expected m x m patches, got m = " + std::to_string(patch));
+    if (occupied_a) {
+      if (occupied_a->ndim() != 3 || occupied_a->shape(0) != n || occupied_a->shape(1) != height ||
+          occupied_a->shape(2) != width)
+        throw InputError("obs['occupied']: expected the shape of obs['seen']");
+      occupied = occupied_a->data();
+    }
     patch_px = patch;
     pose = pose_a.data();
     seen = seen_a.data();
@@ -88,8 +96,8 @@ class AgentCore {
   py::tuple act(const Array<std::int32_t>& pose, const Array<std::uint8_t>& seen, const Array<float>& revealed,
                 const Array<std::int32_t>& time_step, const Array<std::uint64_t>& policy_seed,
                 const Array<std::int32_t>& episode, const py::array_t<bool, py::array::c_style>& episode_start,
-                int patch_px) {
-    const Observation obs(pose, seen, revealed, patch_px);
+                int patch_px, const std::optional<Array<std::uint8_t>>& occupied) {
+    const Observation obs(pose, seen, revealed, patch_px, occupied);
     const int n = obs.n;
     const std::int32_t* t = per_robot<std::int32_t>(time_step, n, "obs['time_step']");
     const std::uint64_t* seeds = per_robot<std::uint64_t>(policy_seed, n, "info['policy_seed']");
@@ -176,6 +184,12 @@ class AgentCore {
     state_.goal = goals_;
     state_.seen = masks_;
     state_.revealed = revealed_;
+    if (obs.occupied != nullptr) {
+      occupied_.assign(obs.occupied, obs.occupied + area * n);
+      state_.occupied = occupied_;
+    } else {
+      state_.occupied = {};
+    }
   }
 
   std::unique_ptr<learn::TrainedAgent> agent_;
@@ -186,6 +200,7 @@ class AgentCore {
   std::vector<grid::Cell> poses_, goals_;
   std::vector<grid::RevealMask> masks_;
   std::vector<std::uint8_t> revealed_;
+  std::vector<std::uint8_t> occupied_;
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
 };
@@ -204,7 +219,8 @@ PYBIND11_MODULE(_scout_agent, m) {
       .def_property_readonly("precision", &AgentCore::precision)
       .def_property_readonly("trained_precision", &AgentCore::trained_precision)
       .def("act", &AgentCore::act, py::arg("pose"), py::arg("seen"), py::arg("revealed"), py::arg("time_step"),
-           py::arg("policy_seed"), py::arg("episode"), py::arg("episode_start"), py::arg("patch_px"))
+           py::arg("policy_seed"), py::arg("episode"), py::arg("episode_start"), py::arg("patch_px"),
+           py::arg("occupied") = py::none())
       .def("classify", &AgentCore::classify, py::arg("pose"), py::arg("seen"), py::arg("revealed"),
            py::arg("patch_px"));
 }

@@ -134,6 +134,7 @@ struct Outputs {
   Array<float> patch, revealed, reward;
   Array<std::int32_t> pose, time_step, label, index, goal_episode;
   Array<std::uint8_t> seen;
+  Array<std::uint8_t> occupied;  // worlds with obstacles only (empty otherwise)
   Array<double> pose_m;
   Array<std::uint64_t> policy_seed;
   py::array_t<bool> terminated, truncated, goal_episode_start;
@@ -149,6 +150,7 @@ struct Outputs {
     index = Array<std::int32_t>(n);
     goal_episode = Array<std::int32_t>(n);
     seen = Array<std::uint8_t>({n, h, w});
+    if (e.has_obstacles()) occupied = Array<std::uint8_t>({n, h, w});
     pose_m = Array<double>({n, py::ssize_t{2}});
     policy_seed = Array<std::uint64_t>(n);
     terminated = py::array_t<bool>(n);
@@ -169,7 +171,8 @@ struct Outputs {
             .policy_seed = policy_seed.mutable_data(),
             .reward = reward.mutable_data(),
             .terminated = reinterpret_cast<std::uint8_t*>(terminated.mutable_data()),
-            .truncated = reinterpret_cast<std::uint8_t*>(truncated.mutable_data())};
+            .truncated = reinterpret_cast<std::uint8_t*>(truncated.mutable_data()),
+            .occupied = occupied.size() > 0 ? occupied.mutable_data() : nullptr};
   }
 
   // Which goal episode each robot's next move belongs to, and whether it starts one (a goal is due).
@@ -190,6 +193,7 @@ struct Outputs {
     obs["pose"] = pose;
     obs["revealed"] = revealed;
     obs["seen"] = seen;
+    if (occupied.size() > 0) obs["occupied"] = occupied;  // worlds with obstacles
     obs["time_step"] = time_step;
     return obs;
   }
@@ -415,6 +419,7 @@ PYBIND11_MODULE(_scout, m) {
       .def_property_readonly("width", [](const VectorEnvCore& c) { return c.env().width(); })
       .def_property_readonly("height", [](const VectorEnvCore& c) { return c.env().height(); })
       .def_property_readonly("classes", [](const VectorEnvCore& c) { return c.env().classes(); })
+      .def_property_readonly("has_obstacles", [](const VectorEnvCore& c) { return c.env().has_obstacles(); })
       .def_property_readonly("episodes", [](const VectorEnvCore& c) { return c.env().world().task.episodes; })
       .def_property_readonly("steps", [](const VectorEnvCore& c) { return c.env().world().task.steps; })
       .def_property_readonly("step_px", [](const VectorEnvCore& c) { return c.env().step_px(); })

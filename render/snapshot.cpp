@@ -25,6 +25,7 @@ const cv::Scalar kGoalColour(0, 200, 0);        // green: the goal window
 const cv::Scalar kPathColour(0, 140, 255);      // orange: the path and its poses
 const cv::Scalar kTruePathColour(255, 220, 0);  // cyan: where the robot really went
 const cv::Vec3b kObstacleColour(40, 50, 170);   // brick red: an obstacle
+const cv::Vec3b kSlipTint(255, 200, 120);       // ice blue: a slip zone, blended over the floor
 const cv::Scalar kPanelBackground(32, 32, 32);
 const cv::Scalar kBarColour(150, 150, 150);
 const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
@@ -279,6 +280,8 @@ Picture draw_snapshot(const Snapshot& snapshot) {
       const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
       cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
       if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
+      if (snapshot.slip != nullptr && snapshot.slip[index] != 0)
+        for (int c = 0; c < 3; ++c) colour[c] = static_cast<std::uint8_t>((2 * colour[c] + kSlipTint[c]) / 3);
       if (snapshot.obstacles != nullptr && snapshot.obstacles[index] != 0) colour = kObstacleColour;
       map(cv::Rect(x * s, y * s, s, s)).setTo(colour);
     }

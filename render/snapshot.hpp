@@ -31,6 +31,9 @@ struct Snapshot {
   /// Floor pixels covered by obstacles (width * height, non-zero: an obstacle), drawn in brick
   /// red whether seen or not; null: none.
   const std::uint8_t* obstacles = nullptr;
+  /// Floor pixels of slip zones (width * height, non-zero: on a zone), tinted ice blue whether
+  /// seen or not; null: none.
+  const std::uint8_t* slip = nullptr;
   std::span<const float> class_probabilities;  ///< optional prediction bars (empty: none)
   std::span<const float> goal_probabilities;   ///< optional goal distribution pi_g over the floor's pixels
                                                ///< (width*height, row-major); drawn as a heat map

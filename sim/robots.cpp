@@ -122,7 +122,7 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
     b2ChainShape loop;
     loop.CreateLoop(corners, 4);
     r.walls->CreateFixture(&loop, 0.0f);
-    if (!params.obstacles.none()) r.obstacles = add_obstacles(*r.world, params.obstacles);
+    if (!params.obstacles.no_fixed()) r.obstacles = add_obstacles(*r.world, params.obstacles);
 
     b2BodyDef body_def;
     body_def.type = b2_dynamicBody;
@@ -155,6 +155,12 @@ void RobotBatch::place(int robot, const grid::Cell& cell, std::uint64_t motion_s
   const Eigen::Vector2d u = frame_.cell_centre_px(cell) * kUnitsPerPx;
   r.body->SetTransform(b2Vec2(static_cast<float>(u.x()), static_cast<float>(u.y())), 0.0f);
   r.body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+}
+
+void RobotBatch::set_obstacles(int robot, const worlds::ObstacleSpec& layout) {
+  Robot& r = robots_[robot];
+  if (r.obstacles != nullptr) r.world->DestroyBody(r.obstacles);  // and its contacts
+  r.obstacles = layout.no_fixed() ? nullptr : add_obstacles(*r.world, layout);
 }
 
 Eigen::Vector2d RobotBatch::position_px(int robot) const {
@@ -312,8 +318,11 @@ void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& c
     }
     if (out.ticks >= params_.physics.max_ticks_per_move) break;
     const Eigen::Vector2d commanded = distance > 0.0 ? c.command(error, distance) : Eigen::Vector2d::Zero();
-    const Eigen::Vector2d wheels(scale * (cos_h * commanded.x() - sin_h * commanded.y()),
-                                 scale * (sin_h * commanded.x() + cos_h * commanded.y()));
+    // On a slip zone the wheels turn as commanded but carry the body only (1 - slip) of the way.
+    const double traction = 1.0 - motion.slip_at(p.x / kUnitsPerPx, p.y / kUnitsPerPx);
+    const double carried = scale * traction;
+    const Eigen::Vector2d wheels(carried * (cos_h * commanded.x() - sin_h * commanded.y()),
+                                 carried * (sin_h * commanded.x() + cos_h * commanded.y()));
     if (pushed && out.ticks == push_tick) {
       push_velocity_u = push_speed_u * Eigen::Vector2d(std::cos(push_angle), std::sin(push_angle));
       out.pushed = true;
@@ -323,13 +332,13 @@ void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& c
     r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
     ++out.ticks;
     // The unsensed part of what the drive really did: the wheels believe they moved
-    // (s R(theta))^-1 times the drive's displacement. Measured from the displacement, so that a
+    // (s (1 - slip) R(theta))^-1 times the drive's displacement. Measured from the displacement, so that a
     // wall or an obstacle that stops the body stops the odometry too (it is sensed).
     const b2Vec2 now = r.body->GetPosition();
     const Eigen::Vector2d drive =
         Eigen::Vector2d(now.x - p.x, now.y - p.y) - push_velocity_u * static_cast<double>(c.dt);
-    const Eigen::Vector2d believed_drive((cos_h * drive.x() + sin_h * drive.y()) / scale,
-                                         (-sin_h * drive.x() + cos_h * drive.y()) / scale);
+    const Eigen::Vector2d believed_drive((cos_h * drive.x() + sin_h * drive.y()) / carried,
+                                         (-sin_h * drive.x() + cos_h * drive.y()) / carried);
     r.unsensed_u += drive - believed_drive;
     push_velocity_u *= traction_per_tick;
     c.after_tick(i, p, peak_speed_u, out, trace);

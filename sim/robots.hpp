@@ -61,6 +61,10 @@ class RobotBatch {
   /// batch); unused in an exact world.
   void place(int robot, const grid::Cell& cell, std::uint64_t motion_seed = 0);
 
+  /// Replaces robot `robot`'s obstacles with `layout`'s boxes and discs (a run's own, in a world
+  /// that draws them per run: env::run_obstacles), before place() puts it on a clear start.
+  void set_obstacles(int robot, const worlds::ObstacleSpec& layout);
+
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
   /// i < commands.size(), all in one call; results[i] tells how it went. In a world with motion
   /// errors the move starts from the pose the robot believes it is at (odometry_pose(): the true

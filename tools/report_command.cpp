@@ -1,7 +1,7 @@
 // scout report: the paper's table and figures for a model or a run, in one folder. Scout gathers
 // the numbers (an evaluation on the official test digits, the training history, a budget sweep,
-// test episodes) into report-data.json; a small matplotlib script that ships with Scout
-// (tools/report/scout_report.py, run on /usr/bin/python3) draws the figures and writes REPORT.md.
+// the robustness table over scenario worlds, test episodes) into report-data.json; a small matplotlib script that ships
+// with Scout (tools/report/scout_report.py, run on /usr/bin/python3) draws the figures and writes REPORT.md.
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -31,6 +31,7 @@
 #include "tools/progress.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/idx.hpp"
+#include "worlds/world.hpp"
 
 namespace scout::tools {
 
@@ -55,6 +56,9 @@ struct ReportOptions {
   int runs = 20;
   int sweep_digits = 1000;
   int sweep_runs = 2;
+  std::vector<std::string> scenarios;  // world files of the robustness table
+  int scenario_digits = 1000;
+  int scenario_runs = 5;
   int episodes = 8;
   std::string seed;  // empty: 1
   std::string precision = "auto";
@@ -216,6 +220,35 @@ json history_json(const std::vector<learn::EpochMetrics>& history) {
   return rows;
 }
 
+// What one of the report's extra evaluations (a budget point, a scenario world) runs.
+struct AgentEval {
+  worlds::World world;
+  fs::path images, labels;
+  int runs = 1, digits = 0;
+  std::uint64_t seed = 1;
+};
+
+// The learned agent alone (no baselines) of the model opened once, with its own progress line.
+learn::EvalReport evaluate_agent(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const AgentEval& what,
+                                 const std::string& label) {
+  ProgressLine progress("scout report", "rollouts");  // one per evaluation: each has its own clock
+  learn::EvalConfig config;
+  config.checkpoint = checkpoint.file();
+  config.opened = checkpoint;  // every evaluation runs the networks opened once
+  config.images = what.images;
+  config.labels = what.labels;
+  config.world = what.world;
+  config.runs = what.runs;
+  config.seed = what.seed;
+  config.image_limit = what.digits;
+  config.agent_only = true;
+  config.precision = agent::parse_precision(opt.precision);
+  config.on_progress = [&](const learn::EvalProgress& e) {
+    progress.update(label, e.rollouts_done, e.rollouts_total, e.seconds);
+  };
+  return learn::evaluate(config, interrupt_token());
+}
+
 // The budget sweep: the same networks at other patch sizes m, and at other numbers of episodes E
 // (T as trained), on the first `digits` test digits.
 json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const fs::path& images,
@@ -238,26 +271,12 @@ json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint,
   int point = 0;
   for (const Point& p : points) {
     ++point;
-    ProgressLine progress("scout report", "rollouts");  // one per point: each evaluation has its own clock
     worlds::World world = trained;
     world.camera.patch_px = p.patch;
     world.task.episodes = p.episodes;
-    learn::EvalConfig config;
-    config.checkpoint = checkpoint.file();
-    config.opened = checkpoint;  // every point runs the networks opened once
-    config.images = images;
-    config.labels = labels;
-    config.world = world;
-    config.runs = opt.sweep_runs;
-    config.seed = seed;
-    config.image_limit = opt.sweep_digits;
-    config.agent_only = true;
-    config.precision = agent::parse_precision(opt.precision);
-    config.on_progress = [&](const learn::EvalProgress& e) {
-      progress.update(fmt::format("budget point {} of {}", point, points.size()), e.rollouts_done, e.rollouts_total,
-                      e.seconds);
-    };
-    const learn::EvalReport r = learn::evaluate(config, interrupt_token());
+    const learn::EvalReport r =
+        evaluate_agent(opt, checkpoint, {world, images, labels, opt.sweep_runs, opt.sweep_digits, seed},
+                       fmt::format("budget point {} of {}", point, points.size()));
     out["points"].push_back({{"kind", p.kind},
                              {"patch_px", p.patch},
                              {"episodes", p.episodes},
@@ -267,6 +286,34 @@ json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint,
                              {"revealed_fraction", r.revealed_fraction}});
     fmt::print("  budget: m = {:>2}, E x T = {} x {}: accuracy {:.4f}, {:.1f} % revealed\n", p.patch, p.episodes,
                world.task.steps, r.accuracy.mean, 100 * r.revealed_fraction);
+    std::fflush(stdout);
+  }
+  return out;
+}
+
+// The robustness table (docs/SCENARIOS.md): the model in its own world and in each scenario world,
+// on the first `digits` test digits, `runs` stochastic runs each, the same seed throughout.
+json robustness(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const std::vector<worlds::World>& worlds,
+                const fs::path& images, const fs::path& labels, std::uint64_t seed) {
+  json out;
+  out["digits"] = opt.scenario_digits;
+  out["runs"] = opt.scenario_runs;
+  out["seed"] = seed;
+  out["rows"] = json::array();
+  std::vector<std::pair<std::string, worlds::World>> rows = {{"the model's world", checkpoint.info().config.world}};
+  for (const worlds::World& w : worlds) rows.emplace_back(w.file.stem().string(), w);
+  int row = 0;
+  for (const auto& [name, world] : rows) {
+    ++row;
+    const learn::EvalReport r =
+        evaluate_agent(opt, checkpoint, {world, images, labels, opt.scenario_runs, opt.scenario_digits, seed},
+                       fmt::format("scenario {} of {}", row, rows.size()));
+    out["rows"].push_back({{"world", name},
+                           {"file", row == 1 ? std::string() : world.file.string()},
+                           {"accuracy", r.accuracy.mean},
+                           {"ci95", r.accuracy.ci95},
+                           {"revealed_fraction", r.revealed_fraction}});
+    fmt::print("  robustness: {:<20} accuracy {:.4f} ± {:.4f}\n", name, r.accuracy.mean, r.accuracy.ci95);
     std::fflush(stdout);
   }
   return out;
@@ -291,10 +338,10 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
   std::vector<std::uint64_t> motion_seeds(n);
   for (int i = 0; i < n; ++i) {
     const std::uint64_t seed_i = core::derive_seed(seed, static_cast<std::uint64_t>(i));
-    core::Rng start_rng(core::derive_seed(seed_i, streams::kRunStart));
-    starts[i] = env::draw_start(world, frame, start_rng);
     policy_seeds[i] = core::derive_seed(seed_i, streams::kRunPolicy);
     motion_seeds[i] = core::derive_seed(seed_i, streams::kRunMotion);
+    core::Rng start_rng(core::derive_seed(seed_i, streams::kRunStart));
+    starts[i] = env::draw_start(world, frame, motion_seeds[i], start_rng);
   }
   const auto engine = make_engine(world, frame, n);
   agent->begin(frame, world.camera.patch_px, policy_seeds, /*greedy=*/false, agent->learned().goals);
@@ -394,7 +441,8 @@ struct ReportInputs {
   std::uint64_t seed = 1;
   fs::path images, labels, script, eval_file;
   std::vector<Compared> compared;
-  json eval;  // the model's evaluation; null: the report evaluates it
+  json eval;                             // the model's evaluation; null: the report evaluates it
+  std::vector<worlds::World> scenarios;  // --scenarios, loaded
   worlds::ImageSet test_images;
   std::vector<std::uint8_t> test_labels;
 };
@@ -465,6 +513,7 @@ ReportInputs gather_report_inputs(const ReportOptions& opt) {
     throw InputError(
         fmt::format("{}: the report's plotting script is missing (set SCOUT_REPORT_SCRIPT)", in.script.string()));
   in.compared = read_compared(opt);
+  for (const std::string& file : opt.scenarios) in.scenarios.push_back(worlds::load_world(file));
   in.checkpoint_sha = core::sha256_hex(checkpoint);
   read_model_eval(opt, in);
   worlds::LabeledImages test = worlds::read_labeled_idx(in.images, in.labels);
@@ -569,6 +618,12 @@ json report_data(const ReportOptions& opt, const ReportInputs& in, const json& e
   data["model"] = m;
   data["compare"] = compared_rows(in.compared);
   if (opt.sweep_digits > 0) add_sweep(opt, in, data);
+  if (!in.scenarios.empty()) {
+    fmt::print("  robustness: {} digits, {} runs per world\n", std::min(opt.scenario_digits, in.test_images.count),
+               opt.scenario_runs);
+    data["robustness"] = robustness(opt, in.opened, in.scenarios, in.images, in.labels, in.seed);
+    data["robustness"]["digits"] = std::min(opt.scenario_digits, in.test_images.count);
+  }
   data["episode_seed"] = in.seed;
   data["episodes"] =
       opt.episodes > 0 ? test_episodes(opt, in.opened, in.test_images, in.test_labels, in.seed) : json::array();
@@ -646,6 +701,15 @@ void add_report_command(CLI::App& app, const Context& context) {
       ->capture_default_str()
       ->check(decimal_in(0, 1000000));
   cmd->add_option("--sweep-runs", opt->sweep_runs, "Stochastic runs per point of the budget sweep")
+      ->capture_default_str()
+      ->check(decimal_in(1, 100));
+  cmd->add_option("--scenarios", opt->scenarios,
+                  "World files of the robustness table: the model in each, beside its own world (e.g. "
+                  "worlds/scenarios/*.yaml; docs/SCENARIOS.md)");
+  cmd->add_option("--scenario-digits", opt->scenario_digits, "Test digits per world of the robustness table")
+      ->capture_default_str()
+      ->check(decimal_in(1, 1000000));
+  cmd->add_option("--scenario-runs", opt->scenario_runs, "Stochastic runs per world of the robustness table")
       ->capture_default_str()
       ->check(decimal_in(1, 100));
   cmd->add_option("--episodes", opt->episodes, "Test episodes in the picture grid (half right, half wrong)")

@@ -117,6 +117,7 @@ struct AgentOverlay {
 struct ScenarioMarks {
   bool true_path = false;                   ///< imperfect motion or pushes: where the robot really went
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask; null: none
+  const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask; null: none
 };
 
 void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
@@ -134,6 +135,7 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     for (std::size_t p = 0; p < snap.path_length; ++p)
       s.path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
     s.obstacles = marks.obstacles;
+    s.slip = marks.slip;
     if (marks.true_path) {  // the true centre's path, every tick up to this picture's last move
       std::size_t ticks = 1;
       for (std::size_t k = 0; k + 1 < snap.path_length && k < record.steps.size(); ++k)
@@ -179,7 +181,17 @@ struct RunSetup {
   worlds::FloorSet floors;
   grid::FloorFrame frame;
   std::vector<std::uint8_t> obstacle_mask;  // H * W, 1 on an obstacle; empty without obstacles
+  std::vector<std::uint8_t> slip_mask;      // H * W, 1 on a slip zone; empty without zones
 };
+
+// 1 on the floor pixels whose centre lies on an obstacle of `layout` (what pictures draw in brick red).
+std::vector<std::uint8_t> obstacle_mask(const worlds::ObstacleSpec& layout, const grid::FloorFrame& frame) {
+  std::vector<std::uint8_t> mask(static_cast<std::size_t>(frame.area_px()));
+  for (int y = 0; y < frame.height_px; ++y)
+    for (int x = 0; x < frame.width_px; ++x)
+      mask[static_cast<std::size_t>(y) * frame.width_px + x] = layout.covers(x + 0.5, y + 0.5) ? 1 : 0;
+  return mask;
+}
 
 RunSetup gather_run(const RunOptions& opt) {
   RunSetup setup;
@@ -204,12 +216,13 @@ RunSetup gather_run(const RunOptions& opt) {
         fmt::format("--scale: expected at most {} for a {} x {} floor (pictures up to {} px a side), got {}",
                     render::kMaxPictureSidePx / std::max(frame.width_px, frame.height_px), frame.width_px,
                     frame.height_px, render::kMaxPictureSidePx, opt.scale));
-  if (!setup.world.obstacles.none()) {
-    setup.obstacle_mask.resize(static_cast<std::size_t>(setup.frame.area_px()));
+  if (!setup.world.obstacles.no_fixed()) setup.obstacle_mask = obstacle_mask(setup.world.obstacles, setup.frame);
+  if (!setup.world.motion.slip_zones.empty()) {
+    setup.slip_mask.resize(static_cast<std::size_t>(setup.frame.area_px()));
     for (int y = 0; y < setup.frame.height_px; ++y)
       for (int x = 0; x < setup.frame.width_px; ++x)
-        setup.obstacle_mask[static_cast<std::size_t>(y) * setup.frame.width_px + x] =
-            setup.world.obstacles.covers(x + 0.5, y + 0.5) ? 1 : 0;
+        setup.slip_mask[static_cast<std::size_t>(y) * setup.frame.width_px + x] =
+            setup.world.motion.slip_at(x + 0.5, y + 0.5) > 0.0 ? 1 : 0;
   }
   return setup;
 }
@@ -232,8 +245,13 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
   out.moves += static_cast<long>(rec.steps.size());
   out.revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
   const worlds::World& world = setup.world;
+  // A world that draws boxes per run draws this run's; otherwise every run has the world's.
+  const std::vector<std::uint8_t> own_mask =
+      world.obstacles.random_boxes > 0 ? obstacle_mask(run.obstacles, setup.frame) : std::vector<std::uint8_t>{};
+  const std::vector<std::uint8_t>& mask = own_mask.empty() ? setup.obstacle_mask : own_mask;
   const ScenarioMarks marks{.true_path = !world.ideal_motion(),
-                            .obstacles = setup.obstacle_mask.empty() ? nullptr : setup.obstacle_mask.data()};
+                            .obstacles = mask.empty() ? nullptr : mask.data(),
+                            .slip = setup.slip_mask.empty() ? nullptr : setup.slip_mask.data()};
   if (out.video) {
     interrupt_token().throw_if_requested();
     append_run_frames(*out.video, {.record = &rec,
@@ -245,7 +263,8 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                                    .class_probabilities = p,
                                    .fps = opt.fps,
                                    .exact_motion = world.ideal_motion(),
-                                   .obstacles = marks.obstacles});
+                                   .obstacles = marks.obstacles,
+                                   .slip = marks.slip});
   }
   if (!opt.no_images) {
     interrupt_token().throw_if_requested();

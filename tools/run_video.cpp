@@ -20,6 +20,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.class_probabilities = run.class_probabilities;
   s.prediction_pending = true;
   s.obstacles = run.obstacles;
+  s.slip = run.slip;
   s.path.push_back({.x = record.start.x(), .y = record.start.y()});
   int frames = 0;
   auto draw = [&](const Eigen::Vector2d& body_px) {

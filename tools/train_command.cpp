@@ -38,6 +38,7 @@ struct TrainOptions {
   std::string out;
   std::string resume;
   std::string data_root;
+  std::string init_from;    // a model or checkpoint whose weights a new run starts from
   SettingOptions settings;  // the training settings (learn::train_settings())
   int threads = 0;
   GroupFlags group;
@@ -148,7 +149,8 @@ fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, 
   return folder;
 }
 
-void write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed) {
+void write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed,
+                    const std::string& init_from) {
   json manifest = make_manifest(context.argv, worlds::to_yaml(trainer.config().world), trainer.data_files(), "");
   const fs::path file = run / kManifestFile;
   // A resumed run keeps the first manifest and records each resumption under "resumed".
@@ -173,14 +175,37 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
   manifest["torch_threads"] = trainer.threads();
   manifest["world_size"] = trainer.world_size();
   manifest["config"] = json::parse(trainer.config().to_json());
+  if (!init_from.empty()) {  // the weights the run started from, as the data: by path and SHA-256
+    const fs::path model = learn::resolve_checkpoint(init_from);
+    manifest["init_from"] = {{"file", fs::absolute(model).string()}, {"sha256", core::sha256_hex(model)}};
+  }
   manifest["outputs"] = {{"checkpoint", learn::kCheckpointFile}, {"metrics", learn::kMetricsFile}};
   write_file_atomic(file, manifest.dump(2) + "\n");
 }
 
 // The config a new run's command line asks for (every rank of a group builds it, to compare).
 // The library's defaults (learn::TrainConfig's) are the command's.
-learn::TrainConfig new_run_config(const TrainOptions& o) {
+// --init-from: the model's networks are the new run's; a network option given as well must agree.
+void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, learn::TrainConfig& config) {
+  const learn::TrainConfig& model = init.info().config;
+  // The one change allowed: an occupancy channel added to a model without one (its weights start at zero).
+  const bool adds_occupancy = config.network.occupancy && !model.network.occupancy;
+  for (const learn::TrainSetting& s : learn::train_settings()) {
+    if (s.section != "network" || !o.settings.given(s) || (adds_occupancy && s.key == "occupancy")) continue;
+    const std::string has = learn::setting_text(model, s), asked = learn::setting_text(config, s);
+    if (has != asked)
+      throw InputError(
+          fmt::format("{}: --init-from {} has {}, the command line asks for {} (a run started from a "
+                      "model keeps its networks, but may add --occupancy; leave {} out)",
+                      s.option, o.init_from, has, asked, s.option));
+  }
+  config.network = model.network;
+  config.network.occupancy = model.network.occupancy || adds_occupancy;
+}
+
+learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint* init) {
   learn::TrainConfig config = o.settings.applied_to(learn::TrainConfig{});
+  if (init) take_init_networks(o, *init, config);
   config.world = worlds::load_world(o.world);
   if (o.settings.given("seed")) config.world.seed = config.seed;  // --seed overrides the world file's
   config.seed = config.world.seed;
@@ -194,6 +219,11 @@ learn::TrainConfig new_run_config(const TrainOptions& o) {
   if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)
     throw InputError("--epochs: nothing to train (every stage has 0 epochs); expected at least one epoch");
   return config;
+}
+
+// --init-from's file: a model (scout export) or a checkpoint, or a run folder's checkpoint.pt.
+learn::Checkpoint open_init_model(const TrainOptions& o) {
+  return learn::open_checkpoint(learn::resolve_checkpoint(o.init_from));
 }
 
 // A run's processes split each batch's images evenly, an image's N rollouts in one process.
@@ -243,7 +273,10 @@ std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::pa
                  agent::to_string(info.config.precision));
     return trainer;
   }
-  const learn::TrainConfig config = new_run_config(o);
+  // Opened once: its networks make the config, and the trainer starts from its weights.
+  std::optional<learn::Checkpoint> init;
+  if (!o.init_from.empty()) init = open_init_model(o);
+  const learn::TrainConfig config = new_run_config(o, init ? &*init : nullptr);
   check_batch_split(config.batch_images, world_size);
   std::error_code ec;
   // Created here, not found: of two runs started on one folder at once, exactly one creates it.
@@ -256,7 +289,7 @@ std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::pa
   // A resume of the new run cannot start before it has a checkpoint; the lock keeps it out after.
   core::take_folder_for_this_process(run);
   try {
-    return std::make_unique<learn::Trainer>(config, run, threads, o.force);
+    return std::make_unique<learn::Trainer>(config, run, threads, o.force, init ? &*init : nullptr);
   } catch (...) {
     fs::remove_all(run, ec);
     throw;
@@ -282,7 +315,9 @@ OpenedRun open_group_run(const TrainOptions& o, const fs::path& run, const learn
   std::optional<learn::TrainConfig> own;
   std::optional<fs::path> data_folder;
   if (group.rank() != 0 && !resuming) {
-    own = new_run_config(o);
+    std::optional<learn::Checkpoint> init;
+    if (!o.init_from.empty()) init = open_init_model(o);
+    own = new_run_config(o, init ? &*init : nullptr);
     data_folder = own->data_folder;
   } else if (group.rank() != 0 && !o.data_root.empty()) {
     data_folder = fs::path(o.data_root);
@@ -305,11 +340,12 @@ OpenedRun open_group_run(const TrainOptions& o, const fs::path& run, const learn
 // What the leader prints before training: the run and its settings, and where a resume goes on.
 void print_run_header(const learn::Trainer& trainer, const fs::path& run, bool resuming) {
   const learn::TrainConfig& c = trainer.config();
-  fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}, classifier {}; N = {}, B = {}, lr {})\n",
+  fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}{}, classifier {}; N = {}, B = {}, lr {})\n",
              c.world.file.string(), run.string(),
              trainer.world_size() > 1 ? fmt::format("{} processes x ", trainer.world_size()) : "", trainer.threads(),
              agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
-             agent::describe_classifier(c.network), c.rollouts, c.batch_images, c.learning_rate);
+             c.network.occupancy ? " with the occupancy channel" : "", agent::describe_classifier(c.network),
+             c.rollouts, c.batch_images, c.learning_rate);
   if (resuming) {
     const learn::ScheduleCursor& k = trainer.cursor();
     fmt::print("resuming after {} epoch(s) (stage {}, epoch {}, batch {})\n", trainer.history().size(),
@@ -335,6 +371,8 @@ void train_command(const TrainOptions& o, const Context& context) {
   const bool resuming = !o.resume.empty();
   if (resuming && !o.out.empty() && fs::path(o.out) != fs::path(o.resume))
     throw InputError("--out: a resumed run writes into its own folder (" + o.resume + "); leave --out out");
+  if (resuming && !o.init_from.empty())
+    throw InputError("--init-from: a resumed run continues from its own checkpoint; --init-from starts a new run");
   if (!resuming && o.world.empty()) throw InputError("WORLD: a world file is required (or --resume RUN)");
   if (!resuming && o.out.empty()) throw InputError("--out: a run folder is required (or --resume RUN)");
   const fs::path run = resuming ? fs::path(o.resume) : fs::path(o.out);
@@ -359,7 +397,7 @@ void train_command(const TrainOptions& o, const Context& context) {
   hooks.checkpoint_every = std::chrono::milliseconds(std::llround(o.checkpoint_every_min * 60000));
   if (leader) {
     if (!resuming) o.settings.announce_precision();
-    write_manifest(run, context, trainer, resuming);
+    write_manifest(run, context, trainer, resuming, o.init_from);
     print_run_header(trainer, run, resuming);
     hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
     hooks.on_epoch = [&](const learn::EpochMetrics& m) {
@@ -391,6 +429,12 @@ void add_train_command(CLI::App& app, const Context& context) {
   cmd->add_option("world", o->world, "World file (YAML), e.g. worlds/mnist.yaml (omit with --resume)");
   cmd->add_option("--out", o->out, "Run folder to create (must not exist)");
   cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.pt");
+  cmd->add_option(
+      "--init-from", o->init_from,
+      "Start a new run from this model's weights (a model file, a checkpoint or a run folder): its "
+      "networks (with --occupancy: plus the occupancy channel, its weights zero), fresh Adam state, the world "
+      "and the training settings of this command line (fine-tuning a trained agent in another world, "
+      "e.g. --epochs 0,0,3)");
   cmd->add_option("--data", o->data_root,
                   "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
                   "folder with train-*/t10k-* IDX files");

@@ -169,13 +169,15 @@ enum class Type {
   PoseName,       // motion.pose: localised or odometry
   BoxList,        // obstacles.boxes: [[x, y, w, h], ...]
   DiscList,       // obstacles.discs: [[x, y, r], ...]
+  SlipZoneList,   // motion.slip_zones: [[x, y, w, h, slip], ...]
 };
 
 /// The member a row reads and writes: its alternative is the one at the row's Type's position.
 template <class Spec>
 using Member = std::variant<int Spec::*, double Spec::*, std::uint64_t Spec::*, std::string Spec::*, Split Spec::*,
                             std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*,
-                            PoseSource Spec::*, std::vector<BoxObstacle> Spec::*, std::vector<DiscObstacle> Spec::*>;
+                            PoseSource Spec::*, std::vector<BoxObstacle> Spec::*, std::vector<DiscObstacle> Spec::*,
+                            std::vector<SlipZone> Spec::*>;
 
 /// The interval a value must lie in; integers take closed ones only.
 struct Bounds {
@@ -274,6 +276,9 @@ constexpr Row<MotionSpec> kMotionRows[] = {
      "each move's displacement is rotated by N(0, heading_sd_deg²), unsensed"},
     {"pose", Type::PoseName, &MotionSpec::pose, {}, "", "",
      "the agent's pose l: `localised` (the cell it is in: the paper's) or `odometry` (the commanded cells)"},
+    {"slip_zones", Type::SlipZoneList, &MotionSpec::slip_zones, {}, "at most 64, each on the floor, slip in [0, 0.9]",
+     "pixels", "floor regions of lower friction `[x, y, w, h, slip]`: while the robot's centre is in one, its wheels "
+     "lose the share `slip` of their travel, unsensed"},
 };
 
 constexpr Row<PushSpec> kPushRows[] = {
@@ -295,6 +300,14 @@ constexpr Row<ObstacleSpec> kObstacleRows[] = {
      "disc obstacles `[x, y, r]`: centre (continuous: a cell's centre is x + 0.5) and radius"},
     {"shade", Type::Integer, &ObstacleSpec::shade, closed(0, 255), "", "",
      "the grey level the camera sees on an obstacle"},
+    {"random_boxes", Type::Integer, &ObstacleSpec::random_boxes, closed(0, kMaxObstacles), "", "",
+     "boxes drawn anew for every run, uniformly over the floor, beside `boxes` and `discs` (redrawn until the "
+     "robot's start is clear)"},
+    {"random_box_min_px", Type::Integer, &ObstacleSpec::random_box_min_px, closed(1, 512),
+     "and at most `random_box_max_px`", "pixels", "the shortest side of a random box"},
+    {"random_box_max_px", Type::Integer, &ObstacleSpec::random_box_max_px, closed(1, 512),
+     "and at most the floor's smaller side", "pixels",
+     "the longest side of a random box: each side is drawn uniformly from the integers in [min, max]"},
 };
 
 /// Fields at the top level, beside the sections.
@@ -395,6 +408,7 @@ std::string interval_text(Type type, const Bounds& b) {
     case Type::PoseName:
     case Type::BoxList:
     case Type::DiscList:
+    case Type::SlipZoneList:
       break;
   }
   return {};
@@ -424,6 +438,8 @@ std::string_view type_text(Type type) {
       return "list of `[x, y, w, h]` integers";
     case Type::DiscList:
       return "list of `[x, y, r]` numbers";
+    case Type::SlipZoneList:
+      return "list of `[x, y, w, h, slip]` numbers";
   }
   return {};
 }
@@ -465,6 +481,7 @@ std::string value_text(const Row<Spec>& row, const Spec& spec) {
       return to_string(spec.*std::get<PoseSource Spec::*>(row.member));
     case Type::BoxList:
     case Type::DiscList:
+    case Type::SlipZoneList:
       return "[]";  // the docs' default: none
   }
   return {};
@@ -514,6 +531,7 @@ class Loader {
   PoseSource read_pose(const Field& f) const;
   std::vector<BoxObstacle> read_boxes(const Field& f) const;
   std::vector<DiscObstacle> read_discs(const Field& f) const;
+  std::vector<SlipZone> read_slip_zones(const Field& f) const;
 
   /// Reads one field into its member, as its row says.
   template <class Spec>
@@ -856,6 +874,34 @@ std::vector<DiscObstacle> Loader::read_discs(const Field& f) const {
   return discs;
 }
 
+std::vector<SlipZone> Loader::read_slip_zones(const Field& f) const {
+  const std::string expected =
+      "a list of at most 64 zones [x, y, w, h, slip] (pixels: integers x, y >= 0, w, h >= 1; slip in [0, 0.9])";
+  if (!f.value.IsSequence() || f.value.size() > static_cast<std::size_t>(kMaxObstacles))
+    fail_field(f.line, f.dotted, expected, describe(f.value));
+  std::vector<SlipZone> zones;
+  for (std::size_t i = 0; i < f.value.size(); ++i) {
+    const YAML::Node zone = f.value[i];
+    if (!zone.IsSequence() || zone.size() != 5)
+      fail_field(f.line, f.dotted, expected, "zone " + std::to_string(i + 1) + " = " + describe(zone));
+    std::array<int, 4> v{};
+    for (std::size_t k = 0; k < 4; ++k) {
+      const auto t = integer_text(zone[k]);
+      const std::uint64_t lo = k < 2 ? 0 : 1;
+      if (!t || t->too_large || (t->negative && t->magnitude != 0) || t->magnitude < lo || t->magnitude > 100000)
+        fail_field(f.line, f.dotted, expected,
+                   "zone " + std::to_string(i + 1) + " " + "xywh"[k] + " = " + describe(zone[k]));
+      v[k] = static_cast<int>(t->magnitude);
+    }
+    bool out_of_range = false;
+    const auto slip = number_text(zone[4], out_of_range);
+    if (!slip || *slip < 0.0 || *slip > 0.9)
+      fail_field(f.line, f.dotted, expected, "zone " + std::to_string(i + 1) + " slip = " + describe(zone[4]));
+    zones.push_back({v[0], v[1], v[2], v[3], *slip});
+  }
+  return zones;
+}
+
 template <class Spec>
 void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const {
   const Bounds& range = row.range;
@@ -893,6 +939,9 @@ void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const 
       return;
     case Type::DiscList:
       spec.*std::get<std::vector<DiscObstacle> Spec::*>(row.member) = read_discs(f);
+      return;
+    case Type::SlipZoneList:
+      spec.*std::get<std::vector<SlipZone> Spec::*>(row.member) = read_slip_zones(f);
       return;
   }
 }
@@ -1042,6 +1091,14 @@ void Loader::check_across_fields() const {
                    (world_.lines.count("pushes.within_ticks") ? "" : " (the default)"));
   }
 
+  if (world_.obstacles.random_box_min_px > world_.obstacles.random_box_max_px) {
+    fail_field(first_line({"obstacles.random_box_min_px", "obstacles.random_box_max_px", "obstacles"}),
+               "obstacles.random_box_min_px",
+               "at most obstacles.random_box_max_px = " + std::to_string(world_.obstacles.random_box_max_px),
+               std::to_string(world_.obstacles.random_box_min_px) +
+                   (world_.lines.count("obstacles.random_box_min_px") ? "" : " (the default)"));
+  }
+
   // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
   // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
@@ -1148,6 +1205,12 @@ void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
             << YAML::EndSeq;
       out << YAML::EndSeq;
       return;
+    case Type::SlipZoneList:
+      out << YAML::Flow << YAML::BeginSeq;
+      for (const SlipZone& z : spec.*std::get<std::vector<SlipZone> Spec::*>(row.member))
+        out << YAML::Flow << YAML::BeginSeq << z.x << z.y << z.w << z.h << format_double(z.slip) << YAML::EndSeq;
+      out << YAML::EndSeq;
+      return;
   }
 }
 
@@ -1157,9 +1220,11 @@ bool section_written(const Spec& spec) {
   if constexpr (std::is_same_v<Spec, MotionSpec>) {
     const MotionSpec defaults;
     return spec.scale_sd != defaults.scale_sd || spec.heading_sd_deg != defaults.heading_sd_deg ||
-           spec.pose != defaults.pose;
+           spec.pose != defaults.pose || !spec.slip_zones.empty();
   } else if constexpr (std::is_same_v<Spec, ObstacleSpec>) {
-    return !spec.none() || spec.shade != ObstacleSpec{}.shade;
+    const ObstacleSpec defaults;
+    return !spec.none() || spec.shade != defaults.shade || spec.random_box_min_px != defaults.random_box_min_px ||
+           spec.random_box_max_px != defaults.random_box_max_px;
   } else if constexpr (std::is_same_v<Spec, PushSpec>) {
     const PushSpec defaults;
     return spec.probability != defaults.probability || spec.impulse_ns != defaults.impulse_ns ||
@@ -1251,6 +1316,23 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
           origin, line, size, floor_width_px, floor_height_px, i + 1, b.x, b.y, b.w, b.h)));
     }
   }
+  if (world.obstacles.random_boxes > 0 && world.obstacles.random_box_max_px > smallest) {
+    const int line = field_line(world, "obstacles.random_box_max_px", "obstacles");
+    throw InputError(one_line(fmt::format(
+        "{}:{}: obstacles.random_box_max_px: expected at most the floor's smaller side, {} (the floor is {} pixels), "
+        "got {}",
+        origin, line, smallest, size, world.obstacles.random_box_max_px)));
+  }
+  for (std::size_t i = 0; i < world.motion.slip_zones.size(); ++i) {
+    const SlipZone& z = world.motion.slip_zones[i];
+    if (z.x + z.w > floor_width_px || z.y + z.h > floor_height_px) {
+      const int line = field_line(world, "motion.slip_zones", "motion");
+      throw InputError(one_line(fmt::format(
+          "{}:{}: motion.slip_zones: expected zones within the floor ({} pixels: x + w <= {}, y + h <= {}), got zone "
+          "{} = [{}, {}, {}, {}, {}]",
+          origin, line, size, floor_width_px, floor_height_px, i + 1, z.x, z.y, z.w, z.h, format_double(z.slip))));
+    }
+  }
   for (std::size_t i = 0; i < world.obstacles.discs.size(); ++i) {
     const DiscObstacle& d = world.obstacles.discs[i];
     if (d.x > floor_width_px || d.y > floor_height_px) {
@@ -1282,16 +1364,27 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
   }
 }
 
+double MotionSpec::slip_at(double x, double y) const {
+  double slip = 0.0;
+  for (const SlipZone& z : slip_zones)
+    if (x >= z.x && x < z.x + z.w && y >= z.y && y < z.y + z.h) slip = std::max(slip, z.slip);
+  return slip;
+}
+
 bool ObstacleSpec::covers(double x, double y) const { return clearance_px(x, y) == 0.0; }
+
+double BoxObstacle::distance_px(double px, double py) const {
+  const double dx = std::max({x - px, 0.0, px - (x + w)});
+  const double dy = std::max({y - py, 0.0, py - (y + h)});
+  return std::hypot(dx, dy);
+}
+
+double DiscObstacle::distance_px(double px, double py) const { return std::max(0.0, std::hypot(px - x, py - y) - r); }
 
 double ObstacleSpec::clearance_px(double x, double y) const {
   double nearest = std::numeric_limits<double>::infinity();
-  for (const BoxObstacle& b : boxes) {
-    const double dx = std::max({b.x - x, 0.0, x - (b.x + b.w)});
-    const double dy = std::max({b.y - y, 0.0, y - (b.y + b.h)});
-    nearest = std::min(nearest, std::hypot(dx, dy));
-  }
-  for (const DiscObstacle& d : discs) nearest = std::min(nearest, std::max(0.0, std::hypot(x - d.x, y - d.y) - d.r));
+  for (const BoxObstacle& b : boxes) nearest = std::min(nearest, b.distance_px(x, y));
+  for (const DiscObstacle& d : discs) nearest = std::min(nearest, d.distance_px(x, y));
   return nearest;
 }
 

@@ -75,12 +75,26 @@ const char* to_string(PoseSource source);
 
 /// Imperfect motion: each move is executed with a scale and a heading error the robot does not
 /// sense (wheel slip, miscalibrated wheels). The defaults are exact moves: today's worlds.
+/// A floor region of lower friction: the pixels [x, x + w) x [y, y + h), where the wheels lose the
+/// share `slip` of their travel.
+struct SlipZone {
+  int x = 0;
+  int y = 0;
+  int w = 1;
+  int h = 1;
+  double slip = 0.5;
+  bool operator==(const SlipZone&) const = default;
+};
+
 struct MotionSpec {
   double scale_sd = 0.0;        ///< standard deviation of the per-move scale error of the displacement
   double heading_sd_deg = 0.0;  ///< standard deviation of the per-move heading error, degrees
   PoseSource pose = PoseSource::Localised;
+  std::vector<SlipZone> slip_zones;  ///< regions of lower friction (docs/SCENARIOS.md § Slip zones)
   /// True when every move lands on its commanded cell's centre (within the controller's tolerance).
-  bool exact() const { return scale_sd == 0.0 && heading_sd_deg == 0.0; }
+  bool exact() const { return scale_sd == 0.0 && heading_sd_deg == 0.0 && slip_zones.empty(); }
+  /// The slip at the floor point (x, y) (continuous pixels): the largest of the zones that hold it, 0 outside.
+  double slip_at(double x, double y) const;
 };
 
 /// Random pushes: an impulse on the robot during a move, which the controller corrects (it feels
@@ -99,6 +113,8 @@ struct BoxObstacle {
   int y = 0;
   int w = 1;
   int h = 1;
+  /// The distance from the floor point (x, y) to the box, pixels (0 inside it).
+  double distance_px(double px, double py) const;
   bool operator==(const BoxObstacle&) const = default;
 };
 
@@ -108,6 +124,8 @@ struct DiscObstacle {
   double x = 0.5;
   double y = 0.5;
   double r = 1.0;
+  /// The distance from the floor point (x, y) to the disc's edge, pixels (0 inside it).
+  double distance_px(double px, double py) const;
   bool operator==(const DiscObstacle&) const = default;
 };
 
@@ -119,8 +137,14 @@ inline constexpr int kMaxObstacles = 64;
 struct ObstacleSpec {
   std::vector<BoxObstacle> boxes;
   std::vector<DiscObstacle> discs;
-  int shade = 128;  ///< the grey level the camera sees on an obstacle
-  bool none() const { return boxes.empty() && discs.empty(); }
+  int shade = 128;            ///< the grey level the camera sees on an obstacle
+  int random_boxes = 0;       ///< boxes drawn anew for every run (env::run_obstacles), beside the fixed ones
+  int random_box_min_px = 2;  ///< a random box's sides are drawn uniformly from [min, max] pixels
+  int random_box_max_px = 4;
+  /// No obstacle at all, fixed or random: today's worlds.
+  bool none() const { return boxes.empty() && discs.empty() && random_boxes == 0; }
+  /// No fixed obstacle (a world with random boxes only, or a run's layout without any).
+  bool no_fixed() const { return boxes.empty() && discs.empty(); }
   /// True when the floor point (x, y) (continuous pixels) lies on an obstacle.
   bool covers(double x, double y) const;
   /// The distance from (x, y) to the nearest obstacle's edge, pixels (0 inside one; +infinity

@@ -356,6 +356,8 @@ class Agent:
         arrays = {"pose": get(obs, "obs", "pose", np.int32, (n, 2)),
                   "seen": get(obs, "obs", "seen", np.uint8, (n, h, w)),
                   "revealed": revealed,
+                  # o, in worlds with obstacles (a model with the occupancy channel reads zeros without it)
+                  "occupied": get(obs, "obs", "occupied", np.uint8, (n, h, w)) if "occupied" in obs else None,
                   "patch_px": int(patch.shape[1])}
         if need_info:
             arrays.update(time_step=get(obs, "obs", "time_step", np.int32, (n,)),
@@ -369,7 +371,7 @@ class Agent:
         keeps each move from passing it, as the paper's protocol does)."""
         a = self._robots(obs, info, need_info=True)
         moves, goals = self._core.act(a["pose"], a["seen"], a["revealed"], a["time_step"], a["policy_seed"],
-                                      a["episode"], a["episode_start"], a["patch_px"])
+                                      a["episode"], a["episode_start"], a["patch_px"], a["occupied"])
         return {"move": moves, "goal": goals}
 
     def classify(self, obs):

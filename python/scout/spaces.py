@@ -212,13 +212,16 @@ def describe(core):
     S = gymnasium.spaces if gymnasium is not None else None
     box = S.Box if S else Box
     m, h, w, classes = core.patch_px, core.height, core.width, core.classes
-    single_observation = (S.Dict if S else Dict)({
+    observation = {
         "patch": box(0.0, 1.0, (m, m), np.float32),
         "pose": box(np.zeros(2, np.int32), np.array([w - 1, h - 1], np.int32), (2,), np.int32),
         "revealed": box(0.0, 1.0, (h, w), np.float32),
         "seen": box(0, 1, (h, w), np.uint8),
-        "time_step": box(0, core.episodes * core.steps, (), np.int32),
-    })
+    }
+    if core.has_obstacles:  # o: where the robot cannot stand beside its run's obstacles
+        observation["occupied"] = box(0, 1, (h, w), np.uint8)
+    observation["time_step"] = box(0, core.episodes * core.steps, (), np.int32)
+    single_observation = (S.Dict if S else Dict)(observation)
     action = {"move": (S.Discrete if S else Discrete)(MOVES)}
     if classes > 0:
         action["prediction"] = box(-np.inf, np.inf, (classes,), np.float32)

@@ -400,5 +400,46 @@ TEST(Training, StridedClassifierLearnsSyntheticDigits) {
   EXPECT_LT(last, 0.5 * first) << "cross-entropy " << first << " -> " << last;
 }
 
+// Fine-tuning a model trained without obstacles in a world with them: the widened planners read o
+// with zero weights, so they compute exactly what the model did, whatever o holds; and training
+// can move those weights (they are ordinary parameters).
+TEST(Networks, AddingTheOccupancyChannelKeepsWhatThePlannersCompute) {
+  torch::manual_seed(3);
+  NetworkConfig config;
+  config.planner_width = 5;
+  config.planner_depth = 3;
+  Agent from(config);
+  NetworkConfig widened = config;
+  widened.occupancy = true;
+  Agent to(widened);
+  EXPECT_EQ(planner_channels(widened), planner_channels(config) + 1);
+  copy_adding_occupancy(*from, *to);
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({4, planner_channels(config), 9, 7}) - 0.5;
+  for (const double o : {0.0, 1.0}) {
+    const torch::Tensor u_o = torch::cat({u, torch::full({4, 1, 9, 7}, o) * (torch::rand({4, 1, 9, 7}) > 0.5)}, 1);
+    EXPECT_TRUE(torch::allclose(to->goal->forward(u_o), from->goal->forward(u), 1e-6, 1e-6)) << "o = " << o;
+    EXPECT_TRUE(torch::allclose(to->action->forward(u_o), from->action->forward(u), 1e-6, 1e-6)) << "o = " << o;
+  }
+  const torch::Tensor y = torch::rand({2, 1, 9, 7}) - 0.5;
+  EXPECT_TRUE(torch::equal(to->classifier->forward(y), from->classifier->forward(y)));
+  // One more input channel in each planner's r 3 x 3 convolutions (d outputs) and in its 1 x 1
+  // head (1 output for goals, 2 for axes).
+  EXPECT_EQ(parameter_count(widened),
+            parameter_count(config) + 2 * config.planner_depth * config.planner_width * 9 + 3);
+  EXPECT_EQ(parameter_count(widened),
+            static_cast<std::int64_t>(torch::nn::utils::parameters_to_vector(to->parameters()).numel()));
+  // The channel's weights are zero, not absent: a change of them changes the output.
+  const torch::Tensor u_1 = torch::cat({u, torch::ones({4, 1, 9, 7})}, 1);
+  to->goal->named_parameters()["body.blocks.0.weight"].narrow(1, planner_channels(config), 1).fill_(0.5);
+  EXPECT_FALSE(torch::allclose(to->goal->forward(u_1), from->goal->forward(u), 1e-3, 1e-3));
+  // Anything else than one added channel is refused.
+  EXPECT_THROW(copy_adding_occupancy(*from, *from), std::invalid_argument);
+  NetworkConfig wider = widened;
+  wider.planner_width = 6;
+  Agent other(wider);
+  EXPECT_THROW(copy_adding_occupancy(*from, *other), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace scout::agent

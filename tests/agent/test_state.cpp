@@ -2,6 +2,8 @@
 // against pictures drawn by hand, including windows clipped at the borders.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
@@ -151,6 +153,36 @@ TEST(AgentState, WithoutAGoalTheGoalChannelIsAllOnes) {
                  "l");
   expect_channel(inside, 2, unseen_plane(), "h");
   expect_channel(inside, 3, plane(std::string(kN, '1')), "g_l");
+}
+
+// o, the occupancy channel, is the fifth plane when asked for: 1 where the view's map says the
+// robot cannot stand, 0 elsewhere and everywhere without a map; without it, four planes only.
+TEST(AgentState, TheOccupancyChannelIsWrittenOnlyWhenAskedFor) {
+  const std::string occupied_text =
+      "000000"
+      "011000"
+      "011000"
+      "000001"
+      "000011";
+  std::vector<std::uint8_t> occupied(kN);
+  for (int i = 0; i < kN; ++i)
+    occupied[static_cast<std::size_t>(i)] = occupied_text[static_cast<std::size_t>(i)] == '1';
+  const grid::Cell goal{5, 4};
+  std::vector<float> u(5 * kN, std::numeric_limits<float>::quiet_NaN());
+  RobotView view{kObserved.data(), kSeen.data(), {2, 2}, &goal, occupied.data()};
+  write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true);
+  expect_channel(u, 4, plane(occupied_text), "o");
+  const std::vector<float> four = planner_input(3, {2, 2}, &goal);
+  for (int i = 0; i < 4 * kN; ++i) EXPECT_FLOAT_EQ(u[static_cast<std::size_t>(i)], four[static_cast<std::size_t>(i)]);
+
+  view.occupied = nullptr;  // a world without obstacles
+  write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true);
+  expect_channel(u, 4, plane(std::string(kN, '0')), "o");
+
+  std::fill(u.begin(), u.end(), std::numeric_limits<float>::quiet_NaN());
+  view.occupied = occupied.data();
+  write_planner_input(kFloor, 3, view, u.data());  // a model without the channel: four planes
+  for (int i = 4 * kN; i < 5 * kN; ++i) EXPECT_TRUE(std::isnan(u[static_cast<std::size_t>(i)]));
 }
 
 }  // namespace

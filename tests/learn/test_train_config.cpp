@@ -72,6 +72,7 @@ TEST(TrainSettings, EveryChangedSettingRoundTrips) {
   c.network.classifier_width = 4;
   c.network.classifier_depth = 2;
   c.network.classes = 7;
+  c.network.occupancy = true;
   c.pretrain_epochs = 3;
   c.epochs = {1, 0, 5};
   c.rollouts = 3;
@@ -91,6 +92,25 @@ TEST(TrainSettings, EveryChangedSettingRoundTrips) {
   EXPECT_EQ(setting_text(back, train_setting("frozen")), "goal,classifier");
   EXPECT_EQ(setting_text(back, train_setting("leave_one_out")), "on");
   EXPECT_EQ(setting_text(back, train_setting("network.classifier")), "strided");
+}
+
+// The occupancy channel came after checkpoints without it: off, it is not written (every file
+// written before stays byte for byte what it was, and reads off); on, it is, and reads back on.
+TEST(TrainSettings, TheOccupancyFlagIsStoredOnlyWhenOn) {
+  TrainConfig c = valid_config();
+  const std::string off = c.to_json();
+  EXPECT_EQ(off.find("occupancy"), std::string::npos);
+  EXPECT_FALSE(TrainConfig::from_json(off, "run").network.occupancy);
+  c.network.occupancy = true;
+  const nlohmann::ordered_json on = nlohmann::ordered_json::parse(c.to_json());
+  EXPECT_EQ(on["network"]["occupancy"], true);
+  EXPECT_TRUE(TrainConfig::from_json(c.to_json(), "run").network.occupancy);
+  EXPECT_EQ(setting_text(c, train_setting("network.occupancy")), "on");
+  EXPECT_EQ(train_setting("network.occupancy").agreement, Agreement::Networks);
+  // A stored value of the wrong type is refused like any other.
+  std::string bad = c.to_json();
+  bad.replace(bad.find("\"occupancy\": true"), std::string("\"occupancy\": true").size(), "\"occupancy\": 3");
+  EXPECT_NE(refusal(bad).find("occupancy"), std::string::npos) << refusal(bad);
 }
 
 // An option's text sets its setting and reads back the same; a bad one is refused with the row's

@@ -543,3 +543,40 @@ def test_a_million_agent_steps_keep_memory_flat():
     grown_kib = resident_kib() - before
     # A leak of even one small array per step (a reward vector is 1 KiB) would grow by 4 MiB.
     assert grown_kib < 2048, f"resident memory grew by {grown_kib} KiB over 10^6 agent-steps"
+
+
+OBSTACLES_WORLD = os.path.join(SOURCE, "worlds", "scenarios", "obstacles-random.yaml")
+
+
+def test_a_world_with_obstacles_observes_o_and_the_agent_reads_it_as_scout_run_does(tmp_path):
+    # A model with the occupancy channel, its o-weights moved off zero by a few steps in the world.
+    run = tmp_path / "occupancy"
+    subprocess.run([BINARY, "train", OBSTACLES_WORLD, "--out", str(run), "--init-from", MODEL, "--occupancy",
+                    "--epochs", "0,0,1", "--train-limit", "80", "--validation-limit", "20", "--batch", "20",
+                    "--lr", "0.01", "--threads", "1", "--seed", "4"], check=True, capture_output=True)
+    model = str(run / "checkpoint.pt")
+    n, seed = 24, 9
+    envs = scout.make_vec(OBSTACLES_WORLD, n, seed=seed)
+    obs, info = envs.reset(seed=seed)
+    assert envs.observation_space.contains(obs)
+    assert obs["occupied"].shape == (n, 28, 28) and obs["occupied"].dtype == np.uint8
+    # Each run its own boxes (three of 2-4 px, widened by the robot's radius): o differs by robot.
+    assert len({o.tobytes() for o in obs["occupied"]}) == n
+    assert all(9 <= o.sum() <= 28 * 28 // 2 for o in obs["occupied"])
+    assert "occupied" not in scout.make_vec(WORLD, 2, seed=1).reset()[0]
+
+    out = tmp_path / "run"
+    subprocess.run([BINARY, "run", OBSTACLES_WORLD, "--checkpoint", model, "--seed", str(seed), "--count", str(n),
+                    "--no-images", "--out", str(out)], check=True, capture_output=True)
+    runs = json.loads((out / "trajectory.json").read_text())["runs"]
+    _, poses, goals, _ = drive(envs, scout.Agent(model), seed)
+    for i, r in enumerate(runs):
+        assert list(poses[0, i]) == r["start"]
+        assert [list(p) for p in poses[1:, i]] == [s["grid_pose"] for s in r["steps"]], f"robot {i}"
+        assert [list(g) for g in goals[:, i]] == [s["goal"] for s in r["steps"]], f"robot {i}"
+    # Without o the same agent chooses otherwise: it reads the channel.
+    agent = scout.Agent(model)
+    obs, info = envs.reset(seed=seed)
+    with_o = agent.act(obs, info)["goal"]
+    blind = agent.act({k: v for k, v in obs.items() if k != "occupied"}, info)["goal"]
+    assert not np.array_equal(with_o, blind)

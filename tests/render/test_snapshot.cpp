@@ -122,6 +122,37 @@ TEST(DrawSnapshot, UnseenBlackDiffersFromSeenBlack) {
   EXPECT_GE(unseen.b, 40) << "unseen black is visibly not black";
 }
 
+// Scenario marks: an obstacle is brick red whether seen or not; a slip zone tints the floor ice
+// blue (a third of the tint, two thirds of what was there), seen or not; elsewhere nothing changes.
+TEST(DrawSnapshot, ObstaclesAreBrickRedAndSlipZonesAreTintedIceBlue) {
+  const Scene scene;
+  Snapshot snapshot = scene.snapshot();
+  snapshot.robot = {-50, -50};
+  std::vector<std::uint8_t> obstacles(Scene::kWidth * Scene::kHeight, 0), slip(obstacles.size(), 0);
+  obstacles[2 * Scene::kWidth + 1] = 1;                                     // (1, 2), seen
+  obstacles[2 * Scene::kWidth + 9] = 1;                                     // (9, 2), unseen
+  for (int x = 0; x < Scene::kWidth; ++x) slip[7 * Scene::kWidth + x] = 1;  // row 7
+  const Picture plain = draw_snapshot(snapshot);
+  snapshot.obstacles = obstacles.data();
+  snapshot.slip = slip.data();
+  const Picture marked = draw_snapshot(snapshot);
+  const int s = snapshot.scale;
+  for (const int x : {1, 9}) {
+    const Bgr c = pixel(marked, x * s + s / 2, 2 * s + s / 2);
+    EXPECT_TRUE(c.b == 40 && c.g == 50 && c.r == 170) << "obstacle at x = " << x;
+  }
+  for (const int x : {2, 10}) {  // a seen and an unseen pixel of the zone
+    const Bgr before = pixel(plain, x * s + s / 2, 7 * s + s / 2);
+    const Bgr after = pixel(marked, x * s + s / 2, 7 * s + s / 2);
+    EXPECT_EQ(after.b, (2 * before.b + 255) / 3) << x;
+    EXPECT_EQ(after.g, (2 * before.g + 200) / 3) << x;
+    EXPECT_EQ(after.r, (2 * before.r + 120) / 3) << x;
+  }
+  const Bgr untouched = pixel(marked, 4 * s + s / 2, 5 * s + s / 2);
+  const Bgr was = pixel(plain, 4 * s + s / 2, 5 * s + s / 2);
+  EXPECT_TRUE(untouched.b == was.b && untouched.g == was.g && untouched.r == was.r);
+}
+
 TEST(DrawSnapshot, RobotWindowIsABlueOutlineAndGoalWindowAGreenOne) {
   const Scene scene;
   Snapshot snapshot = scene.snapshot();

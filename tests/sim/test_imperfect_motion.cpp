@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <numeric>
 #include <vector>
 
@@ -413,6 +414,74 @@ TEST(ImperfectMotion, PushesComeFromEveryDirectionAndScaleWithTheirImpulse) {
   std::printf("[ measured ] pushed to the left %ld of 400; mean sideways excursion %.3f px (2 N s), %.3f px (6 N s)\n",
               static_cast<long>(left), mean_size(mild), mean_size(strong));
   EXPECT_GT(mean_size(strong), 2.0 * mean_size(mild));
+}
+
+// Slip zones (docs/SCENARIOS.md § Slip zones): on a zone of slip sigma the wheels carry the body
+// (1 - sigma) of what they turn, unsensed. A localised robot in the zone therefore covers
+// (1 - sigma) of the way from where it is to its commanded cell's centre, every move, to within
+// the controller's tolerance; off the zone every move lands on its cell. An odometry robot in the
+// zone believes the commanded cells while its true position lags.
+TEST(ImperfectMotion, SlipZonesShortenTheMovesMadeOnThemAndOnlyThose) {
+  RobotParams p = noisy(0.0, 0.0, worlds::PoseSource::Localised);
+  const double slip = 0.4;
+  p.motion.slip_zones = {{0, 0, 32, 64, slip}};  // the floor's left half
+  ASSERT_FALSE(p.exact());
+  const int robots = 100;
+  RobotBatch batch(kFloor, p, robots);
+  core::Rng rng(21);
+  // Robots 0..49 inside the zone (x in [6, 22)), 50..99 outside it (x in [40, 56)).
+  for (int i = 0; i < robots; ++i) {
+    const int x = (i < 50 ? 6 : 40) + static_cast<int>(core::uniform_below(rng, 16));
+    batch.place(i, {x, 20 + static_cast<int>(core::uniform_below(rng, 24))}, rng());
+  }
+  std::vector<grid::Cell> commands(robots);
+  std::vector<MoveResult> results(robots);
+  double worst_in = 0, worst_out = 0, shortest_in = 1e9, longest_in = 0;
+  for (int k = 0; k < 20; ++k) {
+    std::vector<Eigen::Vector2d> from(robots), aim(robots);
+    for (int i = 0; i < robots; ++i) {
+      const grid::Cell at = batch.grid_pose(i);
+      // Toward the middle of the robot's band, along x or y: the path never leaves its half.
+      const int length = 1 + static_cast<int>(core::uniform_below(rng, 3));
+      const int middle_x = i < 50 ? 14 : 48;
+      commands[i] = (rng() >> 63) != 0 ? grid::Cell(at.x() < middle_x ? length : -length, 0)
+                                       : grid::Cell(0, at.y() < 32 ? length : -length);
+      from[i] = batch.position_px(i);
+      aim[i] = kFloor.cell_centre_px(at + commands[i]);
+    }
+    batch.move(commands, results);
+    for (int i = 0; i < robots; ++i) {
+      ASSERT_TRUE(results[i].settled) << "robot " << i;
+      const Eigen::Vector2d moved = batch.position_px(i) - from[i];
+      const Eigen::Vector2d meant = aim[i] - from[i];
+      if (i < 50) {
+        worst_in = std::max(worst_in, (moved - (1.0 - slip) * meant).norm());
+        shortest_in = std::min(shortest_in, moved.norm() / meant.norm());
+        longest_in = std::max(longest_in, moved.norm() / meant.norm());
+      } else {
+        worst_out = std::max(worst_out, (batch.position_px(i) - aim[i]).norm());
+      }
+    }
+  }
+  std::printf(
+      "[ measured ] in the zone: worst |moved - (1 - slip) meant| %.5f px, moved/meant in [%.4f, %.4f]; off "
+      "it: worst landing error %.5f px\n",
+      worst_in, shortest_in, longest_in, worst_out);
+  EXPECT_LE(worst_in, (1.0 - slip) * p.controller.tolerance_px + 1e-4);
+  EXPECT_LE(worst_out, p.controller.tolerance_px + 1e-6);
+  EXPECT_NEAR(shortest_in, 1.0 - slip, 0.01);
+  EXPECT_NEAR(longest_in, 1.0 - slip, 0.01);
+
+  // Odometry: ten 1 px moves to the right from (5, 30) on a floor that slips everywhere.
+  RobotParams q = noisy(0.0, 0.0, worlds::PoseSource::Odometry);
+  q.motion.slip_zones = {{0, 0, 64, 64, 0.3}};
+  RobotBatch one(kFloor, q, 1);
+  one.place(0, {5, 30}, 1);
+  std::vector<MoveResult> result(1);
+  for (int k = 0; k < 10; ++k) one.move(std::vector<grid::Cell>{{1, 0}}, result);
+  EXPECT_EQ(one.agent_pose(0), grid::Cell(15, 30)) << "the odometry believes the commanded cells";
+  EXPECT_NEAR(one.position_px(0).x(), 5.5 + 0.7 * 10, 0.01) << "the body covers 70 % of it";
+  EXPECT_EQ(one.grid_pose(0), grid::Cell(12, 30));
 }
 
 }  // namespace

@@ -27,9 +27,9 @@ namespace scout::testing {
   [[maybe_unused]] const auto& [patch_px] = w.camera;
   [[maybe_unused]] const auto& [episodes, steps, step_px] = w.task;
   [[maybe_unused]] const auto& [dt_s, velocity_iterations, position_iterations, max_ticks_per_move] = w.physics;
-  [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose] = w.motion;
+  [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose, slip_zones] = w.motion;
   [[maybe_unused]] const auto& [probability, impulse_ns, within_ticks, traction_s] = w.pushes;
-  [[maybe_unused]] const auto& [boxes, discs, shade] = w.obstacles;
+  [[maybe_unused]] const auto& [boxes, discs, shade, random_boxes, random_box_min_px, random_box_max_px] = w.obstacles;
 }
 
 /// Calls f(dotted name, a's value, b's value) for every field a world file sets, in the order of
@@ -58,6 +58,7 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("motion.scale_sd", a.motion.scale_sd, b.motion.scale_sd);
   f("motion.heading_sd_deg", a.motion.heading_sd_deg, b.motion.heading_sd_deg);
   f("motion.pose", a.motion.pose, b.motion.pose);
+  f("motion.slip_zones", a.motion.slip_zones, b.motion.slip_zones);
   f("pushes.probability", a.pushes.probability, b.pushes.probability);
   f("pushes.impulse_ns", a.pushes.impulse_ns, b.pushes.impulse_ns);
   f("pushes.within_ticks", a.pushes.within_ticks, b.pushes.within_ticks);
@@ -65,6 +66,9 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("obstacles.boxes", a.obstacles.boxes, b.obstacles.boxes);
   f("obstacles.discs", a.obstacles.discs, b.obstacles.discs);
   f("obstacles.shade", a.obstacles.shade, b.obstacles.shade);
+  f("obstacles.random_boxes", a.obstacles.random_boxes, b.obstacles.random_boxes);
+  f("obstacles.random_box_min_px", a.obstacles.random_box_min_px, b.obstacles.random_box_min_px);
+  f("obstacles.random_box_max_px", a.obstacles.random_box_max_px, b.obstacles.random_box_max_px);
   f("seed", a.seed, b.seed);
 }
 

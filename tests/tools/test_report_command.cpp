@@ -160,6 +160,48 @@ TEST_F(EvalRun, ReportComparesAnotherModelsRowAndCurve) {
   EXPECT_TRUE(fs::is_regular_file(path("compared") + "/accuracy_vs_epochs.png"));
 }
 
+// --scenarios: the robustness table, the model in its own world and in each scenario world; a row
+// is what scout eval gives in that world on the same digits, runs and seed.
+TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
+  const std::string world_text = "floor: {dataset: " + path("data") +
+                                 ", split: test, index: random}\ncamera: {patch_px: 3}\ntask: {episodes: 2, "
+                                 "steps: 2}\n";
+  temp_->write("odometry.yaml", world_text + "motion: {scale_sd: 0.25, heading_sd_deg: 15, pose: odometry}\n");
+  temp_->write("boxes.yaml", world_text + "obstacles: {random_boxes: 2, random_box_min_px: 2, random_box_max_px: 3}\n");
+  const Result r = scout("report " + path("run") + " --out " + path("robust") + test_data() +
+                         " --runs 1 --sweep-digits 0 --episodes 0 --seed 6 --scenario-digits 9 --scenario-runs 2 "
+                         "--scenarios " +
+                         path("odometry.yaml") + " " + path("boxes.yaml"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json data = read_json(path("robust") + "/report-data.json");
+  const json& rows = data["robustness"]["rows"];
+  ASSERT_EQ(rows.size(), 3u) << data["robustness"].dump();
+  EXPECT_EQ(rows[0]["world"], "the model's world");
+  EXPECT_EQ(rows[1]["world"], "odometry");
+  EXPECT_EQ(rows[2]["world"], "boxes");
+  EXPECT_EQ(data["robustness"]["digits"], 9);
+  for (const json& row : rows) {
+    EXPECT_GE(row["accuracy"].get<double>(), 0.0);
+    EXPECT_LE(row["accuracy"].get<double>(), 1.0);
+    EXPECT_GT(row["revealed_fraction"].get<double>(), 0.0);
+  }
+  const Result direct = scout("eval --checkpoint " + path("run") + test_data() + " --world " + path("boxes.yaml") +
+                              " --limit 9 --runs 2 --seed 6 --json " + path("boxes-eval.json"));
+  ASSERT_EQ(direct.status, 0) << direct.output;
+  EXPECT_EQ(rows[2]["accuracy"], read_json(path("boxes-eval.json"))["accuracy"]["mean"]);
+  const std::string report = read_text(path("robust") + "/REPORT.md");
+  EXPECT_NE(report.find("## Robustness in the scenario worlds"), std::string::npos) << report;
+  EXPECT_NE(report.find("| odometry | "), std::string::npos) << report;
+  // A world file that does not load is refused before any work, naming it.
+  temp_->write("bad.yaml", world_text + "motion: {scale_sd: 2}\n");
+  const Result bad = scout("report " + path("run") + " --out " + path("robust-bad") + test_data() + " --scenarios " +
+                           path("bad.yaml"));
+  EXPECT_EQ(bad.status, 1) << bad.output;
+  EXPECT_EQ(bad.output.rfind("scout: error: " + path("bad.yaml") + ":", 0), 0u) << bad.output;
+  EXPECT_NE(bad.output.find("motion.scale_sd"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(path("robust-bad")));
+}
+
 TEST_F(EvalRun, ReportRefusesBadInputsWithOneLine) {
   const Result other =
       scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --runs 1 --json " + path("other-eval.json"));

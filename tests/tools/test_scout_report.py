@@ -96,6 +96,22 @@ def test_the_figures_and_report_are_written(tmp_path):
     assert "| accuracy | 97.0 | 97.0 | 97.0 | 92.0 |" in text
 
 
+def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
+    data = report_data()
+    data["robustness"] = {"digits": 1000, "runs": 5, "seed": 7, "rows": [
+        {"world": "the model's world", "file": "", "accuracy": 0.9602, "ci95": 0.0045, "revealed_fraction": 0.285},
+        {"world": "odometry-strong", "file": "worlds/scenarios/odometry-strong.yaml", "accuracy": 0.7142,
+         "ci95": 0.012, "revealed_fraction": 0.27}]}
+    result, out = run(tmp_path, data)
+    assert result.returncode == 0, result.stderr
+    text = (out / "REPORT.md").read_text()
+    assert "## Robustness in the scenario worlds" in text
+    assert "first 1000 test digits, 5 stochastic run(s), seed 7" in text
+    assert "| the model's world | 96.02 ± 0.45 % |  | 28.5 % |" in text
+    assert "| odometry-strong | 71.42 ± 1.20 % | -24.60 points | 27.0 % |" in text
+    assert "Robustness" not in run(tmp_path, report_data())[1].joinpath("REPORT.md").read_text()
+
+
 def test_without_history_sweep_or_episodes_the_rest_is_still_drawn(tmp_path):
     data = report_data()
     data["model"]["history"] = []

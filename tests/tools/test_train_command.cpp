@@ -89,6 +89,45 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   EXPECT_NE(m["world"].get<std::string>().find("patch_px: 3"), std::string::npos);
 }
 
+// --init-from starts a new run from a model's weights: with every layer frozen, the new run's
+// checkpoint holds exactly the model's weights; the manifest names the model by path and SHA-256;
+// a network option that contradicts the model is refused, except --occupancy, which adds the
+// channel; and a resumed run cannot take it.
+TEST_F(TrainCli, InitFromStartsANewRunFromAModelsWeights) {
+  const std::string frozen = " --epochs 1,0,0 --freeze goal,action,classifier --seed 3";
+  const Result r = run("train " + world() + " --out " + path("init") + " --init-from " + base() + frozen + kTiny);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const scout::testing::CliResult same =
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.pt' '" + path("init") + "/checkpoint.pt'");
+  ASSERT_EQ(same.status, 0) << same.output;
+  EXPECT_NE(same.output.find(" 1 "), std::string::npos) << "expected identical weights: " << same.output;
+  // Without --init-from the same command starts from the seed's initialisation instead.
+  ASSERT_EQ(run("train " + world() + " --out " + path("fresh") + frozen + kTiny).status, 0);
+  const scout::testing::CliResult fresh =
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.pt' '" + path("fresh") + "/checkpoint.pt'");
+  EXPECT_NE(fresh.output.find(" 0 "), std::string::npos) << fresh.output;
+
+  std::ifstream in(path("init") + "/manifest.json");
+  const json m = json::parse(in);
+  ASSERT_TRUE(m.contains("init_from")) << m.dump(2);
+  EXPECT_EQ(fs::path(m["init_from"]["file"].get<std::string>()), fs::absolute(fs::path(base()) / "checkpoint.pt"));
+  EXPECT_EQ(m["init_from"]["sha256"].get<std::string>().size(), 64u);
+
+  expect_one_line_error(run("train " + world() + " --out " + path("wider") + " --init-from " + base() + frozen + kTiny +
+                            " --classifier strided"),
+                        {"--classifier: --init-from " + base() + " has paper, the command line asks for strided"});
+  EXPECT_FALSE(fs::exists(path("wider")));
+
+  const Result occupancy = run("train " + world() + " --out " + path("occupancy") + " --init-from " + base() + frozen +
+                               kTiny + " --occupancy");
+  ASSERT_EQ(occupancy.status, 0) << occupancy.out << occupancy.err;
+  std::ifstream occupancy_manifest(path("occupancy") + "/manifest.json");
+  EXPECT_EQ(json::parse(occupancy_manifest)["config"]["network"]["occupancy"], true);
+
+  expect_one_line_error(run("train --resume " + path("init") + " --init-from " + base()),
+                        {"--init-from: a resumed run continues from its own checkpoint"});
+}
+
 // Ctrl-C in a long schedule: exit 130, a checkpoint is saved (and said so), and --resume
 // continues it to the end of a shortened schedule: one row per epoch, in order.
 TEST_F(TrainCli, ControlCSavesACheckpointThatResumeFinishes) {

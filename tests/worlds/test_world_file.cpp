@@ -370,6 +370,13 @@ const BadCase kBadCases[] = {
      "w.yaml:1: obstacles.discs: expected a list of at most 64 discs [x, y, r] (numbers, pixels: x, y >= 0, r in (0, "
      "1000]), got disc 1 r = -1"},
     {"ObstacleBoxesNotAList", "obstacles: {boxes: 3}\n", "w.yaml:1: obstacles.boxes: expected a list of at most 64"},
+    {"RandomBoxesShortestAboveLongest", "obstacles:\n  random_boxes: 2\n  random_box_min_px: 5\n",
+     "w.yaml:3: obstacles.random_box_min_px: expected at most obstacles.random_box_max_px = 4, got 5"},
+    {"SlipAboveNineTenths", "motion:\n  slip_zones: [[0, 0, 4, 4, 0.95]]\n",
+     "w.yaml:2: motion.slip_zones: expected a list of at most 64 zones [x, y, w, h, slip] (pixels: integers x, y >= "
+     "0, w, h >= 1; slip in [0, 0.9]), got zone 1 slip = 0.95"},
+    {"RandomBoxesTooMany", "obstacles: {random_boxes: 65}\n",
+     "w.yaml:1: obstacles.random_boxes: expected an integer in [0, 64], got 65"},
     {"PushWithinZeroTicks", "pushes:\n  within_ticks: 0\n",
      "w.yaml:2: pushes.within_ticks: expected an integer in [1, 100000], got 0"},
     {"SyntaxError", "floor:\n  dataset: mnist\nrobot: [1, 2\n", "w.yaml:4: YAML syntax error: "},
@@ -578,6 +585,17 @@ TEST(WorldFile, ObstaclesOffTheFloorOrOnTheStartNameTheirLine) {
     EXPECT_EQ(std::string(e.what()),
               "w.yaml:1: robot.start: expected a cell whose centre is at least the robot's radius (2.5 px) from every "
               "obstacle, got [10, 10], 1.5 px from one");
+  }
+  // Random boxes must fit on the floor.
+  const World random = parse_world("obstacles:\n  random_boxes: 1\n  random_box_max_px: 8\n", "w.yaml");
+  EXPECT_NO_THROW(check_against_floor(random, 8, 9));
+  try {
+    check_against_floor(random, 9, 7);
+    FAIL() << "accepted 8 px boxes on a 7 px high floor";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "w.yaml:3: obstacles.random_box_max_px: expected at most the floor's smaller side, 7 (the floor is 9x7 "
+              "pixels), got 8");
   }
   const World clear = parse_world("robot: {start: [5, 10]}\nobstacles: {boxes: [[12, 10, 2, 2]]}\n", "w.yaml");
   EXPECT_NO_THROW(check_against_floor(clear, 28, 28));
@@ -845,8 +863,9 @@ TEST(WorldFile, ToYamlWritesAScenarioSectionOnlyWhenItIsUsed) {
   const World motion = parse_world("motion: {heading_sd_deg: 7.5}\n", "/data/worlds/w.yaml");
   const std::string text = to_yaml(motion);
   EXPECT_NE(text.find("physics:"), std::string::npos);
-  EXPECT_NE(text.find("\nmotion:\n  scale_sd: 0\n  heading_sd_deg: 7.5\n  pose: localised\nseed: 0\n"),
-            std::string::npos)
+  EXPECT_NE(
+      text.find("\nmotion:\n  scale_sd: 0\n  heading_sd_deg: 7.5\n  pose: localised\n  slip_zones: []\nseed: 0\n"),
+      std::string::npos)
       << text;
   EXPECT_EQ(text.find("pushes:"), std::string::npos) << text;
   expect_same_world(parse_world(text, "/elsewhere/w.yaml"), motion);

@@ -510,9 +510,9 @@ class Fuzzer {
       {"camera", {"patch_px"}},
       {"task", {"episodes", "steps", "step_px"}},
       {"physics", {"dt_s", "velocity_iterations", "position_iterations", "max_ticks_per_move"}},
-      {"motion", {"scale_sd", "heading_sd_deg", "pose"}},
+      {"motion", {"scale_sd", "heading_sd_deg", "pose", "slip_zones"}},
       {"pushes", {"probability", "impulse_ns", "within_ticks", "traction_s"}},
-      {"obstacles", {"boxes", "discs", "shade"}},
+      {"obstacles", {"boxes", "discs", "shade", "random_boxes", "random_box_min_px", "random_box_max_px"}},
       {"seed", {}}};
   const std::vector<char> kInterestingChars = {'[', ']', '{',  '}',  ':', '-', '#', '"', '\'', '&', '*', '!',
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
@@ -541,9 +541,10 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
            "camera: {patch_px: 9}\n"
            "task: {episodes: 7, steps: 3, step_px: 4}\n"
            "physics: {dt_s: 0.001, velocity_iterations: 6, position_iterations: 2, max_ticks_per_move: 999}\n"
-           "motion: {scale_sd: 0.15, heading_sd_deg: 7.5, pose: odometry}\n"
+           "motion: {scale_sd: 0.15, heading_sd_deg: 7.5, pose: odometry, slip_zones: [[0, 1, 2, 3, 0.25]]}\n"
            "pushes: {probability: 0.25, impulse_ns: 2.5, within_ticks: 4, traction_s: 0.3}\n"
-           "obstacles: {boxes: [[1, 2, 3, 4], [20, 0, 1, 1]], discs: [[10.5, 7.25, 2]], shade: 200}\n"
+           "obstacles: {boxes: [[1, 2, 3, 4], [20, 0, 1, 1]], discs: [[10.5, 7.25, 2]], shade: 200, random_boxes: 2,\n"
+           "            random_box_min_px: 3, random_box_max_px: 5}\n"
            "seed: 18446744073709551615\n",
            tally));
   ASSERT_TRUE(

@@ -379,6 +379,23 @@ def write_report(data, figures, out_dir):
                 f"of {ram['side']} × {ram['side']} pixels, at most {100 * ram['revealed_fraction']:.0f} % of the "
                 "digit, choosing each glimpse anywhere; Scout's robot must drive between its views.")
             add("")
+    robustness = data.get("robustness")
+    if robustness:
+        rows = need(robustness, "rows", "robustness")
+        base = rows[0]["accuracy"] if rows else None
+        add("## Robustness in the scenario worlds")
+        add("")
+        add(f"The model, unchanged, in worlds where the physics matters (docs/SCENARIOS.md), each on the first "
+            f"{robustness['digits']} test digits, {robustness['runs']} stochastic run(s), seed {robustness['seed']}; "
+            "the first row is its own world.")
+        add("")
+        add("| world | accuracy | change | revealed |")
+        add("|---|---|---|---|")
+        for i, r in enumerate(rows):
+            change = "" if i == 0 else f"{100 * (r['accuracy'] - base):+.2f} points"
+            add(f"| {r['world']} | {100 * r['accuracy']:.2f} ± {100 * r['ci95']:.2f} % | {change} | "
+                f"{100 * r['revealed_fraction']:.1f} % |")
+        add("")
     add("## Files")
     add("")
     add("- `report-data.json`: every number above, as `scout report` gathered it")
