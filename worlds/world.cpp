@@ -895,7 +895,7 @@ std::vector<SlipZone> Loader::read_slip_zones(const Field& f) const {
     }
     bool out_of_range = false;
     const auto slip = number_text(zone[4], out_of_range);
-    if (!slip || *slip < 0.0 || *slip > 0.9)
+    if (!slip || !(*slip >= 0.0 && *slip <= 0.9))
       fail_field(f.line, f.dotted, expected, "zone " + std::to_string(i + 1) + " slip = " + describe(zone[4]));
     zones.push_back({v[0], v[1], v[2], v[3], *slip});
   }
