@@ -15,8 +15,15 @@ using core::Clock;
 using core::seconds_since;
 
 BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
-    : frame_(frame), patch_px_(world.camera.patch_px), max_robots_(max_robots), world_(world) {
+    : frame_(frame),
+      patch_px_(world.camera.patch_px),
+      max_robots_(max_robots),
+      team_size_(world.team.robots),
+      world_(world) {
   if (max_robots <= 0) throw std::invalid_argument("BatchEnv: max_robots must be positive");
+  if (max_robots % team_size_ != 0)
+    throw std::invalid_argument("BatchEnv: max_robots " + std::to_string(max_robots) + " is not a multiple of " +
+                                std::to_string(team_size_) + " robots per team");
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
   exact_motion_ = robots_->params().exact();
   camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots);
@@ -67,16 +74,17 @@ Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->positio
 
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
-// Puts robot i on its floor, at rest on its start, with nothing seen yet.
-void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start,
-                     std::uint64_t motion_seed) {
+// Puts robot i on its floor, at rest on its start, with nothing seen yet. A team's floor holds
+// the random boxes drawn from its first robot's motion seed, `layout_seed`.
+void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed,
+                     std::uint64_t layout_seed) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
   if (world_.obstacles.random_boxes > 0) {
     // The run's own layout, drawn from its motion seed as every caller that drew its start did.
-    const worlds::ObstacleSpec layout = run_obstacles(world_, frame_, motion_seed);
-    robots_->set_obstacles(robot, layout);
+    const worlds::ObstacleSpec layout = run_obstacles(world_, frame_, layout_seed);
+    if (robot % team_size_ == 0) robots_->set_obstacles(robot, layout);  // the team's floor
     for (const worlds::BoxObstacle& b : layout.boxes)
       for (int y = b.y; y < b.y + b.h; ++y)
         std::fill_n(floors_.begin() + static_cast<std::ptrdiff_t>(area * robot + y * frame_.width_px + b.x), b.w,
@@ -109,11 +117,15 @@ void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid:
   if (motion_seeds.size() != starts.size())
     throw std::invalid_argument("BatchEnv::reset: " + std::to_string(motion_seeds.size()) + " motion seeds for " +
                                 std::to_string(count) + " robots");
+  if (count % team_size_ != 0)
+    throw std::invalid_argument("BatchEnv::reset: " + std::to_string(count) + " robots do not make teams of " +
+                                std::to_string(team_size_));
   for (const grid::Cell& s : starts)
     if (!frame_.contains(s)) throw std::invalid_argument("BatchEnv::reset: a start cell is off the floor");
   const auto t0 = Clock::now();
   count_ = count;
-  for (int i = 0; i < count; ++i) place(i, floors.subspan(area * i, area), starts[i], motion_seeds[i]);
+  for (int i = 0; i < count; ++i)
+    place(i, floors.subspan(area * i, area), starts[i], motion_seeds[i], motion_seeds[i - i % team_size_]);
   camera_->load_floors(std::span(floors_.data(), area * count), count);
   timing_.observe_s += seconds_since(t0);
   observe();
@@ -134,9 +146,18 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
       throw std::invalid_argument("BatchEnv::reset_robots: a start cell is off the floor");
   }
   if (robots.empty()) return;
+  // A team starts again as a whole, its robots listed together, its first robot first: they share
+  // a floor (and its random boxes, drawn from the first one's motion seed).
+  for (std::size_t k = 0; k < robots.size(); k += team_size_) {
+    bool whole = robots[k] % team_size_ == 0 && k + team_size_ <= robots.size();
+    for (int j = 1; whole && j < team_size_; ++j) whole = robots[k + j] == robots[k] + j;
+    if (!whole)
+      throw std::invalid_argument("BatchEnv::reset_robots: robot " + std::to_string(robots[k]) +
+                                  " does not begin a whole team of " + std::to_string(team_size_) + " in order");
+  }
   const auto t0 = Clock::now();
   for (std::size_t k = 0; k < robots.size(); ++k)
-    place(robots[k], floors.subspan(area * k, area), starts[k], motion_seeds[k]);
+    place(robots[k], floors.subspan(area * k, area), starts[k], motion_seeds[k], motion_seeds[k - k % team_size_]);
   // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
   camera_->load_floors(std::span(floors_.data(), area * count_), count_);
   timing_.observe_s += seconds_since(t0);
@@ -177,7 +198,8 @@ void BatchEnv::step(std::span<const grid::Cell> commands) {
 }
 
 // The camera looks from every robot (at its grid pose in an exact world, where the robot really
-// is otherwise); what it sees is revealed and written into y at the pose the agent reads.
+// is otherwise); what it sees is revealed and written into y at the pose the agent reads: into
+// the y and h of every robot of its team (what one has seen, the team has).
 void BatchEnv::observe() {
   auto t0 = Clock::now();
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px_) * patch_px_;
@@ -201,14 +223,17 @@ void BatchEnv::observe() {
   const int half = m / 2;
   for (int i = 0; i < count_; ++i) {
     const grid::Window w = grid::camera_window(poses_[i], m, frame_);
-    seen_[i].reveal(w);
-    std::uint8_t* y = revealed_.data() + static_cast<std::size_t>(i) * frame_.area_px();
     const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
     // The patch's (0, 0) is the window's unclipped corner (pose - m/2).
     const int px0 = poses_[i].x() - half, py0 = poses_[i].y() - half;
-    for (int yy = w.y0; yy < w.y1; ++yy)
-      for (int xx = w.x0; xx < w.x1; ++xx)
-        y[static_cast<std::size_t>(yy) * width + xx] = patch[(yy - py0) * m + (xx - px0)];
+    const int team_first = i - i % team_size_;
+    for (int j = team_first; j < team_first + team_size_; ++j) {
+      seen_[j].reveal(w);
+      std::uint8_t* y = revealed_.data() + static_cast<std::size_t>(j) * frame_.area_px();
+      for (int yy = w.y0; yy < w.y1; ++yy)
+        for (int xx = w.x0; xx < w.x1; ++xx)
+          y[static_cast<std::size_t>(yy) * width + xx] = patch[(yy - py0) * m + (xx - px0)];
+    }
   }
   timing_.observe_s += seconds_since(t0);
 }

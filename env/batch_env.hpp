@@ -1,5 +1,6 @@
 #pragma once
-/// A batch of robots, each over its own floor, behind reset and step: the controller and Box2D
+/// A batch of robots, each over its own floor or in teams of K on one (world.team), behind reset
+/// and step: the controller and Box2D
 /// move them (sim/), the OSMesa camera looks for them (render/), and every robot's observation
 /// sits in contiguous arrays. Torch-free and below agent/ and learn/: Scout's own rollouts,
 /// `scout run` and the Python package drive robots through this one API.
@@ -60,22 +61,27 @@ inline constexpr int kMaxRobots = render::kMaxCameraRobots;
 
 class BatchEnv {
  public:
-  /// Buffers for up to `max_robots` robots on floors of `frame`, with the world's robot,
-  /// controller, physics and camera. Throws std::runtime_error if the camera cannot start.
+  /// Buffers for up to `max_robots` robots (a multiple of the world's team.robots, K) on floors of
+  /// `frame`, with the world's robot, controller, physics and camera. Robots kK .. kK + K - 1 are
+  /// team k: one floor, one Box2D world, and one y and h (each robot's arrays hold the team's).
+  /// Throws std::runtime_error if the camera cannot start.
   BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, int max_robots);
   ~BatchEnv();
   BatchEnv(const BatchEnv&) = delete;
   BatchEnv& operator=(const BatchEnv&) = delete;
 
-  /// Starts robots 0 .. starts.size() - 1 over `floors` (H * W bytes each, concatenated): each
+  /// Starts robots 0 .. starts.size() - 1 (whole teams) over `floors` (H * W bytes each,
+  /// concatenated; a team's robots get the same floor): each
   /// is placed at rest on its start cell, what it has seen is cleared, its move count is 0, and
   /// the camera takes its first look. Robots beyond are idle until the next reset.
   /// motion_seeds[i] (one per start) seeds robot i's motion errors and pushes in a world that
-  /// has them (sim::RobotBatch::place); they change nothing in an exact world.
+  /// has them (sim::RobotBatch::place); they change nothing in an exact world. A team's random
+  /// boxes come from its first robot's motion seed.
   void reset(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
              std::span<const std::uint64_t> motion_seeds);
   /// Starts again only robots[k] (< count()), over floors[k] from starts[k] with motion_seeds[k];
-  /// the others keep their state (an autoreset of finished robots).
+  /// the others keep their state (an autoreset of finished robots). Teams start again whole: their
+  /// robots listed together, in order.
   void reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
                     std::span<const grid::Cell> starts, std::span<const std::uint64_t> motion_seeds);
   /// One move per robot (commands.size() == count()): commands[i] pixels from its grid pose
@@ -87,6 +93,7 @@ class BatchEnv {
 
   int count() const { return count_; }
   int max_robots() const { return max_robots_; }
+  int team_size() const { return team_size_; }  ///< K
   const grid::FloorFrame& frame() const { return frame_; }
   int patch_px() const { return patch_px_; }
 
@@ -99,13 +106,14 @@ class BatchEnv {
   /// The pose each robot's agent reads (METHOD.md's l): the grid pose of its actual position, or
   /// in a world with `motion.pose: odometry` the one its odometry believes.
   std::span<const grid::Cell> poses() const;
-  /// y: each robot's floor where it has seen it, 0 elsewhere, count * H * W bytes (obstacles, in
-  /// a world with them, in their shade: what the camera saw).
+  /// y: each robot's floor where it (or, in a team, any robot of its team) has seen it, 0
+  /// elsewhere, count * H * W bytes (obstacles, in a world with them, in their shade: what the
+  /// camera saw).
   std::span<const std::uint8_t> revealed() const;
   /// o: 1 on each cell where the robot's disc would overlap one of its run's obstacles, 0
   /// elsewhere, count * H * W bytes (env::occupied_cells); empty in a world without obstacles.
   std::span<const std::uint8_t> occupied() const;
-  std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot has seen
+  std::span<const grid::RevealMask> seen() const;    ///< the pixels each robot's team has seen
   std::span<const int> moves() const;                ///< step() calls since each robot's reset (a zero command counts)
   std::span<const MoveResult> last_results() const;  ///< how each robot's last move went
   /// A robot's centre in metres (floor frame), continuous.
@@ -119,12 +127,14 @@ class BatchEnv {
   std::string camera_description() const;
 
  private:
-  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed);
+  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed,
+             std::uint64_t layout_seed);
   void observe();
 
   grid::FloorFrame frame_;
   int patch_px_;
   int max_robots_;
+  int team_size_;  // K robots per floor (world.team.robots)
   int count_ = 0;
   std::unique_ptr<sim::RobotBatch> robots_;
   std::unique_ptr<render::PatchCamera> camera_;

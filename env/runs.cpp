@@ -111,6 +111,31 @@ grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame,
   return draw_start(world, frame, world.obstacles, rng);
 }
 
+std::uint64_t member_seed(std::uint64_t seed, int member) {
+  return member == 0 ? seed : core::derive_seed(seed, static_cast<std::uint64_t>(member));
+}
+
+std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid::FloorFrame& frame,
+                                         std::uint64_t motion_seed, core::Rng& rng) {
+  const worlds::ObstacleSpec layout =
+      world.obstacles.random_boxes == 0 ? world.obstacles : run_obstacles(world, frame, motion_seed);
+  std::vector<grid::Cell> starts{draw_start(world, frame, layout, rng)};
+  const double diameter = 2.0 * robot_radius_px(world, frame);
+  constexpr int kDraws = 1000;
+  for (int draw = 0; static_cast<int>(starts.size()) < world.team.robots; ++draw) {
+    if (draw == kDraws)
+      throw InputError(field_location(world, "team.robots") +
+                       fmt::format(": expected room for {} robots' discs on the floor, got {} placed in {} draws "
+                                   "(fewer robots, or a smaller robot)",
+                                   world.team.robots, starts.size(), kDraws));
+    const grid::Cell c = draw_start(world, frame, layout, rng);
+    const bool apart = std::ranges::all_of(
+        starts, [&](const grid::Cell& s) { return static_cast<double>((c - s).squaredNorm()) > diameter * diameter; });
+    if (apart) starts.push_back(c);
+  }
+  return starts;
+}
+
 RunSequence::RunSequence(const worlds::World& world, const grid::FloorFrame& frame, int split_size, std::uint64_t seed)
     : world_(world), frame_(frame), seed_(seed) {
   if (split_size <= 0) throw std::invalid_argument("RunSequence: the split has no digit");
@@ -130,7 +155,8 @@ PlannedRun RunSequence::run(std::uint64_t k) const {
   r.motion_seed = core::derive_seed(r.seed, streams::kRunMotion);
   r.obstacles = run_obstacles(world_, frame_, r.motion_seed);
   core::Rng start_rng(core::derive_seed(r.seed, streams::kRunStart));
-  r.start = draw_start(world_, frame_, r.obstacles, start_rng);
+  r.starts = draw_team_starts(world_, frame_, r.motion_seed, start_rng);
+  r.start = r.starts.front();
   return r;
 }
 

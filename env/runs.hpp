@@ -38,14 +38,28 @@ grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame,
 /// for one with them: its starts depend on each run's layout).
 grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame, core::Rng& rng);
 
+/// The seed of robot `member` of a team from the team's `seed` (a motion or a policy seed): the
+/// first robot's is the team's own, so that a team of one is the lone robot of today's runs.
+std::uint64_t member_seed(std::uint64_t seed, int member);
+
+/// The starts of a team of world.team.robots robots (docs/SCENARIOS.md § Several robots): the
+/// first as draw_start() gives it, the others drawn the same way from `rng` again until their
+/// discs are apart from every earlier one's (centres more than a diameter apart). Obstacles are
+/// the run's whose motion seed is `motion_seed` (the first robot's). InputError after 1000 draws
+/// that leave no room.
+std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid::FloorFrame& frame,
+                                         std::uint64_t motion_seed, core::Rng& rng);
+
 /// One run of a sequence.
 struct PlannedRun {
   std::uint64_t seed = 0;          ///< derive_seed(sequence seed, k)
   int index = 0;                   ///< the digit, in its split
   grid::Cell start;                ///< drawn from derive_seed(seed, kRunStart) (or the world's start)
+  std::vector<grid::Cell> starts;  ///< a team's: start, then its other robots' (draw_team_starts); size K
   worlds::ObstacleSpec obstacles;  ///< the run's obstacles (run_obstacles of its motion seed)
   std::uint64_t policy_seed = 0;   ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
   std::uint64_t motion_seed = 0;   ///< derive_seed(seed, kRunMotion): the run's motion errors and pushes
+  // A team's robot k draws from member_seed(policy_seed, k) and member_seed(motion_seed, k).
 };
 
 /// The runs of one sequence seed over a split of `split_size` digits. With `index: random` run k

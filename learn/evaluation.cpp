@@ -85,14 +85,17 @@ class Evaluator {
         precision_(precision),
         stop_(std::move(stop)),
         on_batch_(std::move(on_batch)) {
-    const int robots = std::max(1, std::min(batch_robots, images));
+    // A team of K robots is one rollout: batches of whole teams.
+    const int K = world.team.robots;
+    const int rollouts = std::max(1, std::min(batch_robots / K, images));
+    const int robots = rollouts * K;
     try {
       engine_ = std::make_unique<RolloutEngine>(world, data.frame, robots);
     } catch (const std::runtime_error& e) {
       throw InputError(std::string("the camera cannot start: ") + one_line(e.what()));
     }
     policy_ = std::make_unique<AgentPolicy>(agent, data.frame, world.camera.patch_px, robots);
-    batch_ = robots;
+    batch_ = rollouts;
   }
 
   // One rollout per image of [begin, end). Image i's start and choices derive from
@@ -105,19 +108,13 @@ class Evaluator {
       stop_.throw_if_requested();
       const int k = std::min(batch_, end - first);
       RolloutBatch batch;
-      for (int image = first; image < first + k; ++image) {
-        const RolloutBatch one = make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
-                                            core::derive_seed(stream_seed, static_cast<std::uint64_t>(image)));
-        batch.floors.insert(batch.floors.end(), one.floors.begin(), one.floors.end());
-        batch.labels.push_back(one.labels[0]);
-        batch.starts.push_back(one.starts[0]);
-        batch.seeds.push_back(one.seeds[0]);
-        batch.motion_seeds.push_back(one.motion_seeds[0]);
-      }
-      batch.count = k;
+      for (int image = first; image < first + k; ++image)
+        batch.append(make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
+                                core::derive_seed(stream_seed, static_cast<std::uint64_t>(image))));
       const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
-      for (int i = 0; i < k; ++i) pass.revealed_px += engine_->state().seen[static_cast<std::size_t>(i)].count();
+      for (int i = 0; i < k; ++i)  // a team's robots hold its seen pixels
+        pass.revealed_px += engine_->state().seen[static_cast<std::size_t>(i) * batch.team].count();
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);

@@ -11,15 +11,29 @@
 
 namespace scout::learn {
 
+void RolloutBatch::append(const RolloutBatch& other) {
+  if (count > 0 && other.team != team) throw std::invalid_argument("RolloutBatch::append: another team size");
+  team = other.team;
+  count += other.count;
+  floors.insert(floors.end(), other.floors.begin(), other.floors.end());
+  labels.insert(labels.end(), other.labels.begin(), other.labels.end());
+  starts.insert(starts.end(), other.starts.begin(), other.starts.end());
+  seeds.insert(seeds.end(), other.seeds.begin(), other.seeds.end());
+  motion_seeds.insert(motion_seeds.end(), other.motion_seeds.begin(), other.motion_seeds.end());
+}
+
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
                         const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
                         std::uint64_t first_robot) {
   if (rollouts <= 0) throw std::invalid_argument("make_batch: rollouts must be positive");
   RolloutBatch batch;
-  batch.count = static_cast<int>(indices.size()) * rollouts;
+  batch.team = world.team.robots;
+  const int K = batch.team;
+  const int teams = static_cast<int>(indices.size()) * rollouts;
+  batch.count = teams * K;
   const auto area = static_cast<std::size_t>(frame.area_px());
   batch.floors.resize(area * batch.count);
-  batch.labels.resize(batch.count);
+  batch.labels.resize(teams);
   batch.starts.resize(batch.count);
   batch.seeds.resize(batch.count);
   batch.motion_seeds.resize(batch.count);
@@ -27,14 +41,20 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
     const int image = indices[i];
     if (image < 0 || image >= data.images.count) throw std::out_of_range("make_batch: image index out of range");
     for (int k = 0; k < rollouts; ++k) {
-      const std::size_t r = i * rollouts + k;
-      std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
-      batch.labels[r] = data.labels[image];
-      const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + r);
-      batch.seeds[r] = core::derive_seed(robot_seed, streams::kRobotPolicy);
-      batch.motion_seeds[r] = core::derive_seed(robot_seed, streams::kRobotMotion);
+      const std::size_t t = i * rollouts + k;
+      batch.labels[t] = data.labels[image];
+      const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + t);
+      const std::uint64_t policy_seed = core::derive_seed(robot_seed, streams::kRobotPolicy);
+      const std::uint64_t motion_seed = core::derive_seed(robot_seed, streams::kRobotMotion);
       core::Rng start_rng(core::derive_seed(robot_seed, streams::kRobotStart));
-      batch.starts[r] = env::draw_start(world, frame, batch.motion_seeds[r], start_rng);
+      const std::vector<grid::Cell> starts = env::draw_team_starts(world, frame, motion_seed, start_rng);
+      for (int m = 0; m < K; ++m) {
+        const std::size_t r = t * K + m;
+        std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
+        batch.seeds[r] = env::member_seed(policy_seed, m);
+        batch.motion_seeds[r] = env::member_seed(motion_seed, m);
+        batch.starts[r] = starts[m];
+      }
     }
   }
   return batch;
@@ -48,15 +68,22 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   engine.run(batch.floors, batch.starts, batch.motion_seeds, policy, /*record=*/false);
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling.with_grad) no_grad.emplace();
-  torch::Tensor log_probs =
-      classifier_log_probs(agent, revealed_images(engine.state(), batch.count), sampling.precision);
+  const int rollouts = batch.rollouts();
+  // A team's robots hold the same y (the team's): its first robot's is classified.
+  torch::Tensor images = revealed_images(engine.state(), batch.count);
+  if (batch.team > 1) images = images.slice(0, 0, batch.count, batch.team);
+  torch::Tensor log_probs = classifier_log_probs(agent, images, sampling.precision);
   // A copy: autograd keeps the index for backward, which may run after `batch` is gone.
   torch::Tensor labels =
-      torch::from_blob(const_cast<std::int64_t*>(batch.labels.data()), {batch.count, 1}, torch::kLong).clone();
+      torch::from_blob(const_cast<std::int64_t*>(batch.labels.data()), {rollouts, 1}, torch::kLong).clone();
   torch::Tensor reward = log_probs.gather(1, labels).squeeze(1);
   const bool learned = sampling.learned_goals || sampling.learned_actions;
-  torch::Tensor objective = surrogate_objective(learned ? policy.log_pi() : torch::Tensor(), reward, estimator,
-                                                learned ? policy.entropy() : torch::Tensor());
+  // The team's joint log-probability and entropy: its robots choose independently given the state.
+  auto per_rollout = [&](const torch::Tensor& per_robot) {
+    return batch.team > 1 ? per_robot.view({rollouts, batch.team}).sum(1) : per_robot;
+  };
+  torch::Tensor objective = surrogate_objective(learned ? per_rollout(policy.log_pi()) : torch::Tensor(), reward,
+                                                estimator, learned ? per_rollout(policy.entropy()) : torch::Tensor());
   return {objective, log_probs.detach(), reward.detach()};
 }
 

@@ -41,7 +41,7 @@ void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std:
 }
 
 RolloutEngine::RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
-    : task_(world.task) {
+    : task_(world.task), team_size_(world.team.robots) {
   if (max_robots <= 0) throw std::invalid_argument("RolloutEngine: max_robots must be positive");
   env_ = std::make_unique<env::BatchEnv>(world, frame, max_robots);
   state_.frame = frame;
@@ -87,7 +87,7 @@ void RolloutEngine::check_inputs(std::span<const std::uint8_t> floors, std::span
 // Each robot's record opens with its start; every physics tick of every move goes into it
 // (animations) through the environment's tick hook, which run() clears on every way out.
 void RolloutEngine::open_records(std::vector<RolloutRecord>& records, std::span<const grid::Cell> starts) {
-  const std::size_t moves = static_cast<std::size_t>(task_.episodes) * task_.steps;
+  const std::size_t moves = static_cast<std::size_t>(task_.episodes / team_size_) * task_.steps;
   for (std::size_t i = 0; i < records.size(); ++i) {
     records[i].start = starts[i];
     records[i].steps.reserve(moves);
@@ -156,7 +156,8 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
   } clear_hook{*env_};
   other_s_ += seconds_since(t0);
 
-  const int E = task_.episodes, T = task_.steps;
+  // A team's robots drive E / K episodes each, all at once: the team's moves are the lone robot's E * T.
+  const int E = task_.episodes / team_size_, T = task_.steps;
   for (int e = 0; e < E; ++e) {
     t0 = Clock::now();
     policy.choose_goals(state_, e, std::span(goals_.data(), count));

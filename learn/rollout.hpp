@@ -88,7 +88,7 @@ struct SnapshotRecord {
 /// Everything one robot did in one rollout.
 struct RolloutRecord {
   grid::Cell start;
-  std::vector<StepRecord> steps;          ///< E * T of them, no-op moves included
+  std::vector<StepRecord> steps;          ///< E / K * T of them, no-op moves included
   std::vector<grid::Cell> path;           ///< start, then the grid pose after each move
   std::vector<SnapshotRecord> snapshots;  ///< at the start of each episode (goal drawn) and at the end
   /// The robot's centre (floor pixels, continuous) at the start and after every physics tick:
@@ -105,7 +105,8 @@ struct RolloutTiming {
 
 /// Runs batches of rollouts: E episodes of T moves of the paper's protocol (env/protocol.hpp),
 /// with goals and axes from a Policy, over an env::BatchEnv (the physics and the camera).
-/// Buffers are allocated once for up to `max_robots`.
+/// In a world with teams of K robots (world.team), each robot drives E / K episodes, the team's
+/// robots moving at once. Buffers are allocated once for up to `max_robots` (a multiple of K).
 class RolloutEngine {
  public:
   RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots);
@@ -113,7 +114,7 @@ class RolloutEngine {
   RolloutEngine(const RolloutEngine&) = delete;
   RolloutEngine& operator=(const RolloutEngine&) = delete;
 
-  /// Runs one rollout per robot: robot i drives over floors[i] (H * W bytes each, concatenated)
+  /// Runs one rollout per robot (per team of K): robot i drives over floors[i] (H * W bytes each, concatenated)
   /// from starts[i], its motion errors and pushes (in worlds that have them) drawn from
   /// motion_seeds[i]. With `record` false only the final state is kept (benchmarks, training).
   std::vector<RolloutRecord> run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
@@ -135,6 +136,7 @@ class RolloutEngine {
   void record_moves(std::vector<RolloutRecord>& records, int e, int t) const;
 
   worlds::TaskSpec task_;
+  int team_size_ = 1;  // K: robots per floor, each driving E / K episodes
   std::unique_ptr<env::BatchEnv> env_;
   BatchState state_;
   std::vector<grid::Cell> goals_;

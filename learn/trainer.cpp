@@ -179,7 +179,7 @@ struct Trainer::Impl {
 
   // Robots for this rank's share of a batch: B x N alone, ceil(B / ranks) x N in a group.
   void build_engine() {
-    const int robots = (config.batch_images + ranks() - 1) / ranks() * config.rollouts;
+    const int robots = (config.batch_images + ranks() - 1) / ranks() * config.rollouts * config.world.team.robots;
     policy.reset();
     engine.reset();
     engine = std::make_unique<RolloutEngine>(config.world, frame, robots);
@@ -278,7 +278,7 @@ struct Trainer::Impl {
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
       figures = {out.reward.sum().item<double>(), static_cast<double>(count_correct(out.log_probs, batch.labels)),
-                 static_cast<double>(batch.count)};
+                 static_cast<double>(batch.rollouts())};
     }
     double value = 0;
     if (!group) {
@@ -358,7 +358,7 @@ struct Trainer::Impl {
     sampling.with_grad = false;
     sampling.precision = config.precision;
     const auto [begin, end] = share(n);
-    const int chunk = engine->max_robots();
+    const int chunk = engine->max_robots() / config.world.team.robots;  // rollouts: whole teams
     std::array<double, 1> correct{};
     for (int first = begin; first < end; first += chunk) {
       const int k = std::min(chunk, end - first);

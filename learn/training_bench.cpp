@@ -54,8 +54,8 @@ BenchSetup gather_bench(const TrainBenchConfig& config, ProcessGroup* group, Tra
   // This rank's share of every batch's images.
   b.first = c.batch_images / b.ranks * rank;
   b.share = c.batch_images / b.ranks;
-  b.robots = b.share * c.rollouts;
-  report.robots = c.batch_images * c.rollouts;
+  b.robots = b.share * c.rollouts * c.world.team.robots;
+  report.robots = c.batch_images * c.rollouts * c.world.team.robots;
   report.world_size = b.ranks;
   report.data_files = train.files;
   TrainConfig estimated = c;

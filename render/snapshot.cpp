@@ -31,6 +31,11 @@ const cv::Scalar kBarColour(150, 150, 150);
 const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
 const cv::Scalar kTextColour(230, 230, 230);
 
+// Team robots 1 .. 7, BGR: magenta, yellow, lime, red, violet, teal, white; distinct from the
+// first robot's orange and blue, the goal's green and the true path's cyan.
+const cv::Scalar kTeammateColours[] = {{220, 60, 230},  {0, 230, 255}, {60, 230, 120}, {40, 40, 230},
+                                       {230, 120, 150}, {170, 170, 0}, {245, 245, 245}};
+
 constexpr int kMaxScale = 64;
 constexpr int kMaxSidePx = kMaxPictureSidePx;
 
@@ -204,9 +209,9 @@ class HeatLegend {
 
 namespace {
 
-// The true path (cyan, sub-pixel), then the path of poses (orange lines and dots) over it.
-void draw_paths(cv::Mat& map, const Snapshot& snapshot) {
-  const int s = snapshot.scale;
+// The true path (cyan, sub-pixel), then the path of poses (`colour`: lines and dots) over it.
+void draw_paths(cv::Mat& map, int s, const std::vector<PixelPose>& path, const std::vector<FloorPoint>& true_path,
+                const cv::Scalar& colour) {
   // Thin lines relative to a pixel block, but never thinner than one output pixel.
   const int line_px = std::max(1, s / 6);
   const int dot_radius_px = std::max(1, s / 5);
@@ -214,17 +219,59 @@ void draw_paths(cv::Mat& map, const Snapshot& snapshot) {
   const auto exact_point = [s](const FloorPoint& p) {
     return cv::Point(static_cast<int>(std::lround(p.x * s * 16.0)), static_cast<int>(std::lround(p.y * s * 16.0)));
   };
-  for (std::size_t i = 1; i < snapshot.true_path.size(); ++i) {
-    cv::line(map, exact_point(snapshot.true_path[i - 1]), exact_point(snapshot.true_path[i]), kTruePathColour,
-             std::max(1, s / 10), cv::LINE_AA, 4);
+  for (std::size_t i = 1; i < true_path.size(); ++i) {
+    cv::line(map, exact_point(true_path[i - 1]), exact_point(true_path[i]), kTruePathColour, std::max(1, s / 10),
+             cv::LINE_AA, 4);
   }
-  for (std::size_t i = 1; i < snapshot.path.size(); ++i) {
-    cv::line(map, pixel_centre(snapshot.path[i - 1], s), pixel_centre(snapshot.path[i], s), kPathColour, line_px,
-             cv::LINE_AA);
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    cv::line(map, pixel_centre(path[i - 1], s), pixel_centre(path[i], s), colour, line_px, cv::LINE_AA);
   }
-  for (const PixelPose& pose : snapshot.path) {
-    cv::circle(map, pixel_centre(pose, s), dot_radius_px, kPathColour, cv::FILLED, cv::LINE_AA);
+  for (const PixelPose& pose : path) {
+    cv::circle(map, pixel_centre(pose, s), dot_radius_px, colour, cv::FILLED, cv::LINE_AA);
   }
+}
+
+// The floor, each pixel a scale x scale block: seen pixels in grey, unseen ones shaded, the heat
+// map (`levels`, with `colours`) blended in, slip zones tinted and obstacles in brick red. A null
+// `revealed` means everything is seen.
+void draw_floor(cv::Mat& map, const Snapshot& snapshot, const cv::Mat& colours,
+                const std::vector<std::uint8_t>& levels) {
+  const int s = snapshot.scale;
+  const bool has_heat = !levels.empty();
+  for (int y = 0; y < snapshot.height_px; ++y) {
+    for (int x = 0; x < snapshot.width_px; ++x) {
+      const std::size_t index = static_cast<std::size_t>(y) * snapshot.width_px + x;
+      const std::uint8_t gray = snapshot.floor[index];
+      const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
+      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
+      if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
+      if (snapshot.slip != nullptr && snapshot.slip[index] != 0)
+        for (int c = 0; c < 3; ++c) colour[c] = static_cast<std::uint8_t>((2 * colour[c] + kSlipTint[c]) / 3);
+      if (snapshot.obstacles != nullptr && snapshot.obstacles[index] != 0) colour = kObstacleColour;
+      map(cv::Rect(x * s, y * s, s, s)).setTo(colour);
+    }
+  }
+}
+
+// One robot's camera window at its grid pose or, with a body (animations), the disc, light
+// enough to show the floor under it, with a thin rim, and the window following it.
+void draw_robot(cv::Mat& map, const Snapshot& snapshot, const PixelPose& robot,
+                const std::optional<Snapshot::Body>& body, const cv::Scalar& window, const cv::Scalar& rim) {
+  const int s = snapshot.scale;
+  const int outline_px = std::max(1, s / 5);
+  if (!body) {
+    draw_window(map, snapshot, robot, outline_px, window);
+    return;
+  }
+  constexpr int kShift = 4;  // OpenCV fixed point: 1/16 output pixel
+  const cv::Point centre(static_cast<int>(std::lround(body->x_px * s * 16)),
+                         static_cast<int>(std::lround(body->y_px * s * 16)));
+  const int radius = static_cast<int>(std::lround(std::max(1.0, body->radius_px * s) * 16));
+  cv::Mat overlay = map.clone();
+  cv::circle(overlay, centre, radius, window, cv::FILLED, cv::LINE_AA, kShift);
+  cv::addWeighted(overlay, 0.25, map, 0.75, 0.0, map);
+  cv::circle(map, centre, radius, rim, std::max(1, s / 8), cv::LINE_AA, kShift);
+  draw_moving_window(map, snapshot, *body, outline_px, window);
 }
 
 }  // namespace
@@ -272,39 +319,21 @@ Picture draw_snapshot(const Snapshot& snapshot) {
 
   const cv::Mat colours = has_heat ? heat_colours() : cv::Mat();
   const std::vector<std::uint8_t> levels = heat_levels(snapshot.goal_probabilities, max_heat);
-  // The floor, each pixel a scale x scale block; a null `revealed` means everything is seen.
-  for (int y = 0; y < snapshot.height_px; ++y) {
-    for (int x = 0; x < snapshot.width_px; ++x) {
-      const std::size_t index = static_cast<std::size_t>(y) * snapshot.width_px + x;
-      const std::uint8_t gray = snapshot.floor[index];
-      const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
-      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
-      if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
-      if (snapshot.slip != nullptr && snapshot.slip[index] != 0)
-        for (int c = 0; c < 3; ++c) colour[c] = static_cast<std::uint8_t>((2 * colour[c] + kSlipTint[c]) / 3);
-      if (snapshot.obstacles != nullptr && snapshot.obstacles[index] != 0) colour = kObstacleColour;
-      map(cv::Rect(x * s, y * s, s, s)).setTo(colour);
-    }
-  }
-
-  draw_paths(map, snapshot);
-  // The robot's window last, so that it stays visible when it meets the goal.
+  draw_floor(map, snapshot, colours, levels);
+  // Every robot's path first, then the goals and the windows on top, so that a window stays
+  // visible when it meets a goal or crosses a teammate's path.
+  draw_paths(map, s, snapshot.path, snapshot.true_path, kPathColour);
+  for (std::size_t k = 0; k < snapshot.teammates.size(); ++k)
+    draw_paths(map, s, snapshot.teammates[k].path, snapshot.teammates[k].true_path, kTeammateColours[k % 7]);
   const int outline_px = std::max(1, s / 5);
   if (snapshot.goal) draw_window(map, snapshot, *snapshot.goal, outline_px, kGoalColour);
-  if (snapshot.body) {
-    // The disc, light enough to show the floor under it, with a thin rim; then the camera window.
-    const Snapshot::Body& body = *snapshot.body;
-    constexpr int kShift = 4;  // OpenCV fixed point: 1/16 output pixel
-    const cv::Point centre(static_cast<int>(std::lround(body.x_px * s * 16)),
-                           static_cast<int>(std::lround(body.y_px * s * 16)));
-    const int radius = static_cast<int>(std::lround(std::max(1.0, body.radius_px * s) * 16));
-    cv::Mat overlay = map.clone();
-    cv::circle(overlay, centre, radius, kRobotColour, cv::FILLED, cv::LINE_AA, kShift);
-    cv::addWeighted(overlay, 0.25, map, 0.75, 0.0, map);
-    cv::circle(map, centre, radius, kRimColour, std::max(1, s / 8), cv::LINE_AA, kShift);
-    draw_moving_window(map, snapshot, body, outline_px, kRobotColour);
-  } else {
-    draw_window(map, snapshot, snapshot.robot, outline_px, kRobotColour);
+  for (std::size_t k = 0; k < snapshot.teammates.size(); ++k)
+    if (snapshot.teammates[k].goal)
+      draw_window(map, snapshot, *snapshot.teammates[k].goal, std::max(1, outline_px / 2), kTeammateColours[k % 7]);
+  draw_robot(map, snapshot, snapshot.robot, snapshot.body, kRobotColour, kRimColour);
+  for (std::size_t k = 0; k < snapshot.teammates.size(); ++k) {
+    const Snapshot::Teammate& mate = snapshot.teammates[k];
+    draw_robot(map, snapshot, mate.robot, mate.body, kTeammateColours[k % 7], kTeammateColours[k % 7]);
   }
 
   if (legend) {
@@ -321,6 +350,13 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   picture.height = image.rows;
   picture.bgr.assign(image.datastart, image.dataend);
   return picture;
+}
+
+std::uint32_t teammate_colour(int k) {
+  if (k < 1 || k > 7) throw std::invalid_argument("teammate_colour: robot " + std::to_string(k) + " of 1 .. 7");
+  const cv::Scalar& c = kTeammateColours[k - 1];
+  return static_cast<std::uint32_t>(c[2]) << 16 | static_cast<std::uint32_t>(c[1]) << 8 |
+         static_cast<std::uint32_t>(c[0]);
 }
 
 void write_png(const std::filesystem::path& file, const Picture& picture) {

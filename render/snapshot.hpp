@@ -49,7 +49,22 @@ struct Snapshot {
   /// With class_probabilities: draw the panel's labels but no bars yet (the classifier is asked
   /// only after the last move), so that every frame of a video has the same size.
   bool prediction_pending = false;
+  /// The other robots of a team (docs/SCENARIOS.md § Several robots), each drawn like the first
+  /// (its path, window, goal and disc) in a colour of its own (teammate_colour); `revealed` is
+  /// the team's. Empty: one robot.
+  struct Teammate {
+    PixelPose robot;
+    std::optional<PixelPose> goal;
+    std::vector<PixelPose> path;
+    std::vector<FloorPoint> true_path;
+    std::optional<Body> body;
+  };
+  std::vector<Teammate> teammates;
 };
+
+/// The colour team robot `k` (1 .. 7) is drawn in, as 0xRRGGBB: its path, window, goal and disc
+/// (robot 0 keeps the one-robot colours: an orange path and a blue window).
+std::uint32_t teammate_colour(int k);
 
 /// A BGR image as bytes (rows * cols * 3) with its size.
 struct Picture {

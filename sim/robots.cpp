@@ -52,6 +52,31 @@ b2Body* add_obstacles(b2World& world, const worlds::ObstacleSpec& spec) {
   return body;
 }
 
+// Collision filters in a team's world: the robots' discs meet the walls and the obstacles (Box2D's
+// default category) and not each other; their bumpers meet only each other.
+b2Filter filter(std::uint16_t category, std::uint16_t mask) {
+  b2Filter f;
+  f.categoryBits = category;
+  f.maskBits = mask;
+  return f;
+}
+const b2Filter kDiscFilter = filter(0x0004, 0x0001);
+const b2Filter kBumperFilter = filter(0x0002, 0x0002);
+
+// A robot whose move is over holds its place while its teammates finish theirs: a teammate
+// pushing it must not shove it along. It stays a dynamic body (making it static would drop its
+// contacts for a tick, and let a teammate into its disc), but a million times heavier, and at rest
+// before every tick: a push at full speed moves it a millionth of a tick's travel.
+constexpr float kHeldMassFactor = 1e6f;
+
+void hold(b2Body* body) {
+  b2MassData mass;
+  body->GetMassData(&mass);
+  mass.mass *= kHeldMassFactor;
+  body->SetMassData(&mass);
+  body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+}
+
 // A tick that moved the centre less than this while touching an obstacle means the obstacle
 // holds it: the move ends there (pixels).
 constexpr double kBlockedTravel_px = 0.02;
@@ -61,11 +86,16 @@ constexpr double kMinScale = 0.05;
 
 }  // namespace
 
-struct RobotBatch::Robot {
+// One floor: a Box2D world with walls, the floor's obstacles and a team of robots.
+struct RobotBatch::Team {
   std::unique_ptr<b2World> world;
-  b2Body* body = nullptr;
   b2Body* walls = nullptr;
   b2Body* obstacles = nullptr;  // null in a world without obstacles
+};
+
+struct RobotBatch::Robot {
+  b2Body* body = nullptr;
+  Team* team = nullptr;
   // Imperfect motion only: the robot's stream of motion errors and pushes, and the part of its
   // displacement the odometry has not sensed (true position minus believed one, Box2D units).
   core::Rng motion_rng{0};
@@ -73,7 +103,7 @@ struct RobotBatch::Robot {
 };
 
 RobotParams RobotParams::from_world(const worlds::World& world) {
-  return {world.robot, world.controller, world.physics, world.motion, world.pushes, world.obstacles};
+  return {world.robot, world.controller, world.physics, world.motion, world.pushes, world.obstacles, world.team};
 }
 
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
@@ -83,8 +113,13 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
       params_(params),
       robots_(new Robot[count > 0 ? count : 0]),
       count_(count),
+      team_size_(params.team.robots),
       pool_(std::make_unique<WorkerPool>(threads)) {
   if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
+  if (team_size_ < 1 || count % team_size_ != 0)
+    throw std::invalid_argument("RobotBatch: " + std::to_string(count) + " robots do not make teams of " +
+                                std::to_string(team_size_));
+  teams_.reset(new Team[count / team_size_]);
   if (frame.width_px <= 0 || frame.height_px <= 0 || frame.pixel_size_m <= 0)
     throw std::invalid_argument("RobotBatch: the floor must have a positive size");
 
@@ -111,39 +146,62 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   const double fastest_mps = params.body.max_speed_mps * (1.0 + 4.0 * params.motion.scale_sd) +
                              (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
   const bool continuous = fastest_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
-  for (int i = 0; i < count; ++i) {
-    Robot& r = robots_[i];
-    r.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
-    r.world->SetAllowSleeping(false);
-    r.world->SetContinuousPhysics(continuous);
+  for (int k = 0; k < count / team_size_; ++k) {
+    Team& t = teams_[k];
+    t.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
+    t.world->SetAllowSleeping(false);
+    t.world->SetContinuousPhysics(continuous);
 
     b2BodyDef wall_def;
-    r.walls = r.world->CreateBody(&wall_def);
+    t.walls = t.world->CreateBody(&wall_def);
     b2ChainShape loop;
     loop.CreateLoop(corners, 4);
-    r.walls->CreateFixture(&loop, 0.0f);
-    if (!params.obstacles.no_fixed()) r.obstacles = add_obstacles(*r.world, params.obstacles);
+    t.walls->CreateFixture(&loop, 0.0f);
+    if (!params.obstacles.no_fixed()) t.obstacles = add_obstacles(*t.world, params.obstacles);
 
-    b2BodyDef body_def;
-    body_def.type = b2_dynamicBody;
-    body_def.fixedRotation = true;
-    body_def.allowSleep = false;
-    body_def.position.Set(min_x, min_y);
-    r.body = r.world->CreateBody(&body_def);
-    b2CircleShape disc;
-    disc.m_radius = static_cast<float>(radius_u);
-    b2FixtureDef fixture;
-    fixture.shape = &disc;
-    fixture.density = density;
-    fixture.friction = 0.0f;
-    fixture.restitution = 0.0f;
-    r.body->CreateFixture(&fixture);
+    for (int i = k * team_size_; i < (k + 1) * team_size_; ++i) {
+      Robot& r = robots_[i];
+      r.team = &t;
+      b2BodyDef body_def;
+      body_def.type = b2_dynamicBody;
+      body_def.fixedRotation = true;
+      body_def.allowSleep = false;
+      // Apart until place() puts them on their starts (members never overlap at creation).
+      body_def.position.Set(min_x + static_cast<float>(i - k * team_size_) * 3.0f * static_cast<float>(radius_u),
+                            min_y);
+      r.body = t.world->CreateBody(&body_def);
+      b2CircleShape disc;
+      disc.m_radius = static_cast<float>(radius_u);
+      b2FixtureDef fixture;
+      fixture.shape = &disc;
+      fixture.density = density;
+      fixture.friction = 0.0f;
+      fixture.restitution = 0.0f;
+      if (team_size_ > 1) fixture.filter = kDiscFilter;  // the bumper below meets the teammates
+      r.body->CreateFixture(&fixture);
+      if (team_size_ > 1) {
+        // Box2D's discs have no contact skin: two robots closing in at full speed would overlap
+        // by up to two ticks' travel before their contact acts, and a robot blocked there would
+        // keep the overlap. So teammates meet through a massless bumper one tick's travel wider
+        // than the disc, which only bumpers touch: the discs themselves never overlap.
+        b2CircleShape bumper;
+        bumper.m_radius = static_cast<float>(radius_u + fastest_mps * params.physics.dt_s * units_per_m);
+        b2FixtureDef bumper_def;
+        bumper_def.shape = &bumper;
+        bumper_def.density = 0.0f;
+        bumper_def.friction = 0.0f;
+        bumper_def.restitution = 0.0f;
+        bumper_def.filter = kBumperFilter;
+        r.body->CreateFixture(&bumper_def);
+      }
+    }
   }
 }
 
 RobotBatch::~RobotBatch() = default;
 
 int RobotBatch::size() const { return count_; }
+int RobotBatch::team_size() const { return team_size_; }
 int RobotBatch::threads() const { return pool_->threads(); }
 const grid::FloorFrame& RobotBatch::frame() const { return frame_; }
 const RobotParams& RobotBatch::params() const { return params_; }
@@ -158,9 +216,9 @@ void RobotBatch::place(int robot, const grid::Cell& cell, std::uint64_t motion_s
 }
 
 void RobotBatch::set_obstacles(int robot, const worlds::ObstacleSpec& layout) {
-  Robot& r = robots_[robot];
-  if (r.obstacles != nullptr) r.world->DestroyBody(r.obstacles);  // and its contacts
-  r.obstacles = layout.no_fixed() ? nullptr : add_obstacles(*r.world, layout);
+  Team& t = *robots_[robot].team;
+  if (t.obstacles != nullptr) t.world->DestroyBody(t.obstacles);  // and its contacts
+  t.obstacles = layout.no_fixed() ? nullptr : add_obstacles(*t.world, layout);
 }
 
 Eigen::Vector2d RobotBatch::position_px(int robot) const {
@@ -187,15 +245,23 @@ grid::Cell RobotBatch::agent_pose(int robot) const {
 bool RobotBatch::touching_wall(int robot) const {
   const Robot& r = robots_[robot];
   for (const b2ContactEdge* e = r.body->GetContactList(); e != nullptr; e = e->next)
-    if (e->other == r.walls && e->contact->IsTouching()) return true;
+    if (e->other == r.team->walls && e->contact->IsTouching()) return true;
   return false;
 }
 
 bool RobotBatch::touching_obstacle(int robot) const {
   const Robot& r = robots_[robot];
-  if (r.obstacles == nullptr) return false;
+  if (r.team->obstacles == nullptr) return false;
   for (const b2ContactEdge* e = r.body->GetContactList(); e != nullptr; e = e->next)
-    if (e->other == r.obstacles && e->contact->IsTouching()) return true;
+    if (e->other == r.team->obstacles && e->contact->IsTouching()) return true;
+  return false;
+}
+
+bool RobotBatch::touching_teammate(int robot) const {
+  const Robot& r = robots_[robot];
+  if (team_size_ == 1) return false;
+  for (const b2ContactEdge* e = r.body->GetContactList(); e != nullptr; e = e->next)
+    if (e->other != r.team->walls && e->other != r.team->obstacles && e->contact->IsTouching()) return true;
   return false;
 }
 
@@ -208,6 +274,8 @@ struct RobotBatch::MoveContext {
   double tolerance_u;
   double max_speed_u;
   double kp;
+  double push_speed_u;       // a push's velocity change (impulse / mass), Box2D units per second
+  double traction_per_tick;  // the share of a push's velocity left after a tick
 
   explicit MoveContext(const RobotBatch& b)
       : batch(b),
@@ -215,7 +283,9 @@ struct RobotBatch::MoveContext {
         units_per_m(kUnitsPerPx / b.frame_.pixel_size_m),
         tolerance_u(b.params_.controller.tolerance_px * kUnitsPerPx),
         max_speed_u(b.params_.body.max_speed_mps * units_per_m),
-        kp(b.params_.controller.kp_per_s) {}
+        kp(b.params_.controller.kp_per_s),
+        push_speed_u(b.params_.pushes.impulse_ns / b.params_.body.mass_kg * units_per_m),
+        traction_per_tick(std::exp(-b.params_.physics.dt_s / b.params_.pushes.traction_s)) {}
 
   // The saturated P-control law: velocity toward `error` (units), kp x distance capped at the
   // speed limit.
@@ -240,140 +310,206 @@ struct RobotBatch::MoveContext {
     out.beyond_border_px =
         std::max({out.beyond_border_px, 0.5 - x, x - (frame.width_px - 0.5), 0.5 - y, y - (frame.height_px - 0.5)});
     if (!out.touched_wall) out.touched_wall = batch.touching_wall(robot);
-    // Held by an obstacle: the move ends at contact rather than pushing until the tick bound.
-    if (batch.robots_[robot].obstacles != nullptr && travelled * dt < kBlockedTravel_px * kUnitsPerPx &&
-        batch.touching_obstacle(robot))
+    // Held by an obstacle or a teammate: the move ends at contact rather than pushing until the
+    // tick bound.
+    const bool can_be_held = batch.robots_[robot].team->obstacles != nullptr || batch.team_size_ > 1;
+    if (can_be_held && travelled * dt < kBlockedTravel_px * kUnitsPerPx &&
+        (batch.touching_obstacle(robot) || batch.touching_teammate(robot)))
       out.blocked = true;
   }
 };
 
-// The paper's robot: the controller closes its loop on the true position, so every move settles
-// on its commanded cell (a wall or the tick bound permitting).
-void RobotBatch::move_exact(const MoveContext& c, int i, const grid::Cell& command, MoveResult& out,
-                            std::vector<Eigen::Vector2d>* trace) {
-  Robot& r = robots_[i];
-  const grid::Cell target_cell = grid_pose(i) + command;
-  const Eigen::Vector2d target = frame_.cell_centre_px(target_cell) * kUnitsPerPx;
+// One robot's move in progress: what begin_move() drew and computed, and what each tick carries
+// over to the next.
+struct RobotBatch::MemberMove {
+  MoveResult* out = nullptr;
+  std::vector<Eigen::Vector2d>* trace = nullptr;
+  bool done = false;
+  Eigen::Vector2d target_u = Eigen::Vector2d::Zero();  // the commanded cell's centre (believed, with odometry)
   double peak_speed_u = 0.0;
-  for (;;) {
-    const b2Vec2 p = r.body->GetPosition();
-    const Eigen::Vector2d error(target.x() - p.x, target.y() - p.y);
-    const double distance = error.norm();
-    if (distance <= c.tolerance_u) {
-      out.settled = true;
-      break;
-    }
-    if (out.ticks >= params_.physics.max_ticks_per_move) break;
-    // Saturated P-control of velocity: the body still collides, so a wall stops it.
-    const Eigen::Vector2d v = c.command(error, distance);
-    r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
-    r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
-    ++out.ticks;
-    c.after_tick(i, p, peak_speed_u, out, trace);
-    if (out.blocked) break;
-  }
-  out.peak_speed_mps = peak_speed_u / c.units_per_m;
-}
+  b2Vec2 tick_start;  // the position at the start of the current tick
+  // Imperfect motion only (docs/SCENARIOS.md § Imperfect motion).
+  double scale = 1.0, cos_h = 1.0, sin_h = 0.0;
+  bool push_drawn = false;
+  int push_tick = 0;
+  double push_angle = 0.0;
+  double carried = 1.0;  // the share of the wheels' travel that reaches the floor this tick
+  Eigen::Vector2d push_velocity_u = Eigen::Vector2d::Zero();
+};
 
-// Imperfect motion (docs/SCENARIOS.md § Imperfect motion). The controller closes its loop on odometry:
-// the true position minus what the wheels did not sense. Each move draws a scale s and a heading
-// error theta, and the wheels' motion reaches the floor as s R(theta) times the commanded
-// velocity; the difference is unsensed, so the move settles where odometry says the target is
-// and lands off it. A push is felt (the wheels turn with it): the controller corrects it, and
-// traction absorbs the push's velocity with time constant traction_s.
-void RobotBatch::move_perturbed(const MoveContext& c, int i, const grid::Cell& command, MoveResult& out,
-                                std::vector<Eigen::Vector2d>* trace) {
+// The start of a move. The paper's robot (an exact world): the controller closes its loop on the
+// true position, so every move settles on its commanded cell (a wall or the tick bound
+// permitting). Imperfect motion (docs/SCENARIOS.md § Imperfect motion): the controller closes its
+// loop on odometry, the true position minus what the wheels did not sense. Each move draws a
+// scale s and a heading error theta, and the wheels' motion reaches the floor as s R(theta) times
+// the commanded velocity; the difference is unsensed, so the move settles where odometry says the
+// target is and lands off it. A push is felt (the wheels turn with it): the controller corrects
+// it, and traction absorbs the push's velocity with time constant traction_s.
+// Returns false when the move is over before its first tick (a zero command with imperfect motion).
+bool RobotBatch::begin_move(const MoveContext& /*c*/, int i, const grid::Cell& command, MemberMove& m) {
+  if (params_.exact()) {
+    m.target_u = frame_.cell_centre_px(grid_pose(i) + command) * kUnitsPerPx;
+    return true;
+  }
   Robot& r = robots_[i];
   const worlds::MotionSpec& motion = params_.motion;
   const worlds::PushSpec& pushes = params_.pushes;
   // Seven draws in a fixed order for every move, zero ones included, so that a robot's k-th
   // move always uses the same part of its stream.
   // The scale is kept above 0.05: a move never runs backwards (scale_sd <= 0.3 makes a clamp rarer than 1 in 1000).
-  const double scale = std::max(kMinScale, 1.0 + motion.scale_sd * core::standard_normal(r.motion_rng));
+  m.scale = std::max(kMinScale, 1.0 + motion.scale_sd * core::standard_normal(r.motion_rng));
   const double heading = motion.heading_sd_deg * (M_PI / 180.0) * core::standard_normal(r.motion_rng);
-  const bool push_drawn = core::uniform01(r.motion_rng) < pushes.probability;
-  const int push_tick =
+  m.push_drawn = core::uniform01(r.motion_rng) < pushes.probability;
+  m.push_tick =
       static_cast<int>(core::uniform_below(r.motion_rng, static_cast<std::uint64_t>(std::max(pushes.within_ticks, 1))));
-  const double push_angle = 2.0 * M_PI * core::uniform01(r.motion_rng);
+  m.push_angle = 2.0 * M_PI * core::uniform01(r.motion_rng);
   if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // re-localised before each move
-  if (command == grid::Cell::Zero()) return;                                 // no move: it stays, no tick, no push
-  const bool pushed = push_drawn;
-  const double cos_h = std::cos(heading), sin_h = std::sin(heading);
-  // Velocity change of the push (impulse / mass), Box2D units per second.
-  const double push_speed_u = pushes.impulse_ns / params_.body.mass_kg * c.units_per_m;
-  const double traction_per_tick = std::exp(-params_.physics.dt_s / pushes.traction_s);
+  if (command == grid::Cell::Zero()) return false;                           // no move: it stays, no tick, no push
+  m.cos_h = std::cos(heading);
+  m.sin_h = std::sin(heading);
+  m.target_u = frame_.cell_centre_px(odometry_pose(i) + command) * kUnitsPerPx;
+  return true;
+}
 
-  const Eigen::Vector2d target = frame_.cell_centre_px(odometry_pose(i) + command) * kUnitsPerPx;
-  Eigen::Vector2d push_velocity_u = Eigen::Vector2d::Zero();
-  double peak_speed_u = 0.0;
-  for (;;) {
-    const b2Vec2 p = r.body->GetPosition();
-    const Eigen::Vector2d believed = Eigen::Vector2d(p.x, p.y) - r.unsensed_u;
-    const Eigen::Vector2d error = target - believed;
+// Before a tick: the move is over (settled, or out of ticks), or the controller sets the velocity.
+// Returns false when the move is over.
+bool RobotBatch::before_tick(const MoveContext& c, int i, MemberMove& m) {
+  Robot& r = robots_[i];
+  MoveResult& out = *m.out;
+  const b2Vec2 p = r.body->GetPosition();
+  m.tick_start = p;
+  if (params_.exact()) {
+    const Eigen::Vector2d error(m.target_u.x() - p.x, m.target_u.y() - p.y);
     const double distance = error.norm();
-    const bool push_pending = pushed && out.ticks <= push_tick;
-    if (distance <= c.tolerance_u && !push_pending) {
+    if (distance <= c.tolerance_u) {
       out.settled = true;
-      break;
+      return false;
     }
-    if (out.ticks >= params_.physics.max_ticks_per_move) break;
-    const Eigen::Vector2d commanded = distance > 0.0 ? c.command(error, distance) : Eigen::Vector2d::Zero();
-    // On a slip zone the wheels turn as commanded but carry the body only (1 - slip) of the way.
-    const double traction = 1.0 - motion.slip_at(p.x / kUnitsPerPx, p.y / kUnitsPerPx);
-    const double carried = scale * traction;
-    const Eigen::Vector2d wheels(carried * (cos_h * commanded.x() - sin_h * commanded.y()),
-                                 carried * (sin_h * commanded.x() + cos_h * commanded.y()));
-    if (pushed && out.ticks == push_tick) {
-      push_velocity_u = push_speed_u * Eigen::Vector2d(std::cos(push_angle), std::sin(push_angle));
-      out.pushed = true;
-    }
-    const Eigen::Vector2d v = wheels + push_velocity_u;
+    if (out.ticks >= params_.physics.max_ticks_per_move) return false;
+    // Saturated P-control of velocity: the body still collides, so a wall stops it.
+    const Eigen::Vector2d v = c.command(error, distance);
     r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
-    r.world->Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
-    ++out.ticks;
+    return true;
+  }
+  const Eigen::Vector2d believed = Eigen::Vector2d(p.x, p.y) - r.unsensed_u;
+  const Eigen::Vector2d error = m.target_u - believed;
+  const double distance = error.norm();
+  const bool push_pending = m.push_drawn && out.ticks <= m.push_tick;
+  if (distance <= c.tolerance_u && !push_pending) {
+    out.settled = true;
+    return false;
+  }
+  if (out.ticks >= params_.physics.max_ticks_per_move) return false;
+  const Eigen::Vector2d commanded = distance > 0.0 ? c.command(error, distance) : Eigen::Vector2d::Zero();
+  // On a slip zone the wheels turn as commanded but carry the body only (1 - slip) of the way.
+  const double traction = 1.0 - params_.motion.slip_at(p.x / kUnitsPerPx, p.y / kUnitsPerPx);
+  m.carried = m.scale * traction;
+  const Eigen::Vector2d wheels(m.carried * (m.cos_h * commanded.x() - m.sin_h * commanded.y()),
+                               m.carried * (m.sin_h * commanded.x() + m.cos_h * commanded.y()));
+  if (m.push_drawn && out.ticks == m.push_tick) {
+    m.push_velocity_u = c.push_speed_u * Eigen::Vector2d(std::cos(m.push_angle), std::sin(m.push_angle));
+    out.pushed = true;
+  }
+  const Eigen::Vector2d v = wheels + m.push_velocity_u;
+  r.body->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
+  return true;
+}
+
+// After a tick: the odometry's unsensed part, the bookkeeping; the move is over when held.
+void RobotBatch::after_tick(const MoveContext& c, int i, MemberMove& m) {
+  Robot& r = robots_[i];
+  MoveResult& out = *m.out;
+  ++out.ticks;
+  if (!params_.exact()) {
     // The unsensed part of what the drive really did: the wheels believe they moved
     // (s (1 - slip) R(theta))^-1 times the drive's displacement. Measured from the displacement, so that a
-    // wall or an obstacle that stops the body stops the odometry too (it is sensed).
+    // wall, an obstacle or a teammate that stops the body stops the odometry too (it is sensed).
     const b2Vec2 now = r.body->GetPosition();
+    const b2Vec2& p = m.tick_start;
     const Eigen::Vector2d drive =
-        Eigen::Vector2d(now.x - p.x, now.y - p.y) - push_velocity_u * static_cast<double>(c.dt);
-    const Eigen::Vector2d believed_drive((cos_h * drive.x() + sin_h * drive.y()) / carried,
-                                         (-sin_h * drive.x() + cos_h * drive.y()) / carried);
+        Eigen::Vector2d(now.x - p.x, now.y - p.y) - m.push_velocity_u * static_cast<double>(c.dt);
+    const Eigen::Vector2d believed_drive((m.cos_h * drive.x() + m.sin_h * drive.y()) / m.carried,
+                                         (-m.sin_h * drive.x() + m.cos_h * drive.y()) / m.carried);
     r.unsensed_u += drive - believed_drive;
-    push_velocity_u *= traction_per_tick;
-    c.after_tick(i, p, peak_speed_u, out, trace);
-    if (out.blocked) break;
+    m.push_velocity_u *= c.traction_per_tick;
   }
-  out.peak_speed_mps = peak_speed_u / c.units_per_m;
-  if (motion.pose == worlds::PoseSource::Localised) r.unsensed_u.setZero();  // where it is, it knows
+  c.after_tick(i, m.tick_start, m.peak_speed_u, out, m.trace);
+  if (out.blocked) m.done = true;
+}
+
+void RobotBatch::end_move(const MoveContext& c, int i, MemberMove& m) {
+  m.done = true;
+  m.out->peak_speed_mps = m.peak_speed_u / c.units_per_m;
+  if (!params_.exact() && params_.motion.pose == worlds::PoseSource::Localised)
+    robots_[i].unsensed_u.setZero();  // where it is, it knows
+  if (team_size_ > 1) hold(robots_[i].body);
+}
+
+// The robots of team `team` tick together: before each tick every robot still moving sets its
+// velocity, the team's world steps once, and each looks at where it got. A robot whose move is
+// over holds its place while the others finish; with one robot this is the paper's loop.
+void RobotBatch::move_team(const MoveContext& c, int team, std::span<const grid::Cell> commands,
+                           std::span<MoveResult> results, std::span<std::vector<Eigen::Vector2d>> traces) {
+  const int first = team * team_size_;
+  MemberMove moves[worlds::kMaxTeamRobots];
+  for (int k = 0; k < team_size_; ++k) {
+    const int i = first + k;
+    MemberMove& m = moves[k];
+    results[i] = MoveResult{};
+    m.out = &results[i];
+    m.trace = traces.empty() ? nullptr : &traces[i];
+    if (!begin_move(c, i, commands[i], m)) {  // it stays: no tick, nothing to end
+      m.done = true;
+      if (team_size_ > 1) hold(robots_[i].body);
+    }
+  }
+  b2World& world = *teams_[team].world;
+  for (;;) {
+    bool moving = false;
+    for (int k = 0; k < team_size_; ++k) {
+      if (moves[k].done) continue;
+      if (before_tick(c, first + k, moves[k])) {
+        moving = true;
+      } else {
+        end_move(c, first + k, moves[k]);
+      }
+    }
+    if (!moving) break;
+    if (team_size_ > 1)
+      for (int k = 0; k < team_size_; ++k)
+        if (moves[k].done) robots_[first + k].body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+    world.Step(c.dt, params_.physics.velocity_iterations, params_.physics.position_iterations);
+    for (int k = 0; k < team_size_; ++k) {
+      if (moves[k].done) continue;
+      after_tick(c, first + k, moves[k]);
+      if (moves[k].done) end_move(c, first + k, moves[k]);
+    }
+  }
+  for (int k = 0; k < team_size_; ++k) {
+    b2Body* body = robots_[first + k].body;
+    // The robot comes to rest on its cell (or where a wall stopped it) before the next move.
+    if (team_size_ > 1) body->ResetMassData();  // its own mass again
+    body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
+  }
 }
 
 void RobotBatch::move(std::span<const grid::Cell> commands, std::span<MoveResult> results,
                       std::span<std::vector<Eigen::Vector2d>> tick_positions_px) {
-  if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size())
+  if (commands.size() > static_cast<std::size_t>(count_) || results.size() < commands.size() ||
+      commands.size() % team_size_ != 0)
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(commands.size()) + " commands for " +
-                                std::to_string(count_) + " robots and " + std::to_string(results.size()) + " results");
+                                std::to_string(count_) + " robots in teams of " + std::to_string(team_size_) + " and " +
+                                std::to_string(results.size()) + " results");
   if (!tick_positions_px.empty() && tick_positions_px.size() < commands.size())
     throw std::invalid_argument("RobotBatch::move: " + std::to_string(tick_positions_px.size()) + " tick traces for " +
                                 std::to_string(commands.size()) + " commands");
   const MoveContext context(*this);
-  const bool exact = params_.exact();
-  const int n = static_cast<int>(commands.size());
+  const int teams = static_cast<int>(commands.size()) / team_size_;
 
-  // Each robot lives in its own world, so robots are independent work items: no
-  // synchronisation per tick, and the result does not depend on the thread count.
-  pool_->parallel_for(n, 8, [&](int i) {
-    MoveResult& out = results[i];
-    out = MoveResult{};
-    std::vector<Eigen::Vector2d>* trace = tick_positions_px.empty() ? nullptr : &tick_positions_px[i];
-    if (exact) {
-      move_exact(context, i, commands[i], out, trace);
-    } else {
-      move_perturbed(context, i, commands[i], out, trace);
-    }
-    // The robot comes to rest on its cell (or where the wall stopped it) before the next move.
-    robots_[i].body->SetLinearVelocity(b2Vec2(0.0f, 0.0f));
-  });
+  // Each team lives in its own world, so teams are independent work items: no synchronisation
+  // per tick, and the result does not depend on the thread count.
+  pool_->parallel_for(teams, std::max(1, 8 / team_size_),
+                      [&](int team) { move_team(context, team, commands, results, tick_positions_px); });
 }
 
 }  // namespace scout::sim

@@ -1,8 +1,8 @@
 #pragma once
-/// The robots' bodies: a batch of Box2D worlds, one per robot, each a zero-gravity plane with
-/// walls around its floor and one disc-shaped robot. A move command is executed by a velocity
-/// controller ticking the world at a fixed dt until the robot settles on the commanded cell or a
-/// tick bound is reached. Box2D stays behind this header.
+/// The robots' bodies: a batch of Box2D worlds, one per team of robots (one robot: the paper's),
+/// each a zero-gravity plane with walls around its floor and the team's disc-shaped robots. A move command is executed
+/// by a velocity controller ticking the world at a fixed dt until the robot settles on the commanded cell or a tick
+/// bound is reached. Box2D stays behind this header.
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -22,6 +22,7 @@ struct RobotParams {
   worlds::MotionSpec motion;          ///< unsensed scale and heading errors of each move, the pose the agent reads
   worlds::PushSpec pushes;            ///< random pushes during moves
   worlds::ObstacleSpec obstacles;     ///< static bodies on the floor
+  worlds::TeamSpec team;              ///< robots per floor: K consecutive robots of a batch share one world
 
   /// Every move lands on its commanded cell (no motion error, no pushes): the paper's robot.
   bool exact() const { return motion.exact() && pushes.none(); }
@@ -37,20 +38,22 @@ struct MoveResult {
   double peak_speed_mps = 0.0;    ///< highest speed reached during the move, metres per second
   double beyond_border_px = 0.0;  ///< farthest the centre got past the border pixels' centres, px
   bool pushed = false;            ///< a push hit the robot during the move
-  bool blocked = false;           ///< an obstacle stopped the robot: the move ended at contact
+  bool blocked = false;           ///< an obstacle or a teammate stopped the robot: the move ended at contact
 };
 
-/// A batch of robots, each alone in its own Box2D world: a robot's trajectory is bit-identical
-/// whatever else is in the batch, and the batch is advanced in parallel by robot.
+/// A batch of robots in teams of K (params.team.robots): robots kK .. kK + K - 1 share team k's
+/// Box2D world, tick together and collide; a team's trajectory is bit-identical whatever else is
+/// in the batch, and the batch is advanced in parallel by team. With K = 1 every robot is alone.
 class RobotBatch {
  public:
-  /// `count` robots on `frame`; `threads` advance them (0: one per hardware thread).
+  /// `count` robots (a multiple of K) on `frame`; `threads` advance them (0: one per hardware thread).
   RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads = 0);
   ~RobotBatch();
   RobotBatch(const RobotBatch&) = delete;
   RobotBatch& operator=(const RobotBatch&) = delete;
 
   int size() const;
+  int team_size() const;  ///< K
   int threads() const;
   const grid::FloorFrame& frame() const;
   const RobotParams& params() const;
@@ -61,12 +64,14 @@ class RobotBatch {
   /// batch); unused in an exact world.
   void place(int robot, const grid::Cell& cell, std::uint64_t motion_seed = 0);
 
-  /// Replaces robot `robot`'s obstacles with `layout`'s boxes and discs (a run's own, in a world
-  /// that draws them per run: env::run_obstacles), before place() puts it on a clear start.
+  /// Replaces the obstacles of robot `robot`'s team with `layout`'s boxes and discs (a run's own,
+  /// in a world that draws them per run: env::run_obstacles), before place() puts it on a clear start.
   void set_obstacles(int robot, const worlds::ObstacleSpec& layout);
 
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
-  /// i < commands.size(), all in one call; results[i] tells how it went. In a world with motion
+  /// i < commands.size() (whole teams), all in one call; results[i] tells how it went. A team's
+  /// robots tick together until each has settled, been blocked (by an obstacle or a teammate) or
+  /// run out of ticks; one that is done holds its place (a static body) while the others finish. In a world with motion
   /// errors the move starts from the pose the robot believes it is at (odometry_pose(): the true
   /// one when the world's `motion.pose` is `localised`) and lands near the target, not on it. Targets are not
   /// clamped: a command past the floor's edge ends against the wall. With `tick_positions_px`
@@ -89,23 +94,31 @@ class RobotBatch {
   bool touching_wall(int robot) const;
   /// True while the robot touches an obstacle.
   bool touching_obstacle(int robot) const;
+  /// True while the robot touches another robot of its team.
+  bool touching_teammate(int robot) const;
 
   /// Closest approach of the robot's centre to the floor's border-pixel centres: the walls
   /// stop the centre `wall_margin_px()` beyond them (Box2D's contact skin), never further.
   static double wall_margin_px();
 
  private:
+  struct Team;
   struct Robot;
   struct MoveContext;
-  void move_exact(const MoveContext& c, int robot, const grid::Cell& command, MoveResult& out,
-                  std::vector<Eigen::Vector2d>* trace);
-  void move_perturbed(const MoveContext& c, int robot, const grid::Cell& command, MoveResult& out,
-                      std::vector<Eigen::Vector2d>* trace);
+  struct MemberMove;
+  void move_team(const MoveContext& c, int team, std::span<const grid::Cell> commands, std::span<MoveResult> results,
+                 std::span<std::vector<Eigen::Vector2d>> traces);
+  bool begin_move(const MoveContext& c, int robot, const grid::Cell& command, MemberMove& m);
+  bool before_tick(const MoveContext& c, int robot, MemberMove& m);
+  void after_tick(const MoveContext& c, int robot, MemberMove& m);
+  void end_move(const MoveContext& c, int robot, MemberMove& m);
 
   grid::FloorFrame frame_;
   RobotParams params_;
+  std::unique_ptr<Team[]> teams_;
   std::unique_ptr<Robot[]> robots_;
   int count_;
+  int team_size_;
   std::unique_ptr<class WorkerPool> pool_;
 };
 

@@ -64,26 +64,9 @@ std::vector<env::PlannedRun> plan_runs(const worlds::World& world, const worlds:
 
 json cell_json(const grid::Cell& c) { return json::array({c.x(), c.y()}); }
 
-// One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
-// by step, in files of any size). `probabilities`: the trained agent's pi_c at the end (empty
-// without --checkpoint, and then the text is exactly what it always was).
-std::string run_json(const env::PlannedRun& run, const learn::RolloutRecord& record, const worlds::FloorSet& floors,
-                     std::span<const float> probabilities) {
-  json j;
-  j["seed"] = run.seed;
-  j["dataset"] = floors.source;
-  j["split"] = floors.split ? json(worlds::to_string(*floors.split)) : json(nullptr);
-  j["index"] = run.index;
-  const int label = floors.labels[run.index];
-  j["label"] = label >= 0 ? json(label) : json(nullptr);
-  j["start"] = cell_json(record.start);
-  if (!probabilities.empty()) {
-    j["prediction"] = std::max_element(probabilities.begin(), probabilities.end()) - probabilities.begin();
-    j["probabilities"] = std::vector<float>(probabilities.begin(), probabilities.end());
-  }
-  std::string text = j.dump();
-  text.pop_back();  // the closing brace: the steps follow
-  text += ", \"steps\": [";
+// A robot's moves, one line each, as the JSON array's text.
+std::string steps_json(const learn::RolloutRecord& record) {
+  std::string text = "[";
   for (const learn::StepRecord& s : record.steps) {
     json step;
     step["episode"] = s.episode;
@@ -102,7 +85,40 @@ std::string run_json(const env::PlannedRun& run, const learn::RolloutRecord& rec
     step["revealed_px"] = s.revealed_px;
     text += (&s == record.steps.data() ? "\n    " : ",\n    ") + step.dump();
   }
-  return text + "\n  ]}";
+  return text + "\n  ]";
+}
+
+// One run as JSON text: its fields on one line, then one line per step (readable, and grep-able
+// by step, in files of any size). A team's first robot is the run's own start and steps; the
+// others follow under "teammates" ({"start", "steps"} each; revealed_px counts the team's).
+// `probabilities`: the trained agent's pi_c at the end (empty without --checkpoint, and then the
+// text is exactly what it always was).
+std::string run_json(const env::PlannedRun& run, std::span<const learn::RolloutRecord> team,
+                     const worlds::FloorSet& floors, std::span<const float> probabilities) {
+  const learn::RolloutRecord& record = team.front();
+  json j;
+  j["seed"] = run.seed;
+  j["dataset"] = floors.source;
+  j["split"] = floors.split ? json(worlds::to_string(*floors.split)) : json(nullptr);
+  j["index"] = run.index;
+  const int label = floors.labels[run.index];
+  j["label"] = label >= 0 ? json(label) : json(nullptr);
+  j["start"] = cell_json(record.start);
+  if (!probabilities.empty()) {
+    j["prediction"] = std::max_element(probabilities.begin(), probabilities.end()) - probabilities.begin();
+    j["probabilities"] = std::vector<float>(probabilities.begin(), probabilities.end());
+  }
+  std::string text = j.dump();
+  text.pop_back();  // the closing brace: the steps follow
+  text += ", \"steps\": " + steps_json(record);
+  if (team.size() > 1) {
+    text += ", \"teammates\": [";
+    for (std::size_t k = 1; k < team.size(); ++k)
+      text += std::string(k == 1 ? "\n  " : ",\n  ") + "{\"start\": " + cell_json(team[k].start).dump() +
+              ", \"steps\": " + steps_json(team[k]) + "}";
+    text += "\n  ]";
+  }
+  return text + "}";
 }
 
 /// What a trained agent adds to a run's pictures: the class-probability bars and, per episode,
@@ -120,10 +136,28 @@ struct ScenarioMarks {
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask; null: none
 };
 
-void write_images(const fs::path& folder, int run_number, const learn::RolloutRecord& record, const std::uint8_t* floor,
-                  const grid::FloorFrame& frame, int patch_px, int scale, const ScenarioMarks& marks,
-                  const AgentOverlay& overlay, std::vector<std::string>& written) {
-  for (const learn::SnapshotRecord& snap : record.snapshots) {
+// The poses robot `record` had visited by snapshot `snap`, and, where motion is imperfect, its
+// centre's true path up to that snapshot's last move.
+void robot_paths(const learn::RolloutRecord& record, const learn::SnapshotRecord& snap, bool true_path,
+                 std::vector<render::PixelPose>& path, std::vector<render::FloorPoint>& ticks_path) {
+  for (std::size_t p = 0; p < snap.path_length; ++p) path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
+  if (!true_path) return;
+  std::size_t ticks = 1;
+  for (std::size_t k = 0; k + 1 < snap.path_length && k < record.steps.size(); ++k)
+    ticks += static_cast<std::size_t>(record.steps[k].result.ticks);
+  for (std::size_t t = 0; t < std::min(ticks, record.tick_path_px.size()); ++t)
+    ticks_path.push_back(
+        {static_cast<float>(record.tick_path_px[t].x()), static_cast<float>(record.tick_path_px[t].y())});
+}
+
+// The run's pictures: one at each episode's start and one at the end; a team's robots all in
+// each (the first robot's snapshots carry the team's seen pixels).
+void write_images(const fs::path& folder, int run_number, std::span<const learn::RolloutRecord> team,
+                  const std::uint8_t* floor, const grid::FloorFrame& frame, int patch_px, int scale,
+                  const ScenarioMarks& marks, const AgentOverlay& overlay, std::vector<std::string>& written) {
+  const learn::RolloutRecord& record = team.front();
+  for (std::size_t i = 0; i < record.snapshots.size(); ++i) {
+    const learn::SnapshotRecord& snap = record.snapshots[i];
     render::Snapshot s;
     s.floor = floor;
     s.width_px = frame.width_px;
@@ -132,18 +166,16 @@ void write_images(const fs::path& folder, int run_number, const learn::RolloutRe
     s.patch_px = patch_px;
     s.robot = {.x = snap.robot.x(), .y = snap.robot.y()};
     if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
-    for (std::size_t p = 0; p < snap.path_length; ++p)
-      s.path.push_back({.x = record.path[p].x(), .y = record.path[p].y()});
+    robot_paths(record, snap, marks.true_path, s.path, s.true_path);
+    for (std::size_t k = 1; k < team.size(); ++k) {
+      const learn::SnapshotRecord& mate = team[k].snapshots[i];
+      render::Snapshot::Teammate& t = s.teammates.emplace_back();
+      t.robot = {.x = mate.robot.x(), .y = mate.robot.y()};
+      if (mate.goal) t.goal = render::PixelPose{.x = mate.goal->x(), .y = mate.goal->y()};
+      robot_paths(team[k], mate, marks.true_path, t.path, t.true_path);
+    }
     s.obstacles = marks.obstacles;
     s.slip = marks.slip;
-    if (marks.true_path) {  // the true centre's path, every tick up to this picture's last move
-      std::size_t ticks = 1;
-      for (std::size_t k = 0; k + 1 < snap.path_length && k < record.steps.size(); ++k)
-        ticks += static_cast<std::size_t>(record.steps[k].result.ticks);
-      for (std::size_t t = 0; t < std::min(ticks, record.tick_path_px.size()); ++t)
-        s.true_path.push_back(
-            {static_cast<float>(record.tick_path_px[t].x()), static_cast<float>(record.tick_path_px[t].y())});
-    }
     s.scale = scale;
     const bool final_image = !snap.goal;
     // The bars show the final prediction on every picture of the run (the classifier is asked
@@ -237,13 +269,17 @@ struct RunOutputs {
 };
 
 // One run's record into trajectory.json, the video and its pictures.
+// `team`: the run's robot, or its team's robots in order (the first is robot `robot` of the batch).
 void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRun& run, int run_number,
-              const learn::RolloutRecord& rec, const std::uint8_t* floor, std::span<const float> p, int robot,
-              RunOutputs& out) {
-  out.trajectory << (run_number == 0 ? "\n  " : ",\n  ") << run_json(run, rec, setup.floors, p);
-  for (const learn::StepRecord& s : rec.steps) out.ticks += s.result.ticks;
-  out.moves += static_cast<long>(rec.steps.size());
-  out.revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;
+              std::span<const learn::RolloutRecord> team, const std::uint8_t* floor, std::span<const float> p,
+              int robot, RunOutputs& out) {
+  const learn::RolloutRecord& rec = team.front();
+  out.trajectory << (run_number == 0 ? "\n  " : ",\n  ") << run_json(run, team, setup.floors, p);
+  for (const learn::RolloutRecord& r : team) {
+    for (const learn::StepRecord& s : r.steps) out.ticks += s.result.ticks;
+    out.moves += static_cast<long>(r.steps.size());
+  }
+  out.revealed += rec.steps.empty() ? 0 : rec.steps.back().revealed_px;  // the team's
   const worlds::World& world = setup.world;
   // A world that draws boxes per run draws this run's; otherwise every run has the world's.
   const std::vector<std::uint8_t> own_mask =
@@ -254,7 +290,7 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                             .slip = setup.slip_mask.empty() ? nullptr : setup.slip_mask.data()};
   if (out.video) {
     interrupt_token().throw_if_requested();
-    append_run_frames(*out.video, {.record = &rec,
+    append_run_frames(*out.video, {.records = team,
                                    .floor = floor,
                                    .frame = setup.frame,
                                    .patch_px = world.camera.patch_px,
@@ -270,42 +306,47 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
     interrupt_token().throw_if_requested();
     const AgentOverlay overlay{
         .class_probabilities = p, .agent = opt.heat_map ? setup.agent.get() : nullptr, .robot = robot};
-    write_images(out.images_dir, run_number, rec, floor, setup.frame, world.camera.patch_px, opt.scale, marks, overlay,
+    write_images(out.images_dir, run_number, team, floor, setup.frame, world.camera.patch_px, opt.scale, marks, overlay,
                  out.images);
   }
 }
 
-// Runs first .. first + n - 1, driven together in one batch.
+// Runs first .. first + n - 1, driven together in one batch (a team's K robots each).
 void drive_batch(const RunOptions& opt, const RunSetup& setup, std::span<const env::PlannedRun> runs, int first,
                  learn::RolloutEngine& engine, RunOutputs& out) {
   const int n = static_cast<int>(runs.size());
+  const int K = setup.world.team.robots;
   const std::size_t area = static_cast<std::size_t>(setup.frame.area_px());
-  std::vector<std::uint8_t> batch_floors(area * n);
-  std::vector<grid::Cell> starts(n);
-  std::vector<std::uint64_t> policy_seeds(n);
-  std::vector<std::uint64_t> motion_seeds(n);
-  for (int i = 0; i < n; ++i) {
-    std::copy_n(setup.floors.images.image(runs[i].index), area, batch_floors.data() + area * i);
-    starts[i] = runs[i].start;
-    policy_seeds[i] = runs[i].policy_seed;
-    motion_seeds[i] = runs[i].motion_seed;
-  }
+  std::vector<std::uint8_t> batch_floors(area * n * K);
+  std::vector<grid::Cell> starts(n * K);
+  std::vector<std::uint64_t> policy_seeds(n * K);
+  std::vector<std::uint64_t> motion_seeds(n * K);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < K; ++k) {
+      const int r = i * K + k;
+      std::copy_n(setup.floors.images.image(runs[i].index), area, batch_floors.data() + area * r);
+      starts[r] = runs[i].starts[k];
+      policy_seeds[r] = env::member_seed(runs[i].policy_seed, k);
+      motion_seeds[r] = env::member_seed(runs[i].motion_seed, k);
+    }
   learn::TrainedAgent* agent = setup.agent.get();
   std::vector<learn::RolloutRecord> records;
-  std::vector<float> probabilities;  // n * D with a checkpoint
+  std::vector<float> probabilities;  // n * K * D with a checkpoint; a team's robots hold one y
   if (agent) {
     agent->begin(setup.frame, setup.world.camera.patch_px, policy_seeds, opt.greedy, opt.heat_map && !opt.no_images);
     records = engine.run(batch_floors, starts, motion_seeds, agent->policy());
-    probabilities = agent->classify(engine.state(), n);
+    probabilities = agent->classify(engine.state(), n * K);
   } else {
     learn::RandomPolicy policy(policy_seeds);
     records = engine.run(batch_floors, starts, motion_seeds, policy);
   }
   const std::size_t classes = agent ? static_cast<std::size_t>(agent->classes()) : 0;
   for (int i = 0; i < n; ++i) {
+    const std::size_t robot = static_cast<std::size_t>(i) * K;
     const std::span<const float> p =
-        agent ? std::span<const float>(probabilities.data() + classes * i, classes) : std::span<const float>();
-    emit_run(opt, setup, runs[i], first + i, records[i], batch_floors.data() + area * i, p, i, out);
+        agent ? std::span<const float>(probabilities.data() + classes * robot, classes) : std::span<const float>();
+    emit_run(opt, setup, runs[i], first + i, std::span<const learn::RolloutRecord>(records).subspan(robot, K),
+             batch_floors.data() + area * robot, p, static_cast<int>(robot), out);
   }
 }
 
@@ -358,8 +399,9 @@ void run_command(const RunOptions& opt, const Context& context) {
 
   const auto t0 = core::Clock::now();
   const std::vector<env::PlannedRun> runs = plan_runs(setup.world, setup.floors, frame, setup.world.seed, opt.count);
-  const int batch_robots = std::min(opt.count, kBatchRobots);
-  const auto engine = make_engine(setup.world, frame, batch_robots);
+  // Runs per batch: a team's robots are driven together, up to kBatchRobots robots in all.
+  const int batch_robots = std::min(opt.count, std::max(1, kBatchRobots / setup.world.team.robots));
+  const auto engine = make_engine(setup.world, frame, batch_robots * setup.world.team.robots);
   outputs.images_dir = out.path() / "images";
   if (!opt.no_images) fs::create_directories(outputs.images_dir);
   // The whole folder is still only moved into place once complete.

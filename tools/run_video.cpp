@@ -7,9 +7,10 @@
 namespace scout::tools {
 
 int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
-  const learn::RolloutRecord& record = *run.record;
+  const std::span<const learn::RolloutRecord> records = run.records;
+  const std::size_t team = records.size();
   grid::RevealMask seen(run.frame);
-  seen.reveal(grid::camera_window(record.start, run.patch_px, run.frame));
+  for (const learn::RolloutRecord& r : records) seen.reveal(grid::camera_window(r.start, run.patch_px, run.frame));
 
   render::Snapshot s;
   s.floor = run.floor;
@@ -21,42 +22,75 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.prediction_pending = true;
   s.obstacles = run.obstacles;
   s.slip = run.slip;
-  s.path.push_back({.x = record.start.x(), .y = record.start.y()});
+  s.teammates.resize(team - 1);
+  // Robot 0 is drawn through the snapshot's own fields, robot k > 0 through teammates[k - 1].
+  auto path_of = [&](std::size_t k) -> std::vector<render::PixelPose>& {
+    return k == 0 ? s.path : s.teammates[k - 1].path;
+  };
+  auto true_path_of = [&](std::size_t k) -> std::vector<render::FloorPoint>& {
+    return k == 0 ? s.true_path : s.teammates[k - 1].true_path;
+  };
+  auto goal_of = [&](std::size_t k) -> std::optional<render::PixelPose>& {
+    return k == 0 ? s.goal : s.teammates[k - 1].goal;
+  };
+  for (std::size_t k = 0; k < team; ++k) path_of(k).push_back({.x = records[k].start.x(), .y = records[k].start.y()});
   int frames = 0;
-  auto draw = [&](const Eigen::Vector2d& body_px) {
+  std::vector<Eigen::Vector2d> body(team);
+  auto draw = [&] {
     s.revealed = seen.data().data();
-    s.robot = {.x = static_cast<int>(std::floor(body_px.x())), .y = static_cast<int>(std::floor(body_px.y()))};
-    s.body = render::Snapshot::Body{.x_px = body_px.x(), .y_px = body_px.y(), .radius_px = run.robot_radius_px};
-    const render::FloorPoint here{static_cast<float>(body_px.x()), static_cast<float>(body_px.y())};
-    // Held frames repeat the last point: kept once, so that a long run draws in linear time.
-    if (!run.exact_motion && (s.true_path.empty() || s.true_path.back().x != here.x || s.true_path.back().y != here.y))
-      s.true_path.push_back(here);
+    for (std::size_t k = 0; k < team; ++k) {
+      const Eigen::Vector2d& b = body[k];
+      const render::PixelPose cell{.x = static_cast<int>(std::floor(b.x())), .y = static_cast<int>(std::floor(b.y()))};
+      const render::Snapshot::Body disc{.x_px = b.x(), .y_px = b.y(), .radius_px = run.robot_radius_px};
+      if (k == 0) {
+        s.robot = cell;
+        s.body = disc;
+      } else {
+        s.teammates[k - 1].robot = cell;
+        s.teammates[k - 1].body = disc;
+      }
+      const render::FloorPoint here{static_cast<float>(b.x()), static_cast<float>(b.y())};
+      // Held frames repeat the last point: kept once, so that a long run draws in linear time.
+      std::vector<render::FloorPoint>& trail = true_path_of(k);
+      if (!run.exact_motion && (trail.empty() || trail.back().x != here.x || trail.back().y != here.y))
+        trail.push_back(here);
+    }
     video.add(render::draw_snapshot(s));
     ++frames;
   };
   const int goal_hold = std::max(1, static_cast<int>(std::lround(run.fps * 0.4)));
   const int final_hold = std::max(1, static_cast<int>(std::lround(run.fps)));
 
-  std::size_t tick = 0;  // tick_path_px[0] is the start
-  Eigen::Vector2d body = record.tick_path_px.empty() ? run.frame.cell_centre_px(record.start) : record.tick_path_px[0];
-  for (std::size_t k = 0; k < record.steps.size(); ++k) {
-    const learn::StepRecord& step = record.steps[k];
-    if (k == 0 || step.episode != record.steps[k - 1].episode) {  // a new goal: let it be seen
-      s.goal = render::PixelPose{.x = step.goal.x(), .y = step.goal.y()};
-      for (int h = 0; h < goal_hold; ++h) draw(body);
+  std::vector<std::size_t> tick(team, 0);  // tick_path_px[0] is the start
+  for (std::size_t k = 0; k < team; ++k)
+    body[k] = records[k].tick_path_px.empty() ? run.frame.cell_centre_px(records[k].start) : records[k].tick_path_px[0];
+  const std::vector<learn::StepRecord>& steps = records[0].steps;  // a team's robots move at the same steps
+  for (std::size_t j = 0; j < steps.size(); ++j) {
+    if (j == 0 || steps[j].episode != steps[j - 1].episode) {  // new goals: let them be seen
+      for (std::size_t k = 0; k < team; ++k)
+        goal_of(k) = render::PixelPose{.x = records[k].steps[j].goal.x(), .y = records[k].steps[j].goal.y()};
+      for (int h = 0; h < goal_hold; ++h) draw();
     }
-    for (int t = 0; t < step.result.ticks && tick + 1 < record.tick_path_px.size(); ++t) {
-      body = record.tick_path_px[++tick];
-      draw(body);
+    // The team's robots tick together; one whose move is over holds its place.
+    int ticks = 0;
+    for (std::size_t k = 0; k < team; ++k) ticks = std::max(ticks, records[k].steps[j].result.ticks);
+    for (int t = 0; t < ticks; ++t) {
+      for (std::size_t k = 0; k < team; ++k)
+        if (t < records[k].steps[j].result.ticks && tick[k] + 1 < records[k].tick_path_px.size())
+          body[k] = records[k].tick_path_px[++tick[k]];
+      draw();
     }
-    // The camera sees its window once the move is over.
-    seen.reveal(grid::camera_window(step.grid_pose, run.patch_px, run.frame));
-    s.path.push_back({.x = step.grid_pose.x(), .y = step.grid_pose.y()});
-    if (step.result.ticks == 0) draw(body);  // a move that needed no tick still reveals
+    // The cameras see their windows once the move is over.
+    for (std::size_t k = 0; k < team; ++k) {
+      const grid::Cell& pose = records[k].steps[j].grid_pose;
+      seen.reveal(grid::camera_window(pose, run.patch_px, run.frame));
+      path_of(k).push_back({.x = pose.x(), .y = pose.y()});
+    }
+    if (ticks == 0) draw();  // a move that needed no tick still reveals
   }
-  s.goal.reset();
+  for (std::size_t k = 0; k < team; ++k) goal_of(k).reset();
   s.prediction_pending = false;
-  for (int h = 0; h < final_hold; ++h) draw(body);
+  for (int h = 0; h < final_hold; ++h) draw();
   return frames;
 }
 

@@ -11,8 +11,9 @@ namespace scout::tools {
 
 /// One run to animate.
 struct RunAnimation {
-  const learn::RolloutRecord* record = nullptr;  ///< recorded by RolloutEngine::run (ticks included)
-  const std::uint8_t* floor = nullptr;           ///< H * W bytes
+  /// Recorded by RolloutEngine::run (ticks included): one robot's, or a team's robots' in order.
+  std::span<const learn::RolloutRecord> records;
+  const std::uint8_t* floor = nullptr;  ///< H * W bytes
   grid::FloorFrame frame;
   int patch_px = 6;
   double robot_radius_px = 2.5;
@@ -28,7 +29,9 @@ struct RunAnimation {
 /// per physics tick with the robot's disc and camera window where the body is, the floor revealed
 /// as the camera saw it after each move, the path so far and the goal; at the end a one-second
 /// hold on the final picture with the prediction bars, which stay empty until then (the
-/// classifier is asked once, after the last move). Returns the number of frames added.
+/// classifier is asked once, after the last move). A team's robots move in the same frames, each
+/// in its colour (render::teammate_colour), over what the team has seen. Returns the number of
+/// frames added.
 int append_run_frames(render::VideoWriter& video, const RunAnimation& run);
 
 }  // namespace scout::tools

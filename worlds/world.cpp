@@ -310,6 +310,12 @@ constexpr Row<ObstacleSpec> kObstacleRows[] = {
      "the longest side of a random box: each side is drawn uniformly from the integers in [min, max]"},
 };
 
+constexpr Row<TeamSpec> kTeamRows[] = {
+    {"robots", Type::Integer, &TeamSpec::robots, closed(1, kMaxTeamRobots), "and dividing `task.episodes`", "",
+     "K robots on one floor: they move in the same ticks, collide, and share what the team has seen; each drives "
+     "E / K episodes"},
+};
+
 /// Fields at the top level, beside the sections.
 constexpr Row<World> kTopRows[] = {
     {"seed", Type::Unsigned, &World::seed, {}, "", "", "run seed; the command line's `--seed` overrides it"},
@@ -336,7 +342,7 @@ constexpr bool well_formed(const Row<Spec> (&rows)[N]) {
 static_assert(well_formed(kFloorRows) && well_formed(kRobotRows) && well_formed(kControllerRows) &&
               well_formed(kCameraRows) && well_formed(kTaskRows) && well_formed(kPhysicsRows) &&
               well_formed(kMotionRows) && well_formed(kPushRows) && well_formed(kObstacleRows) &&
-              well_formed(kTopRows));
+              well_formed(kTeamRows) && well_formed(kTopRows));
 
 /// A table as a span, the one shape the code that walks every section takes.
 template <class Spec, std::size_t N>
@@ -357,6 +363,7 @@ void for_each_section(W& world, F&& f) {
   f(std::string_view("motion"), rows_of(kMotionRows), world.motion);
   f(std::string_view("pushes"), rows_of(kPushRows), world.pushes);
   f(std::string_view("obstacles"), rows_of(kObstacleRows), world.obstacles);
+  f(std::string_view("team"), rows_of(kTeamRows), world.team);
   f(std::string_view(), rows_of(kTopRows), world);
 }
 
@@ -1099,6 +1106,22 @@ void Loader::check_across_fields() const {
                    (world_.lines.count("obstacles.random_box_min_px") ? "" : " (the default)"));
   }
 
+  // Each member of a team drives E / K of the rollout's E episodes: the budget of moves is the
+  // one robot's.
+  if (world_.task.episodes % world_.team.robots != 0) {
+    fail_field(first_line({"team.robots", "task.episodes", "team"}), "team.robots",
+               "a divisor of task.episodes = " + std::to_string(world_.task.episodes) +
+                   " (each robot drives episodes / robots of the rollout's episodes)",
+               std::to_string(world_.team.robots));
+  }
+  // Members start on distinct cells at least a diameter apart: one fixed start cannot hold them.
+  if (!world_.team.single() && world_.robot.start) {
+    fail_field(
+        first_line({"robot.start", "team.robots"}), "robot.start",
+        "random when team.robots > 1 (each robot of the team draws its own start)",
+        "[" + std::to_string(world_.robot.start->first) + ", " + std::to_string(world_.robot.start->second) + "]");
+  }
+
   // The controller sets velocity = kp * error each tick, so the error shrinks by |1 - kp dt| per
   // tick once under the speed limit: at kp dt >= 2 it never shrinks and a move never settles.
   const double gain_per_tick = world_.controller.kp_per_s * world_.physics.dt_s;
@@ -1225,6 +1248,8 @@ bool section_written(const Spec& spec) {
     const ObstacleSpec defaults;
     return !spec.none() || spec.shade != defaults.shade || spec.random_box_min_px != defaults.random_box_min_px ||
            spec.random_box_max_px != defaults.random_box_max_px;
+  } else if constexpr (std::is_same_v<Spec, TeamSpec>) {
+    return !spec.single();
   } else if constexpr (std::is_same_v<Spec, PushSpec>) {
     const PushSpec defaults;
     return spec.probability != defaults.probability || spec.impulse_ns != defaults.impulse_ns ||

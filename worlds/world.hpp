@@ -152,6 +152,17 @@ struct ObstacleSpec {
   double clearance_px(double x, double y) const;
 };
 
+/// The most robots of one team (docs/SCENARIOS.md § Several robots).
+inline constexpr int kMaxTeamRobots = 8;
+
+/// Several robots on one floor (docs/SCENARIOS.md § Several robots): K robots share one Box2D
+/// world, move in the same ticks, collide, and share what the team has seen; each drives E / K
+/// of the rollout's E episodes. The default, one robot, is today's worlds.
+struct TeamSpec {
+  int robots = 1;  ///< K
+  bool single() const { return robots == 1; }
+};
+
 /// A loaded, validated world file.
 struct World {
   std::filesystem::path file;  ///< the file it was read from (as given)
@@ -164,6 +175,7 @@ struct World {
   MotionSpec motion;
   PushSpec pushes;
   ObstacleSpec obstacles;
+  TeamSpec team;
   std::uint64_t seed = 0;            ///< run seed; the command line's --seed overrides it
   std::map<std::string, int> lines;  ///< dotted field name -> 1-based line in `file`, for later errors
 

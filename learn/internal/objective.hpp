@@ -18,20 +18,29 @@
 namespace scout::learn {
 
 /// The robots of one batch: robot r drives over floors[r] from starts[r], sampling with seeds[r],
-/// its motion errors and pushes (worlds that have them) from motion_seeds[r].
+/// its motion errors and pushes (worlds that have them) from motion_seeds[r]. In a world with
+/// teams of K robots (world.team), robots tK .. tK + K - 1 are rollout t: one floor, one label,
+/// one classifier decision.
 struct RolloutBatch {
-  int count = 0;
+  int count = 0;                     ///< robots
+  int team = 1;                      ///< K robots per rollout
   std::vector<std::uint8_t> floors;  ///< count * H * W bytes
-  std::vector<std::int64_t> labels;  ///< one per robot
+  std::vector<std::int64_t> labels;  ///< one per rollout (count / team)
   std::vector<grid::Cell> starts;
   std::vector<std::uint64_t> seeds;
   std::vector<std::uint64_t> motion_seeds;
+
+  int rollouts() const { return count / team; }
+  /// Adds `other`'s rollouts after this batch's (the same team size).
+  void append(const RolloutBatch& other);
 };
 
-/// N robots per image: robot i*N + k drives over image indices[i]. These are robots
+/// N rollouts per image: rollout i*N + k drives over image indices[i]. These are rollouts
 /// first_robot, first_robot + 1, ... of the global batch (the whole mini-batch, which several
-/// processes may share): robot r's start and sampling seed derive from (stream, first_robot + r)
-/// only, so a robot draws the same whichever process drives it.
+/// processes may share): rollout r's starts and seeds derive from (stream, first_robot + r) only,
+/// so a rollout draws the same whichever process drives it. A team's robot m draws from
+/// env::member_seed(.., m) of the rollout's seeds, and the team's starts are apart
+/// (env::draw_team_starts).
 RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
                         const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
                         std::uint64_t first_robot = 0);
@@ -39,12 +48,13 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
 /// What one batch gave.
 struct BatchOutcome {
   torch::Tensor objective;  ///< J-hat (scalar, with its graph when sampling.with_grad)
-  torch::Tensor log_probs;  ///< log pi_c per robot [count, D] (detached)
-  torch::Tensor reward;     ///< r per robot [count] (detached)
+  torch::Tensor log_probs;  ///< log pi_c per rollout [rollouts, D] (detached)
+  torch::Tensor reward;     ///< r per rollout [rollouts] (detached)
 };
 
 /// Drives the batch with the physics and the camera in the loop, classifies u_c = y after the
-/// last move, and computes J-hat with `estimator`.
+/// last move, and computes J-hat with `estimator`. A team is one rollout: one decision on the
+/// team's y, and log pi the sum of its robots' (METHOD.md § Several robots).
 BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
                        const Sampling& sampling, const EstimatorOptions& estimator);
 

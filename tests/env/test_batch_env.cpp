@@ -203,6 +203,54 @@ TEST(BatchEnv, TheCameraSeesObstaclesInTheirShade) {
   EXPECT_TRUE(std::equal(crop.begin(), crop.end(), env.patches().begin()));
 }
 
+// Several robots on one floor (docs/SCENARIOS.md § Several robots): what one robot of a team has
+// seen, every robot of the team has; the other team's masks are its own.
+TEST(BatchEnv, ATeamSharesWhatEachOfItsRobotsHasSeen) {
+  worlds::World world = small_world(3);
+  world.team.robots = 2;
+  BatchEnv env(world, kFloor, 4);
+  EXPECT_EQ(env.team_size(), 2);
+  std::vector<std::uint8_t> f = floors(4);
+  std::copy_n(f.begin(), kFloor.area_px(), f.begin() + kFloor.area_px());  // a team shares its floor
+  std::copy_n(f.begin() + 2 * kFloor.area_px(), kFloor.area_px(), f.begin() + 3 * kFloor.area_px());
+  const std::vector<grid::Cell> starts = {{2, 2}, {12, 8}, {2, 9}, {13, 2}};
+  env.reset(f, starts, no_motion(starts.size()));
+  // Each robot alone would have seen 9 pixels; each team's mask holds both windows.
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(env.seen()[i].count(), 18) << i;
+  expect_consistent(env, f);
+
+  std::vector<grid::RevealMask> alone(4, grid::RevealMask(kFloor));
+  for (int i = 0; i < 4; ++i) alone[i].reveal(grid::camera_window(starts[i], 3, kFloor));
+  const std::vector<std::vector<grid::Cell>> moves = {
+      {{2, 0}, {-2, 0}, {0, -2}, {0, 2}}, {{2, 0}, {0, -2}, {2, 0}, {-2, 0}}, {{0, 2}, {-2, 0}, {0, 0}, {0, 2}}};
+  for (const std::vector<grid::Cell>& commands : moves) {
+    env.step(commands);
+    for (int i = 0; i < 4; ++i) alone[i].reveal(grid::camera_window(env.poses()[i], 3, kFloor));
+    expect_consistent(env, f);
+  }
+  for (int team = 0; team < 2; ++team) {
+    const int a = 2 * team, b = a + 1;
+    EXPECT_EQ(env.seen()[a].data(), env.seen()[b].data()) << team;
+    for (int y = 0; y < kFloor.height_px; ++y)
+      for (int x = 0; x < kFloor.width_px; ++x)
+        EXPECT_EQ(env.seen()[a].seen(x, y), alone[a].seen(x, y) || alone[b].seen(x, y)) << team << " " << x << "," << y;
+    EXPECT_GT(env.seen()[a].count(), std::max(alone[a].count(), alone[b].count()));
+  }
+  EXPECT_NE(env.seen()[0].data(), env.seen()[2].data());
+
+  // A team starts again whole, its robots listed in order.
+  const std::vector<std::uint8_t> one(f.begin(), f.begin() + kFloor.area_px());
+  EXPECT_THROW(env.reset_robots(std::vector<int>{1}, one, std::vector<grid::Cell>{{3, 3}}, no_motion(1)),
+               std::invalid_argument);
+  std::vector<std::uint8_t> two(f.begin(), f.begin() + 2 * kFloor.area_px());
+  env.reset_robots(std::vector<int>{2, 3}, two, std::vector<grid::Cell>{{3, 3}, {10, 3}}, no_motion(2));
+  EXPECT_EQ(env.seen()[2].count(), 18);
+  EXPECT_EQ(env.seen()[3].count(), 18);
+  const std::vector<std::uint8_t> three(f.begin(), f.begin() + 3 * kFloor.area_px());
+  EXPECT_THROW(env.reset(three, std::vector<grid::Cell>(3, grid::Cell(1, 1)), no_motion(3)),
+               std::invalid_argument);  // not whole teams
+}
+
 TEST(BatchEnv, BadInputIsRefused) {
   BatchEnv env(small_world(3), kFloor, 2);
   EXPECT_THROW(env.reset(floors(3), std::vector<grid::Cell>{{0, 0}, {1, 1}, {2, 2}}, no_motion(3)),

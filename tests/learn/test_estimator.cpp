@@ -24,6 +24,7 @@
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/estimator.hpp"
 #include "learn/internal/objective.hpp"
+#include "learn/internal/precision.hpp"
 #include "learn/rollout.hpp"
 #include "worlds/dataset.hpp"
 #include "worlds/world.hpp"
@@ -594,6 +595,73 @@ void check_chi(bool learned_goals) {
 // of log pi alone: exactly 0 for a robot that never had to choose.
 TEST(EstimatorChi, ActionLogProbsEnterOnlyWhereTheProtocolChooses) { check_chi(/*learned_goals=*/false); }
 TEST(EstimatorChi, ModeIIILogPiIsGoalPlusChosenActionLogProbs) { check_chi(/*learned_goals=*/true); }
+
+}  // namespace
+}  // namespace scout::learn
+
+namespace scout::learn {
+namespace {
+
+// Several robots on one floor (METHOD.md § Several robots): a team is one rollout. Its robots
+// drive E / K episodes each, hold the team's y, and the batch's outcome is one decision per team
+// on that y, with J-hat over the team's joint log-probability (the sum of its robots').
+// (Each robot's E / K episodes: Rollout.EachRobotOfATeamDrivesItsShareOfTheEpisodes.)
+TEST(EstimatorTeams, ATeamIsOneRolloutWithOneDecisionAndTheSumOfItsRobotsLogPi) {
+  Problem p = make_problem(/*episodes=*/2, /*steps=*/2);
+  p.world.team.robots = 2;
+  p.world.robot.radius_m = 0.1;  // a 1-px disc: two fit apart on the 4 x 4 floor
+  const int teams = 16, robots = 2 * teams;
+  RolloutEngine engine(p.world, p.frame, robots);
+  AgentPolicy policy(*p.agent, p.frame, kPatch, robots);
+  const std::vector<int> indices = {0, 1};
+  const RolloutBatch batch = make_batch(p.data, indices, teams / 2, p.world, p.frame, 77);
+  ASSERT_EQ(batch.count, robots);
+  ASSERT_EQ(batch.rollouts(), teams);
+  ASSERT_EQ(batch.labels.size(), static_cast<std::size_t>(teams));
+  Sampling sampling;
+  sampling.learned_goals = true;
+  sampling.learned_actions = true;
+  sampling.with_grad = false;
+  sampling.precision = agent::Precision::Float32;
+  const BatchOutcome out = run_batch(*p.agent, engine, policy, batch, sampling,
+                                     {.rollouts_per_image = teams / 2, .leave_one_out = false, .entropy_bonus = 0});
+  ASSERT_EQ(out.log_probs.size(0), teams);
+  ASSERT_EQ(out.reward.size(0), teams);
+
+  torch::NoGradGuard no_grad;
+  const BatchState& state = engine.state();
+  const torch::Tensor images = revealed_images(state, robots);
+  const torch::Tensor log_pi = policy.log_pi();
+  double expected_objective = 0;
+  for (int t = 0; t < teams; ++t) {
+    const int a = 2 * t, b = a + 1;
+    // One y per team, what either robot saw.
+    EXPECT_EQ(state.seen[a].data(), state.seen[b].data()) << t;
+    EXPECT_TRUE(torch::equal(images[a], images[b])) << t;
+    const torch::Tensor expected = classifier_log_probs(*p.agent, images.slice(0, a, a + 1), sampling.precision)[0];
+    EXPECT_TRUE(torch::allclose(out.log_probs[t], expected, 1e-5, 1e-6)) << t;
+    const double r = expected[batch.labels[t]].item<double>();
+    EXPECT_NEAR(out.reward[t].item<double>(), r, 1e-5) << t;
+    expected_objective += r + (log_pi[a].item<double>() + log_pi[b].item<double>()) * r;
+  }
+  EXPECT_NEAR(out.objective.item<double>(), expected_objective / teams, 1e-4);
+  // The robots of a team start apart (their discs do not touch) and draw from seeds of their own.
+  const double diameter = 2.0 * p.world.robot.radius_m / p.frame.pixel_size_m;
+  for (int t = 0; t < teams; ++t) {
+    EXPECT_GT((batch.starts[2 * t] - batch.starts[2 * t + 1]).cast<double>().norm(), diameter) << t;
+    EXPECT_NE(batch.seeds[2 * t], batch.seeds[2 * t + 1]) << t;
+    EXPECT_NE(batch.motion_seeds[2 * t], batch.motion_seeds[2 * t + 1]) << t;
+  }
+  // A team's first robot draws what the lone robot of the same rollout draws.
+  worlds::World alone = p.world;
+  alone.team.robots = 1;
+  const RolloutBatch lone = make_batch(p.data, indices, teams / 2, alone, p.frame, 77);
+  for (int t = 0; t < teams; ++t) {
+    EXPECT_EQ(batch.seeds[2 * t], lone.seeds[t]) << t;
+    EXPECT_EQ(batch.starts[2 * t], lone.starts[t]) << t;
+    EXPECT_EQ(batch.labels[t], lone.labels[t]) << t;
+  }
+}
 
 }  // namespace
 }  // namespace scout::learn

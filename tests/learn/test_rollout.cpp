@@ -2,6 +2,7 @@
 // exact grid model of sim/.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <random>
 
@@ -166,6 +167,39 @@ TEST(Rollout, SnapshotsAtEachEpisodeStartAndAtTheEnd) {
     }
     EXPECT_FALSE(r.snapshots.back().goal.has_value());
     EXPECT_EQ(r.snapshots.back().robot, r.steps.back().grid_pose);
+  }
+}
+
+// Several robots on one floor: the team's moves are the lone robot's E * T, shared out as E / K
+// episodes per robot, all robots moving at once; the team's snapshots show the seen pixels of all.
+TEST(Rollout, EachRobotOfATeamDrivesItsShareOfTheEpisodes) {
+  worlds::World world = preset_world();
+  world.team.robots = 2;
+  const int teams = 6, robots = 2 * teams;
+  RolloutEngine engine(world, kFloor, robots);
+  Batch b = random_batch(robots, 21);
+  for (int t = 0; t < teams; ++t) {  // a team shares its floor; its robots start apart
+    std::copy_n(b.floors.begin() + 2 * t * kFloor.area_px(), kFloor.area_px(),
+                b.floors.begin() + (2 * t + 1) * kFloor.area_px());
+    core::Rng rng(100 + t);
+    const std::vector<grid::Cell> starts = env::draw_team_starts(world, kFloor, b.motion_seeds[2 * t], rng);
+    b.starts[2 * t] = starts[0];
+    b.starts[2 * t + 1] = starts[1];
+  }
+  const auto records = run_batch(b, robots, engine);
+  const int episodes = world.task.episodes / 2;
+  for (int i = 0; i < robots; ++i) {
+    const RolloutRecord& r = records[i];
+    ASSERT_EQ(r.steps.size(), static_cast<std::size_t>(episodes * world.task.steps)) << i;
+    ASSERT_EQ(r.snapshots.size(), static_cast<std::size_t>(episodes + 1)) << i;
+    EXPECT_EQ(r.steps.back().episode, episodes - 1);
+  }
+  for (int t = 0; t < teams; ++t) {
+    const RolloutRecord &a = records[2 * t], &c = records[2 * t + 1];
+    EXPECT_EQ(a.snapshots.back().seen, c.snapshots.back().seen) << t;
+    EXPECT_EQ(a.steps.back().revealed_px, c.steps.back().revealed_px) << t;
+    // Both moved, at the same moves, from their own starts.
+    EXPECT_NE(a.path, c.path) << t;
   }
 }
 

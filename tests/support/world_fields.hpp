@@ -19,8 +19,8 @@ namespace scout::testing {
 /// `lines` say where a world was read from, not what it says: for_each_world_field leaves them
 /// out, and a test that parses both worlds from the same origin compares them itself.
 [[maybe_unused]] inline void world_members_are_listed(const worlds::World& w) {
-  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, obstacles, seed,
-                                lines] = w;
+  [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, obstacles, team,
+                                seed, lines] = w;
   [[maybe_unused]] const auto& [dataset, split, index, image, pixel_size_m] = w.floor;
   [[maybe_unused]] const auto& [radius_m, mass_kg, max_speed_mps, start] = w.robot;
   [[maybe_unused]] const auto& [kp_per_s, tolerance_px] = w.controller;
@@ -30,6 +30,7 @@ namespace scout::testing {
   [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose, slip_zones] = w.motion;
   [[maybe_unused]] const auto& [probability, impulse_ns, within_ticks, traction_s] = w.pushes;
   [[maybe_unused]] const auto& [boxes, discs, shade, random_boxes, random_box_min_px, random_box_max_px] = w.obstacles;
+  [[maybe_unused]] const auto& [robots] = w.team;
 }
 
 /// Calls f(dotted name, a's value, b's value) for every field a world file sets, in the order of
@@ -69,6 +70,7 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("obstacles.random_boxes", a.obstacles.random_boxes, b.obstacles.random_boxes);
   f("obstacles.random_box_min_px", a.obstacles.random_box_min_px, b.obstacles.random_box_min_px);
   f("obstacles.random_box_max_px", a.obstacles.random_box_max_px, b.obstacles.random_box_max_px);
+  f("team.robots", a.team.robots, b.team.robots);
   f("seed", a.seed, b.seed);
 }
 

@@ -241,7 +241,7 @@ TEST_P(BadWorld, IsRefusedWithOneLineNamingFileLineAndField) { expect_error(GetP
 const BadCase kBadCases[] = {
     {"UnknownTopLevelKey", "floor: {}\nrobott: {}\n",
      "w.yaml:2: robott: expected a section among floor, robot, controller, camera, task, physics, motion, pushes, "
-     "obstacles, seed, got unknown key"},
+     "obstacles, team, seed, got unknown key"},
     {"UnknownNestedKey", "robot:\n  radius_m: 1\n  radius: 1\n",
      "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key "
      "\"radius\""},
@@ -987,6 +987,7 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   scenario.motion.pose = PoseSource::Odometry;
   scenario.pushes.probability = 0.5;
   scenario.obstacles.shade = 7;
+  scenario.team.robots = 2;
   std::string written;
   std::istringstream yaml(to_yaml(scenario));
   for (std::string line; std::getline(yaml, line);) {

@@ -95,7 +95,7 @@ std::set<std::string> written_keys(const World& w) {
   scout::testing::for_each_world_field(w, defaults, [&](const char* name, const auto& x, const auto& y) {
     const std::string dotted(name);
     const std::string section = dotted.substr(0, dotted.find('.'));
-    if ((section == "motion" || section == "pushes" || section == "obstacles") && !(x == y))
+    if ((section == "motion" || section == "pushes" || section == "obstacles" || section == "team") && !(x == y))
       varied_scenarios.insert(section);
   });
   for (const FieldInfo& f : world_schema()) {
@@ -104,8 +104,8 @@ std::set<std::string> written_keys(const World& w) {
       keys.insert(name);
       continue;
     }
-    if ((section == "motion" || section == "pushes" || section == "obstacles") && varied_scenarios.count(section) == 0)
-      continue;
+    const bool scenario = section == "motion" || section == "pushes" || section == "obstacles" || section == "team";
+    if (scenario && varied_scenarios.count(section) == 0) continue;
     keys.insert(section);
     if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
       continue;
@@ -513,6 +513,7 @@ class Fuzzer {
       {"motion", {"scale_sd", "heading_sd_deg", "pose", "slip_zones"}},
       {"pushes", {"probability", "impulse_ns", "within_ticks", "traction_s"}},
       {"obstacles", {"boxes", "discs", "shade", "random_boxes", "random_box_min_px", "random_box_max_px"}},
+      {"team", {"robots"}},
       {"seed", {}}};
   const std::vector<char> kInterestingChars = {'[', ']', '{',  '}',  ':', '-', '#', '"', '\'', '&', '*', '!',
                                                '|', '>', '\t', '\n', ' ', '0', '9', '.', 'e',  '%', '@', '`'};
@@ -547,6 +548,8 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
            "            random_box_min_px: 3, random_box_max_px: 5}\n"
            "seed: 18446744073709551615\n",
            tally));
+  // A team needs random starts and a divisor of the episodes: beside the file above.
+  ASSERT_TRUE(feed("task: {episodes: 6}\nteam: {robots: 3}\n", tally));
   ASSERT_TRUE(
       feed("floor: {image: a.png, pixel_size_m: 0.30000000000000004}\nphysics: {dt_s: 0.1}\n"
            "controller: {kp_per_s: 0.3333333333333333}\n",
