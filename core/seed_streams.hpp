@@ -15,8 +15,8 @@ inline constexpr std::uint64_t kRunMotion = 4;  ///< run k's motion errors and p
 /// Below the command seed itself: the permutation of the split that `index: random` walks.
 inline constexpr std::uint64_t kRunDigitOrder = ~std::uint64_t{0};
 
-// A robot of a rollout batch (make_batch): its seed is derive_seed(batch stream, global robot
-// index); below it:
+// A rollout of a batch (make_batch): its seed is derive_seed(batch stream, global rollout index);
+// below it:
 inline constexpr std::uint64_t kRobotStart = 1;   ///< the robot's start cell
 inline constexpr std::uint64_t kRobotPolicy = 2;  ///< the robot's goal and axis choices
 inline constexpr std::uint64_t kRobotMotion = 3;  ///< the robot's motion errors and pushes (worlds that have them)
@@ -24,6 +24,10 @@ inline constexpr std::uint64_t kRobotMotion = 3;  ///< the robot's motion errors
 // Below a run's or a robot's motion seed (kRunMotion, kRobotMotion), which also seeds the
 // robot's motion errors and pushes directly:
 inline constexpr std::uint64_t kMotionObstacles = 1;  ///< the run's random boxes (env::run_obstacles)
+
+// Robot k > 0 of a team (docs/SCENARIOS.md § Several robots) draws from derive_seed(s, kTeamMember
+// + k) below the run's motion or policy seed s (env::member_seed; robot 0 from s itself).
+inline constexpr std::uint64_t kTeamMember = std::uint64_t{1} << 41;
 
 // A training run's seed; below it, then the stage and the epoch:
 inline constexpr std::uint64_t kTrainOrder = 11;       ///< data order of (stage, epoch)

@@ -10,6 +10,7 @@
 
 #include "core/error.hpp"
 #include "core/seed_streams.hpp"
+#include "sim/robots.hpp"
 
 namespace scout::env {
 
@@ -112,7 +113,7 @@ grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame,
 }
 
 std::uint64_t member_seed(std::uint64_t seed, int member) {
-  return member == 0 ? seed : core::derive_seed(seed, static_cast<std::uint64_t>(member));
+  return member == 0 ? seed : core::derive_seed(seed, streams::kTeamMember + static_cast<std::uint64_t>(member));
 }
 
 std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid::FloorFrame& frame,
@@ -120,7 +121,8 @@ std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid:
   const worlds::ObstacleSpec layout =
       world.obstacles.random_boxes == 0 ? world.obstacles : run_obstacles(world, frame, motion_seed);
   std::vector<grid::Cell> starts{draw_start(world, frame, layout, rng)};
-  const double diameter = 2.0 * robot_radius_px(world, frame);
+  // Apart by more than their bumpers' reach, so that no contact acts before the first move.
+  const double spacing = 2.0 * sim::RobotBatch::bumper_radius_px(sim::RobotParams::from_world(world), frame);
   constexpr int kDraws = 1000;
   for (int draw = 0; static_cast<int>(starts.size()) < world.team.robots; ++draw) {
     if (draw == kDraws)
@@ -130,7 +132,7 @@ std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid:
                                    world.team.robots, starts.size(), kDraws));
     const grid::Cell c = draw_start(world, frame, layout, rng);
     const bool apart = std::ranges::all_of(
-        starts, [&](const grid::Cell& s) { return static_cast<double>((c - s).squaredNorm()) > diameter * diameter; });
+        starts, [&](const grid::Cell& s) { return static_cast<double>((c - s).squaredNorm()) > spacing * spacing; });
     if (apart) starts.push_back(c);
   }
   return starts;

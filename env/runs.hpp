@@ -43,8 +43,9 @@ grid::Cell draw_start(const worlds::World& world, const grid::FloorFrame& frame,
 std::uint64_t member_seed(std::uint64_t seed, int member);
 
 /// The starts of a team of world.team.robots robots (docs/SCENARIOS.md § Several robots): the
-/// first as draw_start() gives it, the others drawn the same way from `rng` again until their
-/// discs are apart from every earlier one's (centres more than a diameter apart). Obstacles are
+/// first as draw_start() gives it, the others drawn the same way from `rng` again until they
+/// stand clear of every earlier one (centres more than two bumper radii apart,
+/// sim::RobotBatch::bumper_radius_px: a diameter and two ticks' travel). Obstacles are
 /// the run's whose motion seed is `motion_seed` (the first robot's). InputError after 1000 draws
 /// that leave no room.
 std::vector<grid::Cell> draw_team_starts(const worlds::World& world, const grid::FloorFrame& frame,

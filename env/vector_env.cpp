@@ -31,7 +31,11 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   frame_ = {
       .width_px = floors_.width_px(), .height_px = floors_.height_px(), .pixel_size_m = world_.floor.pixel_size_m};
   for (int label : floors_.labels) classes_ = std::max(classes_, label + 1);
-  moves_ = world_.task.episodes * world_.task.steps;
+  team_ = world_.team.robots;
+  if (static_cast<std::int64_t>(num_envs_) * team_ > kMaxEnvs)
+    throw InputError(fmt::format("num_envs: expected at most {} teams of {} robots (the camera's batch of {}), got {}",
+                                 kMaxEnvs / team_, team_, kMaxEnvs, num_envs_));
+  moves_ = world_.task.episodes / team_ * world_.task.steps;  // each robot of a team drives E / K episodes
   seed_ = config.seed.value_or(world_.seed);
   // Per robot: its floor twice (the camera's texture and the batch's copy), what it has seen and
   // revealed (here and in the caller's float arrays), its patch, and its Box2D body.
@@ -39,11 +43,13 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   const std::uint64_t patch = static_cast<std::uint64_t>(world_.camera.patch_px) * world_.camera.patch_px;
   const std::uint64_t per_robot = area * (1 + 1 + 1 + 1 + 4 + 1) + patch * 5 + 16 * 1024;
   core::check_memory(
-      (std::uint64_t{256} << 20) + per_robot * static_cast<std::uint64_t>(num_envs_),
-      fmt::format("num_envs = {} robots on {} x {} floors", num_envs_, frame_.width_px, frame_.height_px), config.force,
-      "pass force=True");
+      (std::uint64_t{256} << 20) + per_robot * static_cast<std::uint64_t>(num_envs_) * team_,
+      team_ == 1 ? fmt::format("num_envs = {} robots on {} x {} floors", num_envs_, frame_.width_px, frame_.height_px)
+                 : fmt::format("num_envs = {} teams of {} robots on {} x {} floors", num_envs_, team_, frame_.width_px,
+                               frame_.height_px),
+      config.force, "pass force=True");
   try {
-    env_ = std::make_unique<BatchEnv>(world_, frame_, num_envs_);
+    env_ = std::make_unique<BatchEnv>(world_, frame_, num_envs_ * team_);
   } catch (const std::runtime_error& e) {
     throw InputError(std::string("the camera cannot start: ") + one_line(e.what()));
   }
@@ -54,25 +60,45 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   done_.assign(num_envs_, 0);
   reset_now_.assign(num_envs_, 0);
   time_step_.assign(num_envs_, 0);
-  commands_.resize(num_envs_);
-  floor_bytes_.resize(static_cast<std::size_t>(frame_.area_px()) * num_envs_);
-  starts_.resize(num_envs_);
-  motion_seeds_.resize(num_envs_);
+  commands_.resize(num_envs_ * team_);
+  floor_bytes_.resize(static_cast<std::size_t>(frame_.area_px()) * num_envs_ * team_);
+  starts_.resize(num_envs_ * team_);
+  motion_seeds_.resize(num_envs_ * team_);
 }
 
 VectorEnv::~VectorEnv() = default;
 
-// Plans robots[k]'s run run_[robots[k]]: its floor into floor_bytes_ row k, its start into starts_[k].
-void VectorEnv::plan(std::span<const int> robots) {
+// Plans envs[k]'s run run_[envs[k]]: the floor, start and motion seed of its robot m (of K) into
+// row k * K + m of floor_bytes_, starts_ and motion_seeds_, and the batch's robot numbers into
+// robots_.
+void VectorEnv::plan(std::span<const int> envs) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-  for (std::size_t k = 0; k < robots.size(); ++k) {
-    const int i = robots[k];
+  robots_.clear();
+  for (std::size_t k = 0; k < envs.size(); ++k) {
+    const int i = envs[k];
     planned_[i] = sequence_[i]->run(run_[i]);
-    std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * k);
-    starts_[k] = planned_[i].start;
-    motion_seeds_[k] = planned_[i].motion_seed;
+    for (int m = 0; m < team_; ++m) {
+      const std::size_t row = k * team_ + m;
+      std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * row);
+      starts_[row] = planned_[i].starts[m];
+      motion_seeds_[row] = member_seed(planned_[i].motion_seed, m);
+      robots_.push_back(i * team_ + m);
+    }
     done_[i] = 0;
     time_step_[i] = 0;
+  }
+}
+
+// Starts the robots plan() planned: the whole batch, or those of the envs it names.
+void VectorEnv::start_planned() {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  const std::size_t n = robots_.size();
+  if (static_cast<int>(n) == env_->max_robots()) {
+    env_->reset(std::span(floor_bytes_.data(), area * n), std::span(starts_.data(), n),
+                std::span(motion_seeds_.data(), n));
+  } else {
+    env_->reset_robots(robots_, std::span(floor_bytes_.data(), area * n), std::span(starts_.data(), n),
+                       std::span(motion_seeds_.data(), n));
   }
 }
 
@@ -90,10 +116,11 @@ void VectorEnv::reset(std::optional<std::uint64_t> seed, const VectorOutputs& ou
 void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
   const auto n = static_cast<std::size_t>(num_envs_);
   if (!which.mask.empty() && which.mask.size() != n)
-    throw InputError(fmt::format("reset_mask: expected {} flags (one per robot), got {}", n, which.mask.size()));
+    throw InputError(fmt::format("reset_mask: expected {} flags (one per {}), got {}", n, team_ == 1 ? "robot" : "team",
+                                 which.mask.size()));
   if (!which.robot_seeds.empty() && which.robot_seeds.size() != n)
-    throw InputError(fmt::format("seed: expected one seed or a list of {} (one per robot), got a list of {}", n,
-                                 which.robot_seeds.size()));
+    throw InputError(fmt::format("seed: expected one seed or a list of {} (one per {}), got a list of {}", n,
+                                 team_ == 1 ? "robot" : "team", which.robot_seeds.size()));
   if (which.seed && !which.robot_seeds.empty()) throw InputError("seed: expected one seed or a list, not both");
   std::vector<int> robots;
   for (int i = 0; i < num_envs_; ++i)
@@ -121,13 +148,7 @@ void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
   std::erase_if(sequences_,
                 [&](const auto& entry) { return !std::binary_search(used.begin(), used.end(), entry.second.get()); });
   plan(robots);
-  if (robots.size() == n) {
-    env_->reset(floor_bytes_, starts_, motion_seeds_);
-  } else {
-    const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-    env_->reset_robots(robots, std::span(floor_bytes_.data(), area * robots.size()),
-                       std::span(starts_.data(), robots.size()), std::span(motion_seeds_.data(), robots.size()));
-  }
+  start_planned();
   if (out.reward) std::fill_n(out.reward, num_envs_, 0.0f);
   if (out.terminated) std::fill_n(out.terminated, num_envs_, 0);
   if (out.truncated) std::fill_n(out.truncated, num_envs_, 0);
@@ -138,15 +159,24 @@ void VectorEnv::reset(const VectorReset& which, const VectorOutputs& out) {
 // buffers) and checks the copy.
 void VectorEnv::take(const VectorAction& action) {
   if (!sequence_[0]) throw InputError("step: call reset first");
-  if (static_cast<int>(action.move.size()) != num_envs_)
-    throw InputError(
-        fmt::format("action['move']: expected {} moves (one per robot), got {}", num_envs_, action.move.size()));
+  const int robots = num_envs_ * team_;
+  if (static_cast<int>(action.move.size()) != robots)
+    throw InputError(team_ == 1 ? fmt::format("action['move']: expected {} moves (one per robot), got {}", num_envs_,
+                                              action.move.size())
+                                : fmt::format("action['move']: expected {} x {} moves (one per robot of each team), "
+                                              "got {} values",
+                                              num_envs_, team_, action.move.size()));
   move_.assign(action.move.begin(), action.move.end());
   prediction_.assign(action.prediction.begin(), action.prediction.end());
   goal_.assign(action.goal.begin(), action.goal.end());
-  for (int i = 0; i < num_envs_; ++i)
-    if (move_[i] < 0 || move_[i] > 3)
-      throw InputError(fmt::format("action['move'][{}]: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", i, move_[i]));
+  // Where entry r of a flat per-robot array stands in the caller's array: [i] or, in teams, [i][m].
+  const auto at = [this](int r) {
+    return team_ == 1 ? fmt::format("[{}]", r) : fmt::format("[{}][{}]", r / team_, r % team_);
+  };
+  for (int r = 0; r < robots; ++r)
+    if (move_[r] < 0 || move_[r] > 3)
+      throw InputError(
+          fmt::format("action['move']{}: expected 0, 1, 2 or 3 (+x, -x, +y, -y), got {}", at(r), move_[r]));
   if (!prediction_.empty()) {
     if (classes_ == 0) throw InputError("action['prediction']: the floors have no labels to predict");
     if (prediction_.size() != static_cast<std::size_t>(num_envs_) * classes_)
@@ -158,12 +188,15 @@ void VectorEnv::take(const VectorAction& action) {
                                      k % classes_, prediction_[k]));
   }
   if (!goal_.empty()) {
-    if (goal_.size() != static_cast<std::size_t>(num_envs_) * 2)
-      throw InputError(fmt::format("action['goal']: expected {} x 2 cells, got {} values", num_envs_, goal_.size()));
-    for (int i = 0; i < num_envs_; ++i)
-      if (!frame_.contains({goal_[2 * i], goal_[2 * i + 1]}))
-        throw InputError(fmt::format("action['goal'][{}]: expected a cell of the {} x {} floor, got ({}, {})", i,
-                                     frame_.width_px, frame_.height_px, goal_[2 * i], goal_[2 * i + 1]));
+    if (goal_.size() != static_cast<std::size_t>(robots) * 2)
+      throw InputError(
+          team_ == 1 ? fmt::format("action['goal']: expected {} x 2 cells, got {} values", num_envs_, goal_.size())
+                     : fmt::format("action['goal']: expected {} x {} x 2 cells, got {} values", num_envs_, team_,
+                                   goal_.size()));
+    for (int r = 0; r < robots; ++r)
+      if (!frame_.contains({goal_[2 * r], goal_[2 * r + 1]}))
+        throw InputError(fmt::format("action['goal']{}: expected a cell of the {} x {} floor, got ({}, {})", at(r),
+                                     frame_.width_px, frame_.height_px, goal_[2 * r], goal_[2 * r + 1]));
   }
   if (!autoreset_)
     for (int i = 0; i < num_envs_; ++i)
@@ -184,29 +217,27 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
     }
   const int s = world_.task.step_px;
   const std::span<const grid::Cell> poses = env_->poses();
-  for (int i = 0; i < num_envs_; ++i) {
-    if (done_[i]) {
-      commands_[i] = grid::Cell::Zero();
+  for (int r = 0; r < num_envs_ * team_; ++r) {
+    if (done_[r / team_]) {
+      commands_[r] = grid::Cell::Zero();
       continue;
     }
     static const grid::Cell kDirections[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
-    const grid::Cell d = kDirections[move_[i]];
+    const grid::Cell d = kDirections[move_[r]];
     if (!goal_.empty()) {  // the protocol's move: along the move's axis toward the goal, never past it
-      const grid::Cell goal(goal_[2 * i], goal_[2 * i + 1]);
-      commands_[i] = grid::move_command(poses[i], goal, d.x() != 0 ? grid::Axis::Horizontal : grid::Axis::Vertical, s);
+      const grid::Cell goal(goal_[2 * r], goal_[2 * r + 1]);
+      commands_[r] = grid::move_command(poses[r], goal, d.x() != 0 ? grid::Axis::Horizontal : grid::Axis::Vertical, s);
       continue;
     }
     // A move past the floor's edge stops on the border pixel, where the wall would stop it, without
     // the controller pushing against the wall until its tick limit.
-    const grid::Cell target(std::clamp(poses[i].x() + d.x() * s, 0, frame_.width_px - 1),
-                            std::clamp(poses[i].y() + d.y() * s, 0, frame_.height_px - 1));
-    commands_[i] = target - poses[i];
+    const grid::Cell target(std::clamp(poses[r].x() + d.x() * s, 0, frame_.width_px - 1),
+                            std::clamp(poses[r].y() + d.y() * s, 0, frame_.height_px - 1));
+    commands_[r] = target - poses[r];
   }
   if (!finished_.empty()) {
     plan(finished_);
-    const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-    env_->reset_robots(finished_, std::span(floor_bytes_.data(), area * finished_.size()),
-                       std::span(starts_.data(), finished_.size()), std::span(motion_seeds_.data(), finished_.size()));
+    start_planned();
   }
   env_->step(commands_);
 
@@ -237,28 +268,34 @@ void VectorEnv::write(const VectorOutputs& out) const {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   const std::span<const std::uint8_t> patches = env_->patches();
   const std::span<const std::uint8_t> revealed = env_->revealed();
+  const std::span<const std::uint8_t> occupied = env_->occupied();
   constexpr float kScale = 1.0f / 255.0f;
   if (out.patch)
     for (std::size_t k = 0; k < patches.size(); ++k) out.patch[k] = patches[k] * kScale;
-  if (out.revealed)
-    for (std::size_t k = 0; k < revealed.size(); ++k) out.revealed[k] = revealed[k] * kScale;
-  if (out.occupied && !env_->occupied().empty())
-    std::copy(env_->occupied().begin(), env_->occupied().end(), out.occupied);
-  for (int i = 0; i < num_envs_; ++i) {
-    const grid::Cell pose = env_->poses()[i];
+  // Per robot: the pose and the centre.
+  for (int r = 0; r < num_envs_ * team_; ++r) {
+    const grid::Cell pose = env_->poses()[r];
     if (out.pose) {
-      out.pose[2 * i] = pose.x();
-      out.pose[2 * i + 1] = pose.y();
+      out.pose[2 * r] = pose.x();
+      out.pose[2 * r + 1] = pose.y();
     }
-    if (out.seen) std::copy_n(env_->seen()[i].data().data(), area, out.seen + area * i);
+    if (out.pose_m) {
+      const Eigen::Vector2d p = env_->pose_m(r);
+      out.pose_m[2 * r] = p.x();
+      out.pose_m[2 * r + 1] = p.y();
+    }
+  }
+  // Per env: y, h and o are a team's (its first robot holds them), and the run's facts.
+  for (int i = 0; i < num_envs_; ++i) {
+    const std::size_t first = static_cast<std::size_t>(i) * team_;
+    if (out.revealed)
+      for (std::size_t k = 0; k < area; ++k) out.revealed[area * i + k] = revealed[area * first + k] * kScale;
+    if (out.occupied && !occupied.empty())
+      std::copy_n(occupied.begin() + static_cast<std::ptrdiff_t>(area * first), area, out.occupied + area * i);
+    if (out.seen) std::copy_n(env_->seen()[first].data().data(), area, out.seen + area * i);
     if (out.time_step) out.time_step[i] = time_step_[i];
     if (out.label) out.label[i] = floors_.labels[planned_[i].index];
     if (out.index) out.index[i] = planned_[i].index;
-    if (out.pose_m) {
-      const Eigen::Vector2d p = env_->pose_m(i);
-      out.pose_m[2 * i] = p.x();
-      out.pose_m[2 * i + 1] = p.y();
-    }
     if (out.policy_seed) out.policy_seed[i] = planned_[i].policy_seed;
   }
 }

@@ -1,6 +1,7 @@
 #pragma once
 /// The Gymnasium-style vector environment behind the Python package (python/): num_envs robots
-/// over the digits of one split, each moved one step at a time by an integer action, with
+/// (or, in a world with teams of K, num_envs teams of K robots: docs/SCENARIOS.md § Several
+/// robots) over the digits of one split, each moved one step at a time by an integer action, with
 /// observations written into caller-owned arrays, rewards from the caller's predictions, and
 /// Gymnasium's NEXT_STEP autoreset (or none: DISABLED, with partial resets). Every action and
 /// reset is checked here, once; the Python layer only converts and wraps. Torch-free.
@@ -51,16 +52,17 @@ struct VectorReset {
 };
 
 /// Where reset and step write: caller-owned, C-contiguous arrays of num_envs rows each. The
-/// step-only fields are ignored by reset.
+/// step-only fields are ignored by reset. In a world with teams of K robots the per-robot arrays
+/// (patch, pose, pose_m) hold K entries per row, robot-major: N x K x ...; y, h and o are the team's.
 struct VectorOutputs {
-  float* patch = nullptr;                ///< N x m x m, the camera's image in [0, 1]
-  std::int32_t* pose = nullptr;          ///< N x 2, grid pose (x, y)
+  float* patch = nullptr;                ///< N x m x m (N x K x m x m), each camera's image in [0, 1]
+  std::int32_t* pose = nullptr;          ///< N x 2 (N x K x 2), grid pose (x, y)
   float* revealed = nullptr;             ///< N x H x W, the floor where seen, 0 elsewhere, in [0, 1]
-  std::uint8_t* seen = nullptr;          ///< N x H x W, 1 where seen
+  std::uint8_t* seen = nullptr;          ///< N x H x W, 1 where seen (by any robot of a team)
   std::int32_t* time_step = nullptr;     ///< N, moves made in the episode
   std::int32_t* label = nullptr;         ///< N, the digit's class (-1: unknown)
   std::int32_t* index = nullptr;         ///< N, the digit's index in its split
-  double* pose_m = nullptr;              ///< N x 2, the robot's centre in metres
+  double* pose_m = nullptr;              ///< N x 2 (N x K x 2), the robot's centre in metres
   std::uint64_t* policy_seed = nullptr;  ///< N, the run's policy seed (scout.Agent draws from it)
   float* reward = nullptr;               ///< N (step)
   std::uint8_t* terminated = nullptr;    ///< N (step)
@@ -73,11 +75,12 @@ struct VectorOutputs {
 /// The action of one step (spans of num_envs rows).
 struct VectorAction {
   /// 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up), each step_px pixels; a move past
-  /// the floor's edge ends on the border pixel (where the wall would stop it).
+  /// the floor's edge ends on the border pixel (where the wall would stop it). N x K entries in a
+  /// world with teams: every robot of a team moves in the same step.
   std::span<const std::int32_t> move = {};
   /// N x D logits of each robot's prediction, or empty.
   std::span<const float> prediction = {};
-  /// N x 2 goals of the layered protocol, or empty. With goals, a move never passes its robot's
+  /// N x 2 (N x K x 2) goals of the layered protocol, or empty. With goals, a move never passes its robot's
   /// goal on its axis (it is cut short, as in the paper's protocol), so a robot on the goal's
   /// row or column stays put there: what scout.Agent needs to replay `scout run` exactly.
   std::span<const std::int32_t> goal = {};
@@ -99,7 +102,8 @@ class VectorEnv {
   int width() const { return frame_.width_px; }
   int height() const { return frame_.height_px; }
   int classes() const { return classes_; }      ///< D: the split's largest label + 1 (0: unlabelled)
-  int episode_moves() const { return moves_; }  ///< E x T: the moves of an episode
+  int episode_moves() const { return moves_; }  ///< E x T (E / K x T in teams): an episode's steps
+  int team_size() const { return team_; }       ///< K robots per env (world.team.robots)
   int step_px() const { return world_.task.step_px; }
   const worlds::World& world() const { return world_; }
   const worlds::FloorSet& floors() const { return floors_; }
@@ -125,13 +129,15 @@ class VectorEnv {
  private:
   void take(const VectorAction& action);
   const RunSequence* sequence(std::uint64_t seed);
-  void plan(std::span<const int> robots);
+  void plan(std::span<const int> envs);
+  void start_planned();
   void write(const VectorOutputs& out) const;
 
   worlds::World world_;
   worlds::FloorSet floors_;
   grid::FloorFrame frame_;
   int num_envs_;
+  int team_ = 1;  // K robots per env
   int classes_ = 0;
   int moves_;
   Reward reward_;
@@ -153,6 +159,7 @@ class VectorEnv {
   std::vector<int> finished_;
   std::vector<std::uint8_t> floor_bytes_;
   std::vector<grid::Cell> starts_;
+  std::vector<int> robots_;  // the batch's robots plan() planned
   std::vector<std::uint64_t> motion_seeds_;
 };
 

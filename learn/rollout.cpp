@@ -43,6 +43,9 @@ void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std:
 RolloutEngine::RolloutEngine(const worlds::World& world, const grid::FloorFrame& frame, int max_robots)
     : task_(world.task), team_size_(world.team.robots) {
   if (max_robots <= 0) throw std::invalid_argument("RolloutEngine: max_robots must be positive");
+  if (team_size_ < 1 || task_.episodes % team_size_ != 0)
+    throw std::invalid_argument("RolloutEngine: " + std::to_string(task_.episodes) + " episodes do not divide among " +
+                                std::to_string(team_size_) + " robots");
   env_ = std::make_unique<env::BatchEnv>(world, frame, max_robots);
   state_.frame = frame;
   state_.patch_px = world.camera.patch_px;

@@ -506,10 +506,16 @@ void TrainConfig::validate(SettingName name) const {
   }
   const TrainSetting& batch = train_setting("batch_images");
   const TrainSetting& n = train_setting("rollouts");
-  const long long robots = static_cast<long long>(batch_images) * rollouts;
+  const int team = world.team.robots;  // a rollout is a team of K robots
+  const long long robots = static_cast<long long>(batch_images) * rollouts * team;
   if (robots > env::kMaxRobots)
-    throw InputError(fmt::format("{} x {}: expected at most {} robots (what one camera draws), got {} x {} = {}",
-                                 name(batch), name(n), env::kMaxRobots, batch_images, rollouts, robots));
+    throw InputError(team == 1
+                         ? fmt::format("{} x {}: expected at most {} robots (what one camera draws), got {} x {} "
+                                       "= {}",
+                                       name(batch), name(n), env::kMaxRobots, batch_images, rollouts, robots)
+                         : fmt::format("{} x {} x team.robots: expected at most {} robots (what one camera "
+                                       "draws), got {} x {} x {} = {}",
+                                       name(batch), name(n), env::kMaxRobots, batch_images, rollouts, team, robots));
   if (leave_one_out && rollouts < 2)
     throw InputError(
         fmt::format("{}: the leave-one-out baseline needs {} >= 2", name(train_setting("leave_one_out")), name(n)));
@@ -632,13 +638,17 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
     }
   }
   classifier *= element + 4;  // the activations and their fp32 normalisation or gradient copies
-  const double robots = std::ceil(double(config.batch_images) / world_size) * config.rollouts;
+  // A rollout is a team of K robots (one robot without a team): its K robots make the one robot's
+  // planner calls between them, and the classifier decides once.
+  const double rollouts = std::ceil(double(config.batch_images) / world_size) * config.rollouts;
+  const double team = config.world.team.robots;
   const double calls = config.world.task.episodes * (1.0 + config.world.task.steps);  // goals, then each move
-  const double state = area * (n.image_channels + 4) * 4 * 2;                 // observations, masks, the camera's floor
-  const double per_robot = calls * planner + classifier + state + 16 * 1024;  // + Box2D's body and contacts
-  const double weights = double(agent::parameter_count(n)) * (4 * 4 + 2);     // fp32 x 4, a bf16 copy
+  const double state = area * (n.image_channels + 4) * 4 * 2;  // observations, masks, the camera's floor
+  // + Box2D's body and contacts per robot
+  const double per_rollout = calls * planner + classifier + team * (state + 16 * 1024);
+  const double weights = double(agent::parameter_count(n)) * (4 * 4 + 2);  // fp32 x 4, a bf16 copy
   constexpr double kBase = 600.0 * 1024 * 1024;  // LibTorch, OpenMP, Mesa's llvmpipe, the data
-  return static_cast<std::uint64_t>(kBase + weights + robots * per_robot);
+  return static_cast<std::uint64_t>(kBase + weights + rollouts * per_rollout);
 }
 
 }  // namespace scout::learn

@@ -112,15 +112,19 @@ Array<T> action_array(const py::dict& action, const char* key, const std::vector
   Array<T> out(shape);
   const Wide* from = wide.data();
   T* to = out.mutable_data();
-  const py::ssize_t columns = shape.size() > 1 ? shape[1] : 1;
   for (py::ssize_t k = 0; k < wide.size(); ++k) {
     const Wide v = from[k];
     const bool fits = integers ? v >= std::numeric_limits<T>::min() && v <= std::numeric_limits<T>::max()
                                : !std::isfinite(v) || std::abs(v) <= std::numeric_limits<T>::max();
     if (!fits) {
-      const std::string where = shape.size() > 1
-                                    ? "[" + std::to_string(k / columns) + "][" + std::to_string(k % columns) + "]"
-                                    : "[" + std::to_string(k) + "]";
+      std::string where;  // [i], [i][j] or [i][j][c]: the entry's index in the caller's array
+      for (py::ssize_t rest = k, d = static_cast<py::ssize_t>(shape.size()) - 1; d >= 0; --d) {
+        std::string index("[");
+        index += std::to_string(rest % shape[d]);
+        index += ']';
+        where.insert(0, index);
+        rest /= shape[d];
+      }
       throw py::value_error(name + where + ": expected " + (integers ? "an int32" : "a logit within float32's range") +
                             ", got " + py::str(py::cast(v)).cast<std::string>());
     }
@@ -139,19 +143,25 @@ struct Outputs {
   Array<std::uint64_t> policy_seed;
   py::array_t<bool> terminated, truncated, goal_episode_start;
 
+  // In a world with teams of K robots, the per-robot arrays take a team axis: N x K x ...
   explicit Outputs(const env::VectorEnv& e) {
-    const py::ssize_t n = e.num_envs(), m = e.patch_px(), h = e.height(), w = e.width();
-    patch = Array<float>({n, m, m});
+    const py::ssize_t n = e.num_envs(), m = e.patch_px(), h = e.height(), w = e.width(), K = e.team_size();
+    const auto per_robot = [&](std::vector<py::ssize_t> tail) {
+      tail.insert(tail.begin(), n);
+      if (K > 1) tail.insert(tail.begin() + 1, K);
+      return tail;
+    };
+    patch = Array<float>(per_robot({m, m}));
     revealed = Array<float>({n, h, w});
     reward = Array<float>(n);
-    pose = Array<std::int32_t>({n, py::ssize_t{2}});
+    pose = Array<std::int32_t>(per_robot({2}));
     time_step = Array<std::int32_t>(n);
     label = Array<std::int32_t>(n);
     index = Array<std::int32_t>(n);
     goal_episode = Array<std::int32_t>(n);
     seen = Array<std::uint8_t>({n, h, w});
     if (e.has_obstacles()) occupied = Array<std::uint8_t>({n, h, w});
-    pose_m = Array<double>({n, py::ssize_t{2}});
+    pose_m = Array<double>(per_robot({2}));
     policy_seed = Array<std::uint64_t>(n);
     terminated = py::array_t<bool>(n);
     truncated = py::array_t<bool>(n);
@@ -231,8 +241,8 @@ class VectorEnvCore {
       py::gil_scoped_release release;
       env_ = std::make_unique<env::VectorEnv>(c);
     }
-    if (render) paths_.emplace(env_->num_envs());
-    goals_.resize(env_->num_envs());
+    if (render) paths_.emplace(env_->num_envs() * env_->team_size());
+    goals_.resize(env_->num_envs() * env_->team_size());
   }
 
   // seed: None, an integer (the batch's sequence) or a list of num_envs integers or None (one
@@ -262,8 +272,9 @@ class VectorEnvCore {
       py::gil_scoped_release release;
       const std::lock_guard<std::mutex> one_at_a_time(mutex_);  // threads may share an env
       env_->reset(which, p);
-      for (std::size_t i = 0; i < n; ++i)
-        if (which.mask.empty() || which.mask[i]) goals_[i].reset();
+      const auto K = static_cast<std::size_t>(env_->team_size());
+      for (std::size_t r = 0; r < n * K; ++r)
+        if (which.mask.empty() || which.mask[r / K]) goals_[r].reset();
       track();
     }
     out.episodes(*env_);
@@ -288,14 +299,17 @@ class VectorEnvCore {
       throw py::value_error("action: unknown key(s) [" + list + "]; expected 'move', 'prediction', 'goal'");
     }
     if (!action.contains("move")) throw py::value_error("action: expected a 'move' entry");
-    const py::ssize_t n = env_->num_envs();
-    const Array<std::int32_t> move = action_array<std::int32_t>(action, "move", {n});
+    const py::ssize_t n = env_->num_envs(), K = env_->team_size();
+    // A team's robots each take a move (and a goal): (N, K) and (N, K, 2); one prediction per team.
+    const Array<std::int32_t> move = action_array<std::int32_t>(
+        action, "move", K > 1 ? std::vector<py::ssize_t>{n, K} : std::vector<py::ssize_t>{n});
     std::optional<Array<float>> prediction;
     std::optional<Array<std::int32_t>> goal;
     if (action.contains("prediction") && !action["prediction"].is_none())
       prediction = action_array<float>(action, "prediction", {n, static_cast<py::ssize_t>(env_->classes())});
     if (action.contains("goal") && !action["goal"].is_none())
-      goal = action_array<std::int32_t>(action, "goal", {n, py::ssize_t{2}});
+      goal = action_array<std::int32_t>(action, "goal",
+                                        K > 1 ? std::vector<py::ssize_t>{n, K, 2} : std::vector<py::ssize_t>{n, 2});
 
     Outputs out(*env_);
     const env::VectorOutputs p = out.pointers();
@@ -308,22 +322,24 @@ class VectorEnvCore {
       const std::lock_guard<std::mutex> one_at_a_time(mutex_);
       env_->step(a, p);
       if (paths_)
-        for (py::ssize_t i = 0; i < n; ++i)
-          goals_[i] =
-              goal ? std::optional(render::PixelPose{goal->data()[2 * i], goal->data()[2 * i + 1]}) : std::nullopt;
+        for (py::ssize_t r = 0; r < n * K; ++r)
+          goals_[r] =
+              goal ? std::optional(render::PixelPose{goal->data()[2 * r], goal->data()[2 * r + 1]}) : std::nullopt;
       track();
     }
     out.episodes(*env_);
     return py::make_tuple(out.observation(), out.reward, out.terminated, out.truncated, out.info());
   }
 
-  // Robot i as `scout run --video` draws it after a move: the floor shaded where unseen, the path
-  // of its run so far, its disc and camera window, and the goal of its last action (if any). RGB,
-  // `scale` image pixels a floor pixel.
-  py::array_t<std::uint8_t> render(int robot, int scale) {
+  // Env i as `scout run --video` draws it after a move: the floor shaded where unseen, the path
+  // of its run so far, its disc and camera window, and the goal of its last action (if any); in a
+  // world with teams, every robot of the team in its colour. RGB, `scale` image pixels a floor pixel.
+  py::array_t<std::uint8_t> render(int env_index, int scale) {
     if (!paths_) throw InputError("render: the environment was made without render_mode=\"rgb_array\"");
-    if (robot < 0 || robot >= env_->num_envs() || (*paths_)[robot].empty())
+    const int K = env_->team_size();
+    if (env_index < 0 || env_index >= env_->num_envs() || (*paths_)[env_index * K].empty())
       throw InputError("render: call reset first");
+    const int robot = env_index * K;
     render::Picture picture;
     {
       py::gil_scoped_release release;
@@ -331,7 +347,7 @@ class VectorEnvCore {
       const env::VectorEnv& e = *env_;
       const auto area = static_cast<std::size_t>(e.width()) * e.height();
       render::Snapshot s;
-      s.floor = e.floors().images.image(e.floor_index(robot));
+      s.floor = e.floors().images.image(e.floor_index(env_index));
       s.width_px = e.width();
       s.height_px = e.height();
       s.revealed = e.batch().revealed().data() + area * robot;
@@ -342,8 +358,16 @@ class VectorEnvCore {
       s.scale = scale;
       const double pixel_m = e.world().floor.pixel_size_m;
       const Eigen::Vector2d body = e.batch().pose_m(robot) / pixel_m;
-      s.body =
-          render::Snapshot::Body{.x_px = body.x(), .y_px = body.y(), .radius_px = e.world().robot.radius_m / pixel_m};
+      const double radius_px = e.world().robot.radius_m / pixel_m;
+      s.body = render::Snapshot::Body{.x_px = body.x(), .y_px = body.y(), .radius_px = radius_px};
+      for (int k = 1; k < K; ++k) {
+        render::Snapshot::Teammate& mate = s.teammates.emplace_back();
+        mate.robot = (*paths_)[robot + k].back();
+        mate.goal = goals_[robot + k];
+        mate.path = (*paths_)[robot + k];
+        const Eigen::Vector2d at = e.batch().pose_m(robot + k) / pixel_m;
+        mate.body = render::Snapshot::Body{.x_px = at.x(), .y_px = at.y(), .radius_px = radius_px};
+      }
       picture = render::draw_snapshot(s);
     }
     py::array_t<std::uint8_t> rgb({py::ssize_t{picture.height}, py::ssize_t{picture.width}, py::ssize_t{3}});
@@ -356,14 +380,14 @@ class VectorEnvCore {
     return rgb;
   }
 
-  // The C++ side of the benchmark: the same steps (moves: steps x N) through env::VectorEnv with
-  // one set of output arrays, no Python in the loop. Returns the seconds they took.
+  // The C++ side of the benchmark: the same steps (moves: steps x N robots, N x K in teams) through
+  // env::VectorEnv with one set of output arrays, no Python in the loop. Returns the seconds they took.
   double bench(const Array<std::int32_t>& moves) {
-    if (moves.ndim() != 2 || moves.shape(1) != env_->num_envs())
-      throw InputError("bench: expected moves of shape (steps, " + std::to_string(env_->num_envs()) + ")");
+    const std::size_t n = static_cast<std::size_t>(env_->num_envs()) * env_->team_size();
+    if (moves.ndim() != 2 || moves.shape(1) != static_cast<py::ssize_t>(n))
+      throw InputError("bench: expected moves of shape (steps, " + std::to_string(n) + ")");
     Outputs out(*env_);
     const env::VectorOutputs p = out.pointers();
-    const std::size_t n = static_cast<std::size_t>(env_->num_envs());
     const py::ssize_t steps = moves.shape(0);
     const std::int32_t* all = moves.data();
     py::gil_scoped_release release;
@@ -420,6 +444,7 @@ PYBIND11_MODULE(_scout, m) {
       .def_property_readonly("height", [](const VectorEnvCore& c) { return c.env().height(); })
       .def_property_readonly("classes", [](const VectorEnvCore& c) { return c.env().classes(); })
       .def_property_readonly("has_obstacles", [](const VectorEnvCore& c) { return c.env().has_obstacles(); })
+      .def_property_readonly("team_size", [](const VectorEnvCore& c) { return c.env().team_size(); })
       .def_property_readonly("episodes", [](const VectorEnvCore& c) { return c.env().world().task.episodes; })
       .def_property_readonly("steps", [](const VectorEnvCore& c) { return c.env().world().task.steps; })
       .def_property_readonly("step_px", [](const VectorEnvCore& c) { return c.env().step_px(); })

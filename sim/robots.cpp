@@ -63,6 +63,13 @@ b2Filter filter(std::uint16_t category, std::uint16_t mask) {
 const b2Filter kDiscFilter = filter(0x0004, 0x0001);
 const b2Filter kBumperFilter = filter(0x0002, 0x0002);
 
+// The fastest a robot may go: a scale error can speed the drive up (four standard deviations are
+// counted), and a push adds its velocity change.
+double fastest_speed_mps(const RobotParams& params) {
+  return params.body.max_speed_mps * (1.0 + 4.0 * params.motion.scale_sd) +
+         (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
+}
+
 // A robot whose move is over holds its place while its teammates finish theirs: a teammate
 // pushing it must not shove it along. It stays a dynamic body (making it static would drop its
 // contacts for a tick, and let a teammate into its disc), but a million times heavier, and at rest
@@ -108,6 +115,10 @@ RobotParams RobotParams::from_world(const worlds::World& world) {
 
 double RobotBatch::wall_margin_px() { return kWallClearance_u / kUnitsPerPx; }
 
+double RobotBatch::bumper_radius_px(const RobotParams& params, const grid::FloorFrame& frame) {
+  return (params.body.radius_m + fastest_speed_mps(params) * params.physics.dt_s) / frame.pixel_size_m;
+}
+
 RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads)
     : frame_(frame),
       params_(params),
@@ -116,7 +127,7 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
       team_size_(params.team.robots),
       pool_(std::make_unique<WorkerPool>(threads)) {
   if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
-  if (team_size_ < 1 || count % team_size_ != 0)
+  if (team_size_ < 1 || team_size_ > worlds::kMaxTeamRobots || count % team_size_ != 0)
     throw std::invalid_argument("RobotBatch: " + std::to_string(count) + " robots do not make teams of " +
                                 std::to_string(team_size_));
   teams_.reset(new Team[count / team_size_]);
@@ -141,10 +152,7 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   // one tick can carry the centre across a wall, i.e. when the speed limit allows moving a
   // sizeable part of the radius per tick; the paper preset moves 1/3 px = 0.033 m per tick
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
-  // A scale error can speed the drive up (four standard deviations are counted), and a push adds
-  // its velocity change.
-  const double fastest_mps = params.body.max_speed_mps * (1.0 + 4.0 * params.motion.scale_sd) +
-                             (params.pushes.none() ? 0.0 : params.pushes.impulse_ns / params.body.mass_kg);
+  const double fastest_mps = fastest_speed_mps(params);
   const bool continuous = fastest_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
   for (int k = 0; k < count / team_size_; ++k) {
     Team& t = teams_[k];
@@ -185,7 +193,7 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
         // keep the overlap. So teammates meet through a massless bumper one tick's travel wider
         // than the disc, which only bumpers touch: the discs themselves never overlap.
         b2CircleShape bumper;
-        bumper.m_radius = static_cast<float>(radius_u + fastest_mps * params.physics.dt_s * units_per_m);
+        bumper.m_radius = static_cast<float>(bumper_radius_px(params, frame) * kUnitsPerPx);
         b2FixtureDef bumper_def;
         bumper_def.shape = &bumper;
         bumper_def.density = 0.0f;

@@ -71,12 +71,11 @@ class RobotBatch {
   /// Drives robot i from its grid pose to grid pose + commands[i] (pixels), for every robot
   /// i < commands.size() (whole teams), all in one call; results[i] tells how it went. A team's
   /// robots tick together until each has settled, been blocked (by an obstacle or a teammate) or
-  /// run out of ticks; one that is done holds its place (a static body) while the others finish. In a world with motion
-  /// errors the move starts from the pose the robot believes it is at (odometry_pose(): the true
-  /// one when the world's `motion.pose` is `localised`) and lands near the target, not on it. Targets are not
-  /// clamped: a command past the floor's edge ends against the wall. With `tick_positions_px`
-  /// (one vector per commanded robot), robot i appends its centre (pixels) after every tick: the
-  /// motion between grid poses, for animations.
+  /// run out of ticks; one that is done holds its place (a million times heavier) while the others finish. In a world
+  /// with motion errors the move starts from the pose the robot believes it is at (odometry_pose(): the true one when
+  /// the world's `motion.pose` is `localised`) and lands near the target, not on it. Targets are not clamped: a command
+  /// past the floor's edge ends against the wall. With `tick_positions_px` (one vector per commanded robot), robot i
+  /// appends its centre (pixels) after every tick: the motion between grid poses, for animations.
   void move(std::span<const grid::Cell> commands, std::span<MoveResult> results,
             std::span<std::vector<Eigen::Vector2d>> tick_positions_px = {});
 
@@ -100,6 +99,10 @@ class RobotBatch {
   /// Closest approach of the robot's centre to the floor's border-pixel centres: the walls
   /// stop the centre `wall_margin_px()` beyond them (Box2D's contact skin), never further.
   static double wall_margin_px();
+  /// The radius at which a robot meets its teammates: its disc's and one tick's travel at its
+  /// fastest (a massless bumper, docs/SCENARIOS.md § Several robots), pixels. Teammates starting
+  /// more than two of these apart start clear of each other.
+  static double bumper_radius_px(const RobotParams& params, const grid::FloorFrame& frame);
 
  private:
   struct Team;

@@ -90,7 +90,10 @@ SimBatch gather_sim_batch(const BenchOptions& opt) {
   b.frame = {
       .width_px = b.floors.width_px(), .height_px = b.floors.height_px(), .pixel_size_m = b.world.floor.pixel_size_m};
   b.n = opt.robots;
-  b.moves_per_rollout = b.world.task.episodes * b.world.task.steps;
+  const int K = b.world.team.robots;
+  if (b.n % K != 0)
+    throw InputError(fmt::format("--robots: expected a multiple of the world's team.robots = {}, got {}", K, b.n));
+  b.moves_per_rollout = b.world.task.episodes / K * b.world.task.steps;  // each robot's
   b.area = static_cast<std::size_t>(b.frame.area_px());
   core::Rng rng(b.world.seed);
   b.floor_pixels.resize(b.area * b.n);
@@ -104,7 +107,17 @@ SimBatch gather_sim_batch(const BenchOptions& opt) {
     // Derived, not drawn from `rng`: the floors and starts stay those of every earlier bench.
     b.motion_seeds[i] =
         core::derive_seed(core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)), streams::kRobotMotion);
-    b.starts[i] = env::draw_start(b.world, b.frame, b.motion_seeds[i], rng);
+    if (K == 1) {
+      b.starts[i] = env::draw_start(b.world, b.frame, b.motion_seeds[i], rng);
+    } else if (i % K == K - 1) {  // a team: one floor, starts apart, seeds from its first robot's
+      const int first = i - (K - 1);
+      const std::vector<grid::Cell> starts = env::draw_team_starts(b.world, b.frame, b.motion_seeds[first], rng);
+      for (int k = 0; k < K; ++k) {
+        b.starts[first + k] = starts[k];
+        b.motion_seeds[first + k] = env::member_seed(b.motion_seeds[first], k);
+        std::copy_n(b.floor_pixels.data() + b.area * first, b.area, b.floor_pixels.data() + b.area * (first + k));
+      }
+    }
   }
   return b;
 }
@@ -153,8 +166,11 @@ void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vecto
                        .y = static_cast<float>(s.pose_m.y() / b.frame.pixel_size_m)};
     }
   std::vector<sim::MoveResult> results(n);
-  if (b.world.obstacles.random_boxes > 0)  // each robot's own boxes, as the rollouts had them
-    for (int i = 0; i < n; ++i) robots.set_obstacles(i, env::run_obstacles(b.world, b.frame, b.motion_seeds[i]));
+  // Each run's own boxes, as the rollouts had them: drawn from its first robot's motion seed (a
+  // team's robots share one floor).
+  const int K = b.world.team.robots;
+  if (b.world.obstacles.random_boxes > 0)
+    for (int i = 0; i < n; i += K) robots.set_obstacles(i, env::run_obstacles(b.world, b.frame, b.motion_seeds[i]));
   f.physics = median(time_repeats(opt.repeats, [&](int) {
     for (int i = 0; i < n; ++i) robots.place(i, b.starts[i], b.motion_seeds[i]);
     for (int m = 0; m < moves; ++m) robots.move(commands[m], results);

@@ -260,7 +260,9 @@ json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint,
   };
   std::vector<Point> points;
   for (int m : {2, 4, 6, 8, 10}) points.push_back({m, trained.task.episodes, "patch"});
-  for (int e : {1, 2, 4, 6, 8}) points.push_back({trained.camera.patch_px, e, "moves"});
+  // A team of K robots shares the E episodes out: only the E that K divides.
+  for (int e : {1, 2, 4, 6, 8})
+    if (e % trained.team.robots == 0) points.push_back({trained.camera.patch_px, e, "moves"});
   json out;
   out["digits"] = opt.sweep_digits;
   out["runs"] = opt.sweep_runs;
@@ -325,7 +327,10 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
                    const std::vector<std::uint8_t>& labels, std::uint64_t seed) {
   std::unique_ptr<learn::TrainedAgent> agent =
       learn::TrainedAgent::load(checkpoint, agent::parse_precision(opt.precision));
-  const worlds::World& world = agent->config().world;
+  // One robot per picture: a model trained in a team world is shown driving alone here (its
+  // team's figures are the evaluation's).
+  worlds::World world = agent->config().world;
+  world.team = {};
   worlds::check_against_floor(world, images.cols, images.rows);
   const grid::FloorFrame frame{
       .width_px = images.cols, .height_px = images.rows, .pixel_size_m = world.floor.pixel_size_m};

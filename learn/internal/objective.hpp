@@ -54,7 +54,7 @@ struct BatchOutcome {
 
 /// Drives the batch with the physics and the camera in the loop, classifies u_c = y after the
 /// last move, and computes J-hat with `estimator`. A team is one rollout: one decision on the
-/// team's y, and log pi the sum of its robots' (METHOD.md § Several robots).
+/// team's y, and log pi the sum of its robots' (docs/SCENARIOS.md § Several robots).
 BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPolicy& policy, const RolloutBatch& batch,
                        const Sampling& sampling, const EstimatorOptions& estimator);
 

@@ -11,7 +11,8 @@ imports, the environments are Gymnasium's own kind and `import scout` registers 
 
 Without Gymnasium the same calls work on scout.make_vec, with scout.spaces' stand-ins.
 Conventions (README § Python): `move` 0 = +x (right), 1 = -x (left), 2 = +y (down), 3 = -y (up),
-each a step_px move; an episode (a run) ends (terminated) after the world's E x T moves. Every
+each a step_px move; an episode (a run) ends (terminated) after the world's E x T moves (E / K x T
+steps of a team of K robots, in a world with `team`: then each env is K agents). Every
 array returned is new: the next step never overwrites it. Arguments and actions are checked once,
 in C++ (scout._scout): a bad one raises ValueError or TypeError with one line.
 """
@@ -214,7 +215,8 @@ class Env(_EnvBase):
     ...: `scout run --seed s --count K`'s runs, and what make_vec's robot i runs after
     reset(seed=[..., s, ...]) with s at i. Actions: {"move": 0..3, optional "prediction": (D,)
     logits, optional "goal": (x, y)}; the episode ends (terminated) after the world's E x T moves
-    and the next step needs a reset."""
+    (E / K x T steps of a team of K, whose moves and goals take a leading K axis) and the next step
+    needs a reset."""
 
     metadata = _METADATA
 
@@ -347,6 +349,9 @@ class Agent:
             raise ValueError("obs['seen']: expected shape (num_envs, H, W) with num_envs >= 1")
         n, h, w = seen.shape
         patch = np.asarray(obs.get("patch", np.empty(0)))
+        if patch.ndim == 4:
+            raise ValueError(f"obs['patch']: shape {patch.shape} is a world with teams of {patch.shape[1]} robots; "
+                             "scout.Agent drives one robot per environment (team.robots: 1)")
         if patch.ndim != 3 or patch.shape[0] != n or patch.shape[1] != patch.shape[2]:
             raise ValueError(f"obs['patch']: expected shape ({n}, m, m), got {patch.shape}")
         revealed = get(obs, "obs", "revealed", float, (n, h, w))

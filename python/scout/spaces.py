@@ -212,20 +212,26 @@ def describe(core):
     S = gymnasium.spaces if gymnasium is not None else None
     box = S.Box if S else Box
     m, h, w, classes = core.patch_px, core.height, core.width, core.classes
+    # In a world with teams of K robots (team.robots), each robot has its patch, pose and move:
+    # those take a leading K axis; the revealed floor, seen and o are the team's.
+    k = core.team_size
+    team = (k,) if k > 1 else ()
+    pose_high = np.broadcast_to(np.array([w - 1, h - 1], np.int32), (*team, 2))
     observation = {
-        "patch": box(0.0, 1.0, (m, m), np.float32),
-        "pose": box(np.zeros(2, np.int32), np.array([w - 1, h - 1], np.int32), (2,), np.int32),
+        "patch": box(0.0, 1.0, (*team, m, m), np.float32),
+        "pose": box(np.zeros((*team, 2), np.int32), pose_high, (*team, 2), np.int32),
         "revealed": box(0.0, 1.0, (h, w), np.float32),
         "seen": box(0, 1, (h, w), np.uint8),
     }
     if core.has_obstacles:  # o: where the robot cannot stand beside its run's obstacles
         observation["occupied"] = box(0, 1, (h, w), np.uint8)
-    observation["time_step"] = box(0, core.episodes * core.steps, (), np.int32)
+    observation["time_step"] = box(0, core.episodes // k * core.steps, (), np.int32)
     single_observation = (S.Dict if S else Dict)(observation)
-    action = {"move": (S.Discrete if S else Discrete)(MOVES)}
+    multi = S.MultiDiscrete if S else MultiDiscrete
+    action = {"move": multi(np.full(k, MOVES)) if k > 1 else (S.Discrete if S else Discrete)(MOVES)}
     if classes > 0:
         action["prediction"] = box(-np.inf, np.inf, (classes,), np.float32)
-    action["goal"] = (S.MultiDiscrete if S else MultiDiscrete)(np.array([w, h]))
+    action["goal"] = multi(np.broadcast_to(np.array([w, h]), (*team, 2)).copy())
     optional = [k for k in action if k != "move"]
     single_action = ActionDict(action, optional=optional) if S else Dict(action, optional=optional)
     n = core.num_envs

@@ -17,6 +17,7 @@
 #include "core/random.hpp"
 #include "env/batch_env.hpp"
 #include "env/runs.hpp"
+#include "sim/robots.hpp"
 #include "worlds/world.hpp"
 
 namespace scout::env {
@@ -187,6 +188,47 @@ TEST(RandomObstacles, EachRobotDrivesAmongItsOwnBoxes) {
   const double tick_travel_px = world.robot.max_speed_mps * world.physics.dt_s / kFloor.pixel_size_m;
   EXPECT_GE(closest, radius_px - tick_travel_px - 0.06);
   EXPECT_GT(through_anothers_box, 0) << "another robot's boxes should not stop this one";
+}
+
+}  // namespace
+}  // namespace scout::env
+
+namespace scout::env {
+namespace {
+
+// A team's starts (docs/SCENARIOS.md § Several robots): the first is the one robot's start, the
+// others clear of it (centres more than two bumper radii apart: a diameter and two ticks' travel),
+// and a floor without room is refused.
+TEST(TeamStarts, TheFirstIsTheLoneRobotsAndTheOthersStandApart) {
+  worlds::World world;
+  world.team.robots = 3;
+  worlds::World alone;
+  const grid::FloorFrame floor{.width_px = 28, .height_px = 28, .pixel_size_m = 0.1};
+  const double spacing = 2.0 * sim::RobotBatch::bumper_radius_px(sim::RobotParams::from_world(world), floor);
+  EXPECT_NEAR(spacing, 2.0 * (2.5 + 2.0 / 60.0 / 0.1), 1e-9);  // the paper's robot: 2 m/s, 60 Hz
+  double closest = 1e9;
+  for (std::uint64_t seed = 0; seed < 500; ++seed) {
+    core::Rng team_rng(seed), lone_rng(seed);
+    const std::vector<grid::Cell> starts = draw_team_starts(world, floor, seed, team_rng);
+    ASSERT_EQ(starts.size(), 3u);
+    EXPECT_EQ(starts[0], draw_start(alone, floor, seed, lone_rng));
+    for (int a = 0; a < 3; ++a)
+      for (int b = a + 1; b < 3; ++b) closest = std::min(closest, (starts[a] - starts[b]).cast<double>().norm());
+  }
+  EXPECT_GT(closest, spacing);
+  EXPECT_LT(closest, spacing + 1.5) << "the draws should come close to the bound";
+  EXPECT_EQ(member_seed(77, 0), 77u);
+  EXPECT_NE(member_seed(77, 1), member_seed(77, 2));
+
+  world.team.robots = 8;  // eight discs of 5 px on an 8 x 8 floor: no room
+  core::Rng rng(1);
+  try {
+    draw_team_starts(world, grid::FloorFrame{.width_px = 8, .height_px = 8, .pixel_size_m = 0.1}, 1, rng);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("team.robots: expected room for 8 robots' discs"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -580,3 +580,55 @@ def test_a_world_with_obstacles_observes_o_and_the_agent_reads_it_as_scout_run_d
     with_o = agent.act(obs, info)["goal"]
     blind = agent.act({k: v for k, v in obs.items() if k != "occupied"}, info)["goal"]
     assert not np.array_equal(with_o, blind)
+
+
+TEAM_WORLD = os.path.join(SOURCE, "worlds", "scenarios", "team-2.yaml")
+
+
+def window_union(poses, m=6, side=28):
+    """h as the camera windows of `poses` (any number of (x, y)) reveal it."""
+    seen = np.zeros((side, side), np.uint8)
+    for x, y in poses:
+        seen[max(y - m // 2, 0):min(y - m // 2 + m, side), max(x - m // 2, 0):min(x - m // 2 + m, side)] = 1
+    return seen
+
+
+def test_a_team_world_has_k_robots_per_environment_sharing_what_they_have_seen(tmp_path):
+    # team-2.yaml: two robots per environment, each E / K = 2 episodes of T = 5 moves.
+    n, seed = 5, 3
+    envs = scout.make_vec(TEAM_WORLD, n, seed=seed)
+    obs, info = envs.reset(seed=seed)
+    assert envs.observation_space.contains(obs)
+    assert obs["patch"].shape == (n, 2, 6, 6) and obs["pose"].shape == (n, 2, 2)
+    assert obs["revealed"].shape == (n, 28, 28) and obs["seen"].shape == (n, 28, 28)
+    assert info["pose_m"].shape == (n, 2, 2)
+    # The runs are `scout run`'s: the same digits, and the team's starts (a diameter apart).
+    out = tmp_path / "run"
+    subprocess.run([BINARY, "run", TEAM_WORLD, "--seed", str(seed), "--count", str(n), "--no-images", "--out",
+                    str(out)], check=True, capture_output=True)
+    runs = json.loads((out / "trajectory.json").read_text())["runs"]
+    for i, run in enumerate(runs):
+        assert info["index"][i] == run["index"]
+        assert [list(obs["pose"][i, 0]), list(obs["pose"][i, 1])] == [run["start"], run["teammates"][0]["start"]]
+        assert np.linalg.norm(obs["pose"][i, 0] - obs["pose"][i, 1]) > 5.0
+    rng = np.random.default_rng(0)
+    history = [[tuple(p) for p in obs["pose"][i]] for i in range(n)]
+    for step in range(10):
+        moves = rng.integers(0, 4, size=(n, 2), dtype=np.int32)
+        obs, reward, terminated, truncated, info = envs.step({"move": moves})
+        for i in range(n):
+            history[i] += [tuple(p) for p in obs["pose"][i]]
+            # h is the union of both robots' windows over the run; y is 0 where unseen.
+            assert np.array_equal(obs["seen"][i], window_union(history[i])), (step, i)
+            assert not obs["revealed"][i][obs["seen"][i] == 0].any()
+        assert obs["time_step"].tolist() == [step + 1] * n
+        assert terminated.all() == (step == 9)
+    with pytest.raises(ValueError, match=r"move"):
+        envs.step({"move": np.zeros(n, np.int32)})  # one move per environment, not per robot
+    single = scout.Env(TEAM_WORLD)
+    obs, _ = single.reset(seed=seed)
+    assert obs["patch"].shape == (2, 6, 6)
+    obs, *_ = single.step({"move": np.array([0, 2])})
+    assert obs["pose"].shape == (2, 2)
+    with pytest.raises(ValueError, match="teams of 2 robots"):
+        scout.Agent(MODEL).act(*envs.reset(seed=seed))

@@ -39,13 +39,14 @@ TEST(Teams, NoRobotEverOverlapsATeammate) {
   const double diameter = 2.0 * radius_px(p);
   RobotBatch batch(kFloor, p, robots);
   core::Rng rng(11);
-  // Starts a diameter and a pixel apart, as env::draw_team_starts draws them.
+  // Starts clear of each other's bumpers, as env::draw_team_starts draws them.
+  const double spacing = 2.0 * RobotBatch::bumper_radius_px(p, kFloor);
   for (int team = 0; team < teams; ++team) {
     std::vector<grid::Cell> placed;
     while (static_cast<int>(placed.size()) < K) {
       const grid::Cell c{static_cast<int>(core::uniform_below(rng, 28)),
                          static_cast<int>(core::uniform_below(rng, 28))};
-      if (std::ranges::all_of(placed, [&](const grid::Cell& s) { return (c - s).cast<double>().norm() > diameter; }))
+      if (std::ranges::all_of(placed, [&](const grid::Cell& s) { return (c - s).cast<double>().norm() > spacing; }))
         placed.push_back(c);
     }
     for (int k = 0; k < K; ++k) batch.place(team * K + k, placed[k]);

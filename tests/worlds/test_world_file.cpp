@@ -375,6 +375,13 @@ const BadCase kBadCases[] = {
     {"SlipAboveNineTenths", "motion:\n  slip_zones: [[0, 0, 4, 4, 0.95]]\n",
      "w.yaml:2: motion.slip_zones: expected a list of at most 64 zones [x, y, w, h, slip] (pixels: integers x, y >= "
      "0, w, h >= 1; slip in [0, 0.9]), got zone 1 slip = 0.95"},
+    {"TeamNotDividingTheEpisodes", "task: {episodes: 4}\nteam:\n  robots: 3\n",
+     "w.yaml:3: team.robots: expected a divisor of task.episodes = 4 (each robot drives episodes / robots of the "
+     "rollout's episodes), got 3"},
+    {"TeamWithAFixedStart", "robot: {start: [3, 4]}\nteam: {robots: 2}\n",
+     "w.yaml:1: robot.start: expected random when team.robots > 1 (each robot of the team draws its own start), got "
+     "[3, 4]"},
+    {"TeamTooLarge", "team: {robots: 9}\n", "w.yaml:1: team.robots: expected an integer in [1, 8], got 9"},
     {"RandomBoxesTooMany", "obstacles: {random_boxes: 65}\n",
      "w.yaml:1: obstacles.random_boxes: expected an integer in [0, 64], got 65"},
     {"PushWithinZeroTicks", "pushes:\n  within_ticks: 0\n",
