@@ -31,9 +31,9 @@ const cv::Scalar kBarColour(150, 150, 150);
 const cv::Scalar kBestBarColour(0, 140, 255);  // the argmax, in the path's orange
 const cv::Scalar kTextColour(230, 230, 230);
 
-// Team robots 1 .. 7, BGR: magenta, yellow, lime, red, violet, teal, white; distinct from the
+// Team robots 1 .. 7, BGR: magenta, yellow, pink, red, violet, teal, white; distinct from the
 // first robot's orange and blue, the goal's green and the true path's cyan.
-const cv::Scalar kTeammateColours[] = {{220, 60, 230},  {0, 230, 255}, {60, 230, 120}, {40, 40, 230},
+const cv::Scalar kTeammateColours[] = {{220, 60, 230},  {0, 230, 255}, {190, 150, 255}, {40, 40, 230},
                                        {230, 120, 150}, {170, 170, 0}, {245, 245, 245}};
 
 constexpr int kMaxScale = 64;

@@ -225,8 +225,12 @@ SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
 void print_sim(const BenchOptions& opt, const SimBatch& b, const SimFigures& f) {
   const worlds::World& world = b.world;
   const double steps = double(b.n) * b.moves_per_rollout;
-  fmt::print("scout bench sim: {} robots x {} moves (E={} x T={}), m={}, {} repeats, {} physics threads\n", b.n,
-             b.moves_per_rollout, world.task.episodes, world.task.steps, world.camera.patch_px, opt.repeats, f.threads);
+  const int K = world.team.robots;
+  const std::string shape = K == 1 ? fmt::format("E={} x T={}", world.task.episodes, world.task.steps)
+                                   : fmt::format("E/K={} x T={}, teams of K={}", world.task.episodes / K,
+                                                 world.task.steps, K);
+  fmt::print("scout bench sim: {} robots x {} moves ({}), m={}, {} repeats, {} physics threads\n", b.n,
+             b.moves_per_rollout, shape, world.camera.patch_px, opt.repeats, f.threads);
   fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, b.frame.pixel_size_m,
              world.robot.max_speed_mps, world.physics.dt_s);
   fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
@@ -255,7 +259,8 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
   const double steps = double(b.n) * b.moves_per_rollout;
   nlohmann::ordered_json j;
   j["robots"] = b.n;
-  j["moves_per_rollout"] = b.moves_per_rollout;
+  j["moves_per_rollout"] = b.moves_per_rollout;  // each robot's
+  j["team_robots"] = b.world.team.robots;
   j["repeats"] = opt.repeats;
   j["threads"] = f.threads;
   j["peak_resident_bytes"] = core::peak_resident_bytes();

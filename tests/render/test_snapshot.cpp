@@ -188,6 +188,35 @@ TEST(DrawSnapshot, RobotWindowIsABlueOutlineAndGoalWindowAGreenOne) {
   EXPECT_FALSE(is_blue(pixel(picture, 95, 65)));
 }
 
+// A team (docs/SCENARIOS.md § Several robots): robot k > 0 is drawn in teammate_colour(k), its
+// window, its path and its goal's thinner outline, beside robot 0 in the one-robot colours.
+TEST(DrawSnapshot, TeammatesAreDrawnInTheirOwnColours) {
+  const Scene scene;
+  Snapshot snapshot = scene.snapshot();
+  snapshot.robot = {3, 3};  // blue, output pixels 20..49
+  Snapshot::Teammate& mate = snapshot.teammates.emplace_back();
+  mate.robot = {9, 6};          // columns 8..10, rows 5..7: output x 80..109, y 50..79
+  mate.goal = PixelPose{9, 2};  // rows 1..3: output y 10..39
+  mate.path = {{9, 2}, {9, 6}};
+  const Picture picture = draw_snapshot(snapshot);
+  const std::uint32_t rgb = teammate_colour(1);
+  const auto is_mate = [rgb](Bgr c) {
+    return c.r == static_cast<int>(rgb >> 16) && c.g == static_cast<int>((rgb >> 8) & 0xFF) &&
+           c.b == static_cast<int>(rgb & 0xFF);
+  };
+  for (int along : {50, 65, 79}) {
+    EXPECT_TRUE(is_mate(pixel(picture, 80, along))) << "left edge, y " << along;
+    EXPECT_TRUE(is_mate(pixel(picture, 109, along))) << "right edge, y " << along;
+  }
+  EXPECT_TRUE(is_mate(pixel(picture, 80, 25))) << "the goal's left edge";
+  EXPECT_TRUE(is_mate(pixel(picture, 95, 25))) << "the path's dot at its first pose";
+  EXPECT_TRUE(is_blue(pixel(picture, 20, 35))) << "robot 0 keeps its blue window";
+  EXPECT_FALSE(is_mate(pixel(picture, 20, 35)));
+  EXPECT_NE(teammate_colour(1), teammate_colour(2));
+  EXPECT_THROW(teammate_colour(0), std::invalid_argument);
+  EXPECT_THROW(teammate_colour(8), std::invalid_argument);
+}
+
 // Videos: a body between grid poses carries its camera window along at sub-pixel precision (at a
 // cell centre it is exactly the grid window), and its disc tints the floor under it.
 TEST(DrawSnapshot, ABodyBetweenCellsCarriesItsWindowAndItsDisc) {
