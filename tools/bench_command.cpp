@@ -226,9 +226,9 @@ void print_sim(const BenchOptions& opt, const SimBatch& b, const SimFigures& f) 
   const worlds::World& world = b.world;
   const double steps = double(b.n) * b.moves_per_rollout;
   const int K = world.team.robots;
-  const std::string shape = K == 1 ? fmt::format("E={} x T={}", world.task.episodes, world.task.steps)
-                                   : fmt::format("E/K={} x T={}, teams of K={}", world.task.episodes / K,
-                                                 world.task.steps, K);
+  const std::string shape =
+      K == 1 ? fmt::format("E={} x T={}", world.task.episodes, world.task.steps)
+             : fmt::format("E/K={} x T={}, teams of K={}", world.task.episodes / K, world.task.steps, K);
   fmt::print("scout bench sim: {} robots x {} moves ({}), m={}, {} repeats, {} physics threads\n", b.n,
              b.moves_per_rollout, shape, world.camera.patch_px, opt.repeats, f.threads);
   fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, b.frame.pixel_size_m,
