@@ -99,6 +99,12 @@ TSAN_CI_NAMED=('^TrainDistributed\.TwoProcessesTrainTheSameWeightsAsOne$'
   '^TrainDistributed\.ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint$'
   '^TrainDistributed\.EvalOverTwoProcessesGivesTheSameReport$')
 
+# ctest's own timings of a test step, for CI's time table (.ci/run sets SCOUT_CI_JUNIT).
+junit() {  # NAME: ctest's option to write them, where CI asks
+  [[ -n "${SCOUT_CI_JUNIT:-}" ]] && echo "--output-junit $SCOUT_CI_JUNIT/$1.xml"
+  true
+}
+
 # Stops with one line when a pattern matches no test of the build folder.
 require_tests() {  # folder pattern...
   local folder=$1 pattern count
@@ -149,7 +155,9 @@ asan_ci_tests() {  # tools-regex [--costs FILE]
   shift
   /usr/bin/python3 scripts/sanitizers/run_grouped.py build-asan "$jobs" "$@" -L "$ASAN_CI_LABELS" \
     -E "$SLOW_UNDER_ASAN" || status=$?
-  ctest --test-dir build-asan --output-on-failure --no-tests=error -j"$jobs" -R "$tools_regex" || status=$?
+  # shellcheck disable=SC2046  # junit's option and its path, split on purpose
+  ctest --test-dir build-asan --output-on-failure --no-tests=error -j"$jobs" -R "$tools_regex" $(junit asan-tools) ||
+    status=$?
   return "$status"
 }
 
@@ -209,7 +217,7 @@ thread() {  # build|test
     [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
     require_tests build-tsan "${TSAN_FAMILIES[@]}" "${TSAN_CI_NAMED[@]}"
     with_sanitizer_logs build-tsan "$supp/tsan.supp" \
-      "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests"
+      "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests" $(junit tsan)
   fi
   echo "sanitize: ThreadSanitizer: $1 of the worker pool, physics, camera, environment and multi-process tests done in $((SECONDS - start)) s"
 }
