@@ -1,9 +1,9 @@
 // Trainer (learn/trainer.cpp). The pinned training run: a short fp32 run through every stage (full images, modes i, ii
 // and iii) on fixed MNIST digits ends in the same bits twice on one machine, and, one batch per stage long, within a
 // tolerance derived from fp32's rounding of the reference weights in tests/learn/pins/trainer-fp32-weights.txt on any
-// CPU. Together they pin the whole training path — data order, starts, sampling, physics, camera, networks, estimator, Adam — so that a change of
-// structure provably changes no result. If a change is meant to change the numbers, rewrite the reference with
-// scripts/write_reference.sh in the same commit and say why.
+// CPU. Together they pin the whole training path — data order, starts, sampling, physics, camera, networks, estimator,
+// Adam — so that a change of structure provably changes no result. If a change is meant to change the numbers, rewrite
+// the reference with scripts/write_reference.sh in the same commit and say why.
 //
 // Then training end to end with the physics and the camera in the loop: the planners learn where
 // the class is written, a short run on real digits learns, a resumed run is the uninterrupted

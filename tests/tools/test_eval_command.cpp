@@ -101,7 +101,8 @@ TEST(EvalCommand, TheReferenceReportIsReproducedOnEveryCpu) {
   EXPECT_EQ(read_text(again_predictions), read_text(predictions)) << "two evaluations on one machine differ";
 
   EXPECT_EQ(got, json::parse(read_text(golden / "eval-fp32.json"))) << "got " << got.dump(1);
-  const std::vector<std::vector<double>> rows = csv_rows(predictions), want = csv_rows(golden / "eval-fp32-predictions.csv");
+  const std::vector<std::vector<double>> rows = csv_rows(predictions),
+                                         want = csv_rows(golden / "eval-fp32-predictions.csv");
   ASSERT_EQ(rows.size(), want.size());
   double largest = 0;
   for (std::size_t i = 0; i < rows.size(); ++i) {
