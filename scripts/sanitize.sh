@@ -74,10 +74,13 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:history_size=7:suppressions=$supp/tsan.supp:print_suppressions=1"
 
 ASAN_CI_LABELS='^(core|grid|worlds|sim|render|env|agent|learn|python)$'
-# The test programs the subset runs (the `scout` program with them: its tests and the hostile-
-# checkpoint corpus run it; the Python tests run the Release build's as their reference).
+# The test programs the subset runs, and the `scout` program (the hostile-checkpoint corpus and the
+# tools tests below run it; the Python tests run the Release build's as their reference). The
+# tools tests' own programs only start `scout` and read what it wrote, so the Release build's run
+# them, against this tree's instrumented `scout` (SCOUT_TEST_PROGRAM: tests/support/cli.hpp),
+# instead of a second build of their 23 files.
 ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_tests agent_tests learn_tests
-                 scout_python scout_python_agent tools_tests tools_process_tests)
+                 scout_python scout_python_agent scout)
 # The `scout` program's own code (tools/) under ASan, in a few of its end-to-end tests: the command
 # line and its refusals, the output folder and --overwrite, a run's pictures, a training run with
 # its checkpoint, Ctrl-C and resume, evaluation, the report (with its plotting child), and the
@@ -91,7 +94,9 @@ ASAN_CI_TOOLS_TESTS=(Cli.HelpVersionAndUsageErrors Cli.AnExistingOutputFolderIsR
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|TrainerPin\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
 TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
 TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
-TSAN_TARGETS=(sim_tests render_tests env_tests tools_process_tests)
+# The multi-process tests run from the Release build's tools_process_tests against this tree's
+# instrumented `scout`, as the ASan subset's tools tests do.
+TSAN_TARGETS=(sim_tests render_tests env_tests scout)
 # What each of those regexes must still find (a renamed test would otherwise drop out unseen).
 TSAN_FAMILIES=('^WorkerPool\.' '^RobotBatch\.' '^PatchCamera\.' '^CropPatch\.' '^BatchEnv\.' '^VectorEnvTest\.')
 TSAN_CI_NAMED=('^TrainDistributed\.TwoProcessesTrainTheSameWeightsAsOne$'
@@ -156,8 +161,8 @@ asan_ci_tests() {  # tools-regex [--costs FILE]
   /usr/bin/python3 scripts/sanitizers/run_grouped.py build-asan "$jobs" "$@" -L "$ASAN_CI_LABELS" \
     -E "$SLOW_UNDER_ASAN" || status=$?
   # shellcheck disable=SC2046  # junit's option and its path, split on purpose
-  ctest --test-dir build-asan --output-on-failure --no-tests=error -j"$jobs" -R "$tools_regex" $(junit asan-tools) ||
-    status=$?
+  SCOUT_TEST_PROGRAM="$PWD/build-asan/tools/scout" ctest --test-dir build --output-on-failure --no-tests=error \
+    -j"$jobs" -R "$tools_regex" $(junit asan-tools) || status=$?
   return "$status"
 }
 
@@ -165,11 +170,12 @@ address() {  # build|test
   local start=$SECONDS
   if [[ "$which" == ci ]]; then
     if [[ "$1" == build ]]; then
-      # The Python tests' reference program: the Release build's, brought up to date first, except
-      # in a step of .ci/run, which has just built it and runs its tests meanwhile.
+      # The Python tests' reference program and the tools tests' programs: the Release build's,
+      # brought up to date first, except in a step of .ci/run, which has just built them and runs
+      # their tests meanwhile.
       if [[ -z "$step" ]]; then
         cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
-        build build scout
+        build build scout tools_tests tools_process_tests
       elif [[ ! -x build/tools/scout ]]; then
         echo "sanitize: build/tools/scout is missing: run scripts/setup.sh first" >&2
         exit 1
@@ -183,7 +189,7 @@ address() {  # build|test
       [[ -f build/Testing/Temporary/CTestCostData.txt ]] && costs=(--costs build/Testing/Temporary/CTestCostData.txt)
       local tools_regex
       tools_regex="^($(IFS='|'; echo "${ASAN_CI_TOOLS_TESTS[*]//./\\.}"))\$"
-      require_tests build-asan "${ASAN_CI_TOOLS_TESTS[@]/#/^}"
+      require_tests build "${ASAN_CI_TOOLS_TESTS[@]/#/^}"
       with_sanitizer_logs build-asan "$supp/lsan.supp" asan_ci_tests "$tools_regex" "${costs[@]}"
     fi
     what="the labelled subset (scripts/sanitize.sh)"
@@ -199,9 +205,26 @@ address() {  # build|test
   echo "sanitize: AddressSanitizer + UndefinedBehaviorSanitizer: $1 of $what done in $((SECONDS - start)) s"
 }
 
+# The TSan tests: the threaded libraries' from this tree, then the multi-process ones from the
+# Release build's tools_process_tests against this tree's `scout`; both run whatever the other's
+# result.
+tsan_tests() {  # regex
+  local status=0
+  # shellcheck disable=SC2046  # junit's option and its path, split on purpose
+  "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$1" $(junit tsan) || status=$?
+  # shellcheck disable=SC2046
+  SCOUT_TEST_PROGRAM="$PWD/build-tsan/tools/scout" "${no_aslr[@]}" ctest --test-dir build --output-on-failure \
+    --no-tests=error -L tools -R "$1" $(junit tsan-processes) || status=$?
+  return "$status"
+}
+
 thread() {  # build|test
   local start=$SECONDS
   if [[ "$1" == build ]]; then
+    if [[ -z "$step" ]]; then  # the multi-process tests' programs (in a step of .ci/run: built)
+      cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+      build build tools_process_tests
+    fi
     configure build-tsan thread
     build build-tsan "${TSAN_TARGETS[@]}"
   else
@@ -215,9 +238,9 @@ thread() {  # build|test
     # others take seconds).
     local tests=$TSAN_TESTS
     [[ "$which" == ci ]] && tests=$TSAN_CI_TESTS
-    require_tests build-tsan "${TSAN_FAMILIES[@]}" "${TSAN_CI_NAMED[@]}"
-    with_sanitizer_logs build-tsan "$supp/tsan.supp" \
-      "${no_aslr[@]}" ctest --test-dir build-tsan --output-on-failure --no-tests=error -R "$tests" $(junit tsan)
+    require_tests build-tsan "${TSAN_FAMILIES[@]}"
+    require_tests build "${TSAN_CI_NAMED[@]}"
+    with_sanitizer_logs build-tsan "$supp/tsan.supp" tsan_tests "$tests"
   fi
   echo "sanitize: ThreadSanitizer: $1 of the worker pool, physics, camera, environment and multi-process tests done in $((SECONDS - start)) s"
 }

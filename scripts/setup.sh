@@ -46,18 +46,10 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-# The project's Python environment: Debian's interpreter and modules, plus the pinned packages
-# Debian lacks (Gymnasium) from PyPI, with NumPy and torch held at Debian's versions
-# (python/constraints.txt). Where PyPI cannot be reached, one line says so and the set-up goes on:
-# the Gymnasium tests then skip (and fail under CI=true).
+# The project's Python environment .venv/ (scripts/python_env.sh): Debian's Python and modules,
+# plus Gymnasium from PyPI; where PyPI cannot be reached, one line says so and the set-up goes on.
+./scripts/python_env.sh
 venv=.venv
-# (A folder left by a venv made before python3-venv was installed has no pip: made again.)
-"$venv/bin/python" -c "import pip" 2>/dev/null || { rm -rf "$venv" && /usr/bin/python3 -m venv --system-site-packages "$venv"; }
-if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 30 --retries 2 \
-    -r python/requirements.txt -c python/constraints.txt >"$venv/pip.log" 2>&1; then
-  echo "setup: PyPI could not be reached or refused python/requirements.txt (pip's log: $venv/pip.log);" \
-    "going on without Gymnasium, whose tests will skip"
-fi
 
 # CI sets SCOUT_WARNINGS_AS_ERRORS=ON: a compiler warning fails its build.
 # Ninja for a new build folder: it starts a target's compiles before the libraries it links are

@@ -1,11 +1,11 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """How fast Scout steps from Python: 240 robots making random moves, the same move stream through
 the C++ step API (env::VectorEnv, one set of arrays, no Python in the loop), through the Python
 API (`envs.step` of make_vec's environment, new NumPy arrays every step: a
 gymnasium.vector.VectorEnv where Gymnasium imports) and, where Gymnasium imports, through
 gymnasium.wrappers.vector.RecordEpisodeStatistics around it; medians of repeated rounds.
 
-    PYTHONPATH=../shared/vendor/gymnasium-1.4.0:build/python /usr/bin/python3 examples/python/benchmark.py \
+    PYTHONPATH=build/python .venv/bin/python examples/python/benchmark.py \
         [--robots 240] [--json FILE]
 """
 import argparse

@@ -1,4 +1,4 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """PPO in plain PyTorch on Scout through Gymnasium: learning where to drive for a fixed classifier.
 
 The environment is Gymnasium's own: `gymnasium.make_vec("scout/MNIST-v0", ...)` on the training
@@ -14,7 +14,7 @@ It then scores the learned moves and uniform random moves on the same held-out r
 test digits, the same starts): the classifier's accuracy after the run's 20 moves and its mean
 log p(label). Optionally it draws the training curve.
 
-    PYTHONPATH=../shared/vendor/gymnasium-1.4.0:build/python /usr/bin/python3 examples/python/ppo_goals.py \
+    PYTHONPATH=build/python .venv/bin/python examples/python/ppo_goals.py \
         [--seconds 120 | --updates N] [--plot curve.png]
 """
 import argparse

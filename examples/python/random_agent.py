@@ -1,9 +1,9 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """A random agent on Scout's default world: every robot makes i.i.d. moves and the prediction is
 uniform, so the reward is log(1/10) at every move. Prints what a run looks like and how fast the
 environment steps.
 
-    PYTHONPATH=build/python /usr/bin/python3 examples/python/random_agent.py [--num-envs 240]
+    PYTHONPATH=build/python .venv/bin/python examples/python/random_agent.py [--num-envs 240]
 """
 import argparse
 import os

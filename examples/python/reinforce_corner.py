@@ -1,4 +1,4 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """REINFORCE in PyTorch on Scout's robots: floors whose class can be read only in one corner.
 
 The example writes its own data set (12 x 12 floors of noise whose top-left 3 x 3 block is black
@@ -10,7 +10,7 @@ the right class after the last move, and the classifier by cross-entropy. For co
 same network learns to classify with i.i.d. moves for the same number of batches. Both are scored
 on the held-out floors.
 
-    PYTHONPATH=build/python /usr/bin/python3 examples/python/reinforce_corner.py [--seconds 120]
+    PYTHONPATH=build/python .venv/bin/python examples/python/reinforce_corner.py [--seconds 120]
 """
 import argparse
 import os

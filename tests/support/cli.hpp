@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -16,6 +17,16 @@
 #include <vector>
 
 namespace scout::testing {
+
+#ifdef SCOUT_BUILT_PROGRAM
+/// The `scout` program the tools tests run (SCOUT_BINARY in them): this build's, or the one
+/// SCOUT_TEST_PROGRAM names. The sanitizer pass runs the Release build's test programs against its
+/// instrumented `scout` that way, instead of building the test programs a second time.
+inline std::string scout_program() {
+  const char* program = std::getenv("SCOUT_TEST_PROGRAM");
+  return program != nullptr && *program != '\0' ? program : SCOUT_BUILT_PROGRAM;
+}
+#endif
 
 /// What a command did: its exit status (-1 if it did not exit normally) and its output.
 struct CliResult {

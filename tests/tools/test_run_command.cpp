@@ -190,13 +190,14 @@ TEST_F(Cli, APngFloorWorks) {
 TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   // A run far too long to finish, interrupted once it is writing: exit 130, no --out folder, no
   // staging folder.
+  const std::string program = SCOUT_BINARY;
   const pid_t child = fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
     const std::string world_file = world("fashion.yaml"), out = path("out");
     std::freopen("/dev/null", "w", stderr);
     std::freopen("/dev/null", "w", stdout);
-    execl(SCOUT_BINARY, SCOUT_BINARY, "run", world_file.c_str(), "--out", out.c_str(), "--count", "1000000",
+    execl(program.c_str(), program.c_str(), "run", world_file.c_str(), "--out", out.c_str(), "--count", "1000000",
           static_cast<char*>(nullptr));
     _exit(127);
   }

@@ -1,11 +1,11 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """Draws `scout report`'s figures and writes its REPORT.md.
 
 `scout report` gathers every figure (evaluations, the training history, the budget sweep, test
 episodes) into one JSON file; this script only draws and formats them, with matplotlib, so the
 plots come from a well-kept plotting library and the numbers from Scout. Usage:
 
-    /usr/bin/python3 scout_report.py REPORT_DATA.json OUT_DIR
+    .venv/bin/python tools/report/scout_report.py REPORT_DATA.json OUT_DIR
 
 It writes OUT_DIR/REPORT.md and OUT_DIR/*.png. Any error is one line on stderr and exit status 1.
 """
