@@ -68,6 +68,9 @@ warnings=${SCOUT_WARNINGS_AS_ERRORS:-OFF}
 
 # Each test step adds log_path (sanitizer_logs below); the matched suppressions are printed at
 # every process's exit into its log, and summarized in the step's output.
+# LibTorch's OpenMP threads wait passively, as under ctest (tests/CMakeLists.txt says why); the
+# grouped ASan runs start the test programs themselves, so it is set here for them too.
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE}
 export ASAN_OPTIONS="abort_on_error=1:detect_leaks=1:check_initialization_order=1:detect_stack_use_after_return=0"
 export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
