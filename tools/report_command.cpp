@@ -1,7 +1,7 @@
 // scout report: the paper's table and figures for a model or a run, in one folder. Scout gathers
 // the numbers (an evaluation on the official test digits, the training history, a budget sweep,
 // the robustness table over scenario worlds, test episodes) into report-data.json; a small matplotlib script that ships
-// with Scout (tools/report/scout_report.py, run on /usr/bin/python3) draws the figures and writes REPORT.md.
+// with Scout (tools/report/scout_report.py, run on the project's Python, .venv) draws the figures and writes REPORT.md.
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -415,7 +415,7 @@ fs::path report_script() {
 std::string python_interpreter() {
   if (const char* env = std::getenv("SCOUT_PYTHON"); env != nullptr && *env != '\0') return env;
   // The project's environment (.venv/, made from Debian's /usr/bin/python3, which brings
-  // python3-matplotlib; MEASURED.md: another python3 on PATH may lack it).
+  // python3-matplotlib; ../shared/docs/MEASURED.md: another python3 on PATH may lack it).
   return SCOUT_PYTHON;
 }
 
@@ -689,7 +689,8 @@ void add_report_command(CLI::App& app, const Context& context) {
       "report",
       "The paper's table and figures for a model or run: DIR/REPORT.md with the paper's figures beside Scout's, "
       "accuracy against epochs with both baselines, the confusion matrix, test episodes and accuracy against the "
-      "observation budget (figures drawn by matplotlib on /usr/bin/python3).");
+      "observation budget (figures drawn by matplotlib on the project's Python, .venv/bin/python; SCOUT_PYTHON "
+      "names another).");
   cmd->add_option("model", opt->model, "A model file (models/mnist.pt) or a run folder (RUN/checkpoint.pt)")
       ->required();
   cmd->add_option("--out", opt->out, "Report folder to create (must not exist unless --overwrite)")->required();
