@@ -123,16 +123,8 @@ std::string bf16_unavailable() {
   return {};
 }
 
-Precision resolve_precision(Precision requested) {
-  if (requested != Precision::Auto) return requested;
-  return native_bf16().any() ? Precision::BFloat16 : Precision::Float32;
-}
-
-std::string auto_precision_note() {
+std::string fp32_without_native_bf16_note() {
   const NativeBf16 cpu = native_bf16();
-  if (cpu.amx_bf16 && cpu.avx512_bf16) return "precision: bf16 (this CPU has AMX-BF16 and AVX-512 BF16)";
-  if (cpu.amx_bf16) return "precision: bf16 (this CPU has AMX-BF16)";
-  if (cpu.avx512_bf16) return "precision: bf16 (this CPU has AVX-512 BF16)";
   if (!cpu.capped_by.empty())
     return "precision: fp32 (" + cpu.capped_by + " leaves no native bf16; bf16 would be emulated and slower)";
   return "precision: fp32 (no native bf16 on this CPU; bf16 would be emulated and slower)";

@@ -73,8 +73,8 @@ std::string classifier_choices(const std::string& separator = ", ");
 /// The arithmetic the networks run in. Weights, gradients and the optimizer always stay fp32;
 /// bf16 runs the convolutions and activations in bfloat16 (AMX / AVX-512 BF16, where a planner
 /// step is several times faster) with fp32 master weights, as mixed-precision training does. Auto
-/// is a request, never a stored value: resolve_precision() turns it into bf16 where the CPU has
-/// native bf16 and fp32 elsewhere.
+/// is a request, never a stored value: learn::resolve_precision() turns it into the precision that
+/// runs faster on this CPU (learn/auto_precision.hpp), which is fp32 where bf16 is not native.
 enum class Precision { Float32, BFloat16, Auto };
 const char* to_string(Precision precision);  ///< "fp32", "bf16", "auto"
 /// Parses "fp32" | "bf16" | "auto"; throws std::invalid_argument naming the choices.
@@ -94,11 +94,9 @@ NativeBf16 native_bf16();
 /// Why bf16 cannot run at all in this process ("" where it can, natively or emulated): a oneDNN
 /// cap below AVX-512 on a CPU with AVX-512, as the stand-in for a CPU without native bf16 sets.
 std::string bf16_unavailable();
-/// Auto -> BFloat16 where native_bf16().any(), else Float32; Float32 and BFloat16 unchanged.
-Precision resolve_precision(Precision requested);
-/// What Auto resolves to on this CPU and why, in one line: "precision: bf16 (this CPU has
-/// AVX-512 BF16)" or "precision: fp32 (no native bf16 on this CPU; bf16 would be emulated and slower)".
-std::string auto_precision_note();
+/// Auto's choice where native_bf16() has none, in one line: "precision: fp32 (no native bf16 on
+/// this CPU; bf16 would be emulated and slower)", or naming the cap that removed it.
+std::string fp32_without_native_bf16_note();
 
 /// Widths and depths of the three networks.
 struct NetworkConfig {

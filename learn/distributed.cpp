@@ -9,7 +9,6 @@
 #endif
 #include <arpa/inet.h>
 #include <fmt/format.h>
-#include <glog/logging.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -22,6 +21,9 @@
 #include <torch/csrc/distributed/c10d/PrefixStore.hpp>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
+#ifdef C10_USE_GLOG  // Debian's LibTorch logs through glog; the wheel's through c10's own logger
+#include <glog/logging.h>
+#endif
 
 #include "core/error.hpp"
 #include "core/timing.hpp"
@@ -155,8 +157,12 @@ ProcessGroup::~ProcessGroup() = default;
 std::unique_ptr<ProcessGroup> ProcessGroup::connect(const GroupOptions& options) {
   if (options.world_size < 1 || options.rank < 0 || options.rank >= options.world_size)
     throw std::invalid_argument(fmt::format("ProcessGroup: rank {} of {}", options.rank, options.world_size));
-  // c10d and Gloo log their errors to stderr through glog; Scout reports each failure as one line.
+  // c10d logs its errors to stderr; Scout reports each failure as one line.
+#ifdef C10_USE_GLOG
   FLAGS_minloglevel = google::GLOG_FATAL;
+#else
+  FLAGS_caffe2_log_level = c10::GLOG_FATAL;
+#endif
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   const std::string where = fmt::format("{}:{}", options.master_addr, options.master_port);

@@ -1,6 +1,7 @@
 // Evaluation (METHOD.md § Evaluation): R stochastic runs of the checkpoint's policy over a set of
 // digits with the physics and the camera in the loop, the two random baselines, the classifier on
 // full images and one greedy run.
+#include "learn/auto_precision.hpp"
 #include "learn/evaluation.hpp"
 
 #include <fmt/format.h>
@@ -254,7 +255,7 @@ EvalSetup prepare(const EvalConfig& config) {
                                 : s.state.config.world;
   s.data = read_data(config, s.world, network.classes);
   s.learned = learned_layers(s.state.history);
-  s.precision = agent::resolve_precision(config.precision);
+  s.precision = resolve_precision(config.precision);
   s.sampling.learned_goals = s.learned.goals;
   s.sampling.learned_actions = s.learned.actions;
   s.sampling.precision = s.precision;

@@ -1,23 +1,38 @@
 #include "learn/internal/precision.hpp"
 
 #include <ATen/autocast_mode.h>
+#include <torch/version.h>
 
 namespace scout::learn {
 
+// LibTorch 2.4 replaced the CPU-specific autocast switches by ones taking the device (and later
+// removed the old ones); 1.13 has only the old.
+#if TORCH_VERSION_MAJOR >= 2
+bool cpu_autocast_enabled() { return at::autocast::is_autocast_enabled(at::kCPU); }
+at::ScalarType cpu_autocast_dtype() { return at::autocast::get_autocast_dtype(at::kCPU); }
+static void set_cpu_autocast_enabled(bool enabled) { at::autocast::set_autocast_enabled(at::kCPU, enabled); }
+static void set_cpu_autocast_dtype(at::ScalarType dtype) { at::autocast::set_autocast_dtype(at::kCPU, dtype); }
+#else
+bool cpu_autocast_enabled() { return at::autocast::is_cpu_enabled(); }
+at::ScalarType cpu_autocast_dtype() { return at::autocast::get_autocast_cpu_dtype(); }
+static void set_cpu_autocast_enabled(bool enabled) { at::autocast::set_cpu_enabled(enabled); }
+static void set_cpu_autocast_dtype(at::ScalarType dtype) { at::autocast::set_autocast_cpu_dtype(dtype); }
+#endif
+
 ComputePrecision::ComputePrecision(agent::Precision precision) : bf16_(precision == agent::Precision::BFloat16) {
-  was_enabled_ = at::autocast::is_cpu_enabled();
-  previous_dtype_ = at::autocast::get_autocast_cpu_dtype();
+  was_enabled_ = cpu_autocast_enabled();
+  previous_dtype_ = cpu_autocast_dtype();
   // Float32 switches autocast off, so that an fp32 guard inside a bf16 one really runs fp32.
-  at::autocast::set_cpu_enabled(bf16_);
+  set_cpu_autocast_enabled(bf16_);
   if (!bf16_) return;
-  at::autocast::set_autocast_cpu_dtype(at::kBFloat16);
+  set_cpu_autocast_dtype(at::kBFloat16);
   at::autocast::increment_nesting();
 }
 
 ComputePrecision::~ComputePrecision() {
   if (bf16_ && at::autocast::decrement_nesting() == 0) at::autocast::clear_cache();
-  at::autocast::set_cpu_enabled(was_enabled_);
-  at::autocast::set_autocast_cpu_dtype(previous_dtype_);
+  set_cpu_autocast_enabled(was_enabled_);
+  set_cpu_autocast_dtype(previous_dtype_);
 }
 
 torch::Tensor network_input(const torch::Tensor& x, agent::Precision precision) {

@@ -1,5 +1,6 @@
 // TrainConfig: its schema table, which drives validation, its JSON form (stored in checkpoints and
 // manifests), the command line's options, what a resume may change and what ranks agree on.
+#include "learn/auto_precision.hpp"
 #include "learn/train_config.hpp"
 
 #include <fmt/format.h>
@@ -119,7 +120,8 @@ constexpr Row kRows[] = {
     row("entropy_bonus", "", T::Number, &TrainConfig::entropy_bonus, 0, 100, "--entropy-bonus", "",
         "Entropy bonus beta (beyond the paper; 0 in the paper preset)", kTrain, R::Kept, A::Training, /*lo_open=*/false, /*hi_open=*/true),
     row("precision", "", T::Precision, &TrainConfig::precision, 0, 0, "--precision", "PRECISION",
-        "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32) | bf16 (bfloat16 convolutions, "
+        "Networks' arithmetic: auto (the faster on this CPU, measured once; bf16 only where native) | bf16 (bfloat16 "
+        "convolutions, "
         "fp32 weights and optimizer) | fp32", kBoth, R::Changes, A::Networks),
     row("frozen", "", T::Frozen, &TrainConfig::frozen, 0, 0, "--freeze", "LAYERS",
         "Layers not updated in modes i-iii: goal,action,classifier", kTrain, R::Kept, A::Training, false, false,
@@ -276,7 +278,7 @@ json value_json(const TrainConfig& config, const Row& r) {
     case SettingType::Classifier:
       return agent::to_string(c.network.*std::get<agent::ClassifierKind NetworkConfig::*>(r.member));
     case SettingType::Precision:  // never "auto"
-      return agent::to_string(agent::resolve_precision(at<agent::Precision>(c, r.member)));
+      return agent::to_string(resolve_precision(at<agent::Precision>(c, r.member)));
     case SettingType::World:
       return worlds::to_yaml(at<worlds::World>(c, r.member));
     case SettingType::Folder:

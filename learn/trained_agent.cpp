@@ -1,5 +1,6 @@
 // The trained agent behind `scout run --checkpoint`: the checkpoint's networks, its policy on a
 // rollout batch and its classifier, without exposing LibTorch to the CLI.
+#include "learn/auto_precision.hpp"
 #include "learn/trained_agent.hpp"
 
 #include <torch/torch.h>
@@ -43,7 +44,7 @@ std::unique_ptr<TrainedAgent> TrainedAgent::load(const std::filesystem::path& ch
 
 std::unique_ptr<TrainedAgent> TrainedAgent::load(const Checkpoint& checkpoint, agent::Precision precision) {
   auto impl = std::make_unique<Impl>();
-  impl->precision = agent::resolve_precision(precision);
+  impl->precision = resolve_precision(precision);
   if (impl->precision == agent::Precision::BFloat16) {
     if (const std::string why = agent::bf16_unavailable(); !why.empty()) throw InputError("precision: bf16: " + why);
   }

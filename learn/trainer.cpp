@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include "learn/auto_precision.hpp"
 #include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/fault_injection.hpp"
@@ -124,7 +125,7 @@ struct Trainer::Impl {
       config.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
     if (new_run) {  // c from the floor images; an auto precision is resolved for this CPU and stored so
       config.network.image_channels = train.images.channels;
-      config.precision = agent::resolve_precision(config.precision);
+      config.precision = resolve_precision(config.precision);
     }
     validation = worlds::load_split(config.data_folder, worlds::Split::Validation);
     data_files = train.files;
@@ -555,7 +556,7 @@ std::unique_ptr<Trainer> Trainer::resume(const Checkpoint& checkpoint, const fs:
   if (epochs) state.config.epochs = *epochs;
   if (options.data_folder) state.config.data_folder = fs::absolute(*options.data_folder);
   if (options.learning_rate) state.config.learning_rate = *options.learning_rate;
-  if (options.precision) state.config.precision = agent::resolve_precision(*options.precision);
+  if (options.precision) state.config.precision = resolve_precision(*options.precision);
   state.config.validate();
   impl->config = state.config;
   impl->run_dir = run_dir;

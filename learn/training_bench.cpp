@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "learn/auto_precision.hpp"
 #include "core/error.hpp"
 #include "core/memory.hpp"
 #include "core/random.hpp"
@@ -45,7 +46,7 @@ BenchSetup gather_bench(const TrainBenchConfig& config, ProcessGroup* group, Tra
   b.network = c.network;
   b.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
   b.network.image_channels = train.images.channels;
-  b.precision = agent::resolve_precision(c.precision);
+  b.precision = resolve_precision(c.precision);
   b.ranks = group ? group->size() : 1;
   const int rank = group ? group->rank() : 0;
   if (c.batch_images % b.ranks != 0)

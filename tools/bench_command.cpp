@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 
+#include "learn/auto_precision.hpp"
 #include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
@@ -318,7 +319,7 @@ learn::TrainBenchConfig bench_train_config(const TrainBenchOptions& opt) {
     throw InputError(opt.world + ": floor.dataset: the training bench needs a data set (a PNG floor has no labels)");
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   c.data_folder = worlds::dataset_folder(c.world.floor.dataset, data_root);
-  c.precision = agent::resolve_precision(c.precision);
+  c.precision = learn::resolve_precision(c.precision);
   c.seed = c.world.seed;
   c.validate(setting_option);
   config.batches = opt.batches;

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
+#include "learn/auto_precision.hpp"
 #include "learn/train_config.hpp"
 #include "tools/parsing.hpp"
 
@@ -108,23 +109,23 @@ std::string setting_option(const learn::TrainSetting& setting) {
 
 void announce_auto_precision(const std::string& requested) {
   // Training has no model yet: what it trains in is what it runs in.
-  announce_model_precision(requested, agent::resolve_precision(agent::parse_precision(requested)));
+  announce_model_precision(requested, learn::resolve_precision(agent::parse_precision(requested)));
 }
 
 void add_model_precision_option(CLI::App& cmd, std::string& precision) {
   precision = "auto";
   cmd.add_option("--precision", precision,
-                 "Networks' arithmetic: auto (bf16 where this CPU has native bf16, else fp32, whatever the model was "
-                 "trained in) | bf16 | fp32")
+                 "Networks' arithmetic: auto (the faster on this CPU, measured once: bf16 only where it is native and "
+                 "faster; whatever the model was trained in) | bf16 | fp32")
       ->capture_default_str()
       ->check(precision_validator());
 }
 
 void announce_model_precision(const std::string& requested, agent::Precision trained) {
   const agent::Precision asked = agent::parse_precision(requested);  // checked by the option
-  const agent::Precision used = agent::resolve_precision(asked);
+  const agent::Precision used = learn::resolve_precision(asked);
   if (asked == agent::Precision::Auto) {
-    std::string line = agent::auto_precision_note();
+    std::string line = learn::auto_precision().note;
     if (used != trained) line += fmt::format("; the model was trained in {}", agent::to_string(trained));
     std::fprintf(stderr, "%s\n", line.c_str());
   } else if (used == agent::Precision::BFloat16 && !agent::native_bf16().any()) {

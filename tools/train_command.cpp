@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "learn/auto_precision.hpp"
 #include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/folder_lock.hpp"
@@ -108,7 +109,7 @@ std::optional<agent::Precision> resume_precision(const TrainOptions& o, const le
                                                  const std::string& run) {
   if (o.settings.given("precision")) {
     o.settings.announce_precision();  // also warns when bf16 would be emulated
-    return agent::resolve_precision(agent::parse_precision(o.settings.precision()));
+    return learn::resolve_precision(agent::parse_precision(o.settings.precision()));
   }
   const agent::NativeBf16 cpu = agent::native_bf16();
   if (c.precision == agent::Precision::BFloat16 && !cpu.any()) {
@@ -213,7 +214,7 @@ learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint
     throw InputError(o.world + ": floor.dataset: training needs a data set (a PNG floor has no labels)");
   const fs::path data_root = o.data_root.empty() ? worlds::default_data_root() : fs::path(o.data_root);
   config.data_folder = fs::absolute(worlds::dataset_folder(config.world.floor.dataset, data_root));
-  config.precision = agent::resolve_precision(config.precision);
+  config.precision = learn::resolve_precision(config.precision);
   config.validate(setting_option);
   const std::array<int, 3>& epochs = config.epochs;
   if (config.pretrain_epochs + epochs[0] + epochs[1] + epochs[2] == 0)

@@ -28,6 +28,10 @@ class ComputePrecision {
   at::ScalarType previous_dtype_ = at::kBFloat16;
 };
 
+/// LibTorch's CPU autocast state, through whichever API this LibTorch has (1.13's or 2.x's).
+bool cpu_autocast_enabled();
+at::ScalarType cpu_autocast_dtype();
+
 /// A network input in the layout and type that `precision` runs fastest in: bf16 in channels-last
 /// (NHWC, what oneDNN's AMX kernels want; a bf16 input also keeps the dense blocks' concatenations
 /// in bf16 instead of promoting them back to fp32). Float32 inputs are returned as they are.

@@ -295,8 +295,8 @@ class Agent:
     from each run's policy seed (info["policy_seed"]). `threads`: LibTorch's threads for the
     networks, 0..256 (0: one per core; a process-wide setting, the last Agent made sets it).
 
-    `precision` is the networks' arithmetic here: "auto" (bf16 where this CPU has native bf16,
-    else fp32, whatever the model was trained in), "bf16" or "fp32"; `agent.precision` says which
+    `precision` is the networks' arithmetic here: "auto" (the faster on this CPU, measured
+    once and cached; bf16 only where it is native; whatever the model was trained in), "bf16" or "fp32"; `agent.precision` says which
     runs, `agent.trained_precision` what the model was trained in.
 
     LibTorch is loaded only when an Agent is made (the scout._scout_agent module)."""

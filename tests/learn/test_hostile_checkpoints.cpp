@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <torch/torch.h>
+#include <torch/version.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -165,7 +166,13 @@ struct Parts {
   // The first parameter and its Adam state.
   torch::Tensor first_parameter() const { return agent->parameters().front(); }
   torch::optim::AdamParamState& first_state() const {
+    // The optimizer's state is keyed by the parameter's TensorImpl: its address as text in 1.13,
+    // the pointer itself in 2.x.
+#if TORCH_VERSION_MAJOR >= 2
+    const auto key = static_cast<void*>(first_parameter().unsafeGetTensorImpl());
+#else
     const std::string key = c10::guts::to_string(first_parameter().unsafeGetTensorImpl());
+#endif
     return static_cast<torch::optim::AdamParamState&>(*adam->state().at(key));
   }
   torch::optim::AdamOptions& options() const {

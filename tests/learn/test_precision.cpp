@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "agent/networks.hpp"
+#include "learn/auto_precision.hpp"
 #include "agent/state.hpp"
 #include "core/error.hpp"
 #include "core/random.hpp"
@@ -140,7 +141,7 @@ TEST_F(Precision, Bf16GivesTheFp32DistributionsToWithinRounding) {
 TEST_F(Precision, Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32) {
   // Where bf16 is emulated the gradients differ far more (a cosine of about 0.5 on an AVX2 EPYC),
   // which is why auto never picks it there (tests/agent/test_config.cpp).
-  if (!agent::native_bf16().any()) GTEST_SKIP() << "this CPU has no native bf16: " << agent::auto_precision_note();
+  if (!agent::native_bf16().any()) GTEST_SKIP() << "this CPU has no native bf16: " << agent::fp32_without_native_bf16_note();
   torch::manual_seed(6);
   agent::Agent agent(agent::NetworkConfig{});
   agent->train();
@@ -242,20 +243,20 @@ TEST_F(Precision, TheGuardNestsAndRestoresAutocast) {
   torch::NoGradGuard no_grad;
   const torch::Tensor y = torch::rand({4, 1, kSide, kSide}) - 0.5;
   const torch::Tensor before = classifier_log_probs(*agent, y, agent::Precision::Float32);
-  ASSERT_FALSE(at::autocast::is_cpu_enabled());
+  ASSERT_FALSE(cpu_autocast_enabled());
   {
     const ComputePrecision outer(agent::Precision::BFloat16);
-    EXPECT_TRUE(at::autocast::is_cpu_enabled());
-    EXPECT_EQ(at::autocast::get_autocast_cpu_dtype(), at::kBFloat16);
+    EXPECT_TRUE(cpu_autocast_enabled());
+    EXPECT_EQ(cpu_autocast_dtype(), at::kBFloat16);
     {
       const ComputePrecision inner(agent::Precision::Float32);
-      EXPECT_FALSE(at::autocast::is_cpu_enabled());
+      EXPECT_FALSE(cpu_autocast_enabled());
       EXPECT_TRUE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::Float32), before));
     }
-    EXPECT_TRUE(at::autocast::is_cpu_enabled());
+    EXPECT_TRUE(cpu_autocast_enabled());
     EXPECT_FALSE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::BFloat16), before));
   }
-  EXPECT_FALSE(at::autocast::is_cpu_enabled());
+  EXPECT_FALSE(cpu_autocast_enabled());
   EXPECT_TRUE(torch::equal(classifier_log_probs(*agent, y, agent::Precision::Float32), before));
 }
 
@@ -310,7 +311,7 @@ TEST_F(Precision, TheDefaultIsAutoAndOnlyResolvedPrecisionsAreStored) {
   c.world = preset_world();
   c.data_folder = "/data/mnist";
   const std::string text = c.to_json();
-  const agent::Precision resolved = agent::resolve_precision(agent::Precision::Auto);
+  const agent::Precision resolved = resolve_precision(agent::Precision::Auto);
   const std::string key = std::string("\"precision\": \"") + agent::to_string(resolved) + "\",";
   const std::size_t at = text.find(key);
   ASSERT_NE(at, std::string::npos) << text;

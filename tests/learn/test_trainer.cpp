@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "learn/auto_precision.hpp"
 #include "core/random.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/internal/agent_policy.hpp"
@@ -619,7 +620,7 @@ TEST_F(Training, ANewRunTakesItsChannelsFromTheFloorsAndResolvesAutoPrecision) {
   config.epochs = {1, 0, 0};
   const Trainer trainer(config, run_dir("run"), kThreads);
   EXPECT_EQ(trainer.config().network.image_channels, worlds::ImageSet::channels);
-  EXPECT_EQ(trainer.config().precision, agent::resolve_precision(agent::Precision::Auto));
+  EXPECT_EQ(trainer.config().precision, resolve_precision(agent::Precision::Auto));
   EXPECT_NE(trainer.config().precision, agent::Precision::Auto);
 }
 

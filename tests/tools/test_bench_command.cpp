@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "agent/config.hpp"
+#include "learn/auto_precision.hpp"
 #include "tests/support/cli_fixture.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
@@ -89,7 +90,7 @@ TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
   EXPECT_NE(r.out.find("planners 4 x 1"), std::string::npos) << r.out;
   const json j = json::parse(read_text(report));
   EXPECT_EQ(j["robots"], 8);
-  EXPECT_EQ(j["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
+  EXPECT_EQ(j["precision"], scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto)));
   EXPECT_EQ(j["network"]["classifier"], "strided");
   EXPECT_EQ(j["network"]["classifier_width"], 8);
   ASSERT_EQ(j["modes"].size(), 2u);

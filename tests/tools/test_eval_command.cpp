@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "agent/config.hpp"
+#include "learn/auto_precision.hpp"
 #include "tests/support/cli.hpp"
 #include "tests/support/eval_run_fixture.hpp"
 #include "tests/support/temp_dir.hpp"
@@ -201,7 +202,7 @@ TEST_F(EvalRun, EvalUsesThisCpusPrecisionUnlessTold) {
                   path("fp32.json"))
                 .status,
             0);
-  const std::string resolved = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
+  const std::string resolved = scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto));
   EXPECT_EQ(read_json(path("default.json"))["precision"], resolved);
   EXPECT_EQ(read_json(path("fp32.json"))["precision"], "fp32");
   const Result automatic = scout("eval --checkpoint " + checkpoint() + test_data() +

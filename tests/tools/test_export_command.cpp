@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "agent/config.hpp"
+#include "learn/auto_precision.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace scout::testing::export_command_train_cli_tests {
@@ -46,7 +47,7 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
   json a = json::parse(read_text(path("a.json"))), b = json::parse(read_text(path("b.json")));
   for (const char* key : {"accuracy", "top2", "confusion", "baselines", "full_image_accuracy", "precision"})
     EXPECT_EQ(a[key], b[key]) << key;
-  EXPECT_EQ(a["precision"], scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto)));
+  EXPECT_EQ(a["precision"], scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto)));
 
   // Refusals: an existing file (unless --overwrite), a missing folder, something not a checkpoint.
   const std::string before = read_text(model);

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "agent/config.hpp"
+#include "learn/auto_precision.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace scout::testing::train_command_train_cli_tests {
@@ -34,7 +35,7 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   const Result r = run("train " + world() + " --out " + path("run") + " --epochs 1,1,1 --seed 7" + kTiny);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   // auto: what this CPU runs natively (fp32 where bf16 would be emulated).
-  const std::string resolved = scout::agent::to_string(scout::agent::resolve_precision(scout::agent::Precision::Auto));
+  const std::string resolved = scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto));
   EXPECT_NE(r.out.find("(1 LibTorch threads, " + resolved + ";"), std::string::npos) << r.out;
   for (const char* mode : {"mode i   epoch   1:", "mode ii  epoch   1:", "mode iii epoch   1:"})
     EXPECT_NE(r.out.find(mode), std::string::npos) << mode << " in " << r.out;
