@@ -84,6 +84,8 @@ bool is_digits(std::string_view s, std::size_t max_length = 10) {
 /// The entries Scout's writer makes, relative to the archive's folder.
 bool known_entry(std::string_view name) {
   if (name == "data.pkl" || name == "constants.pkl" || name == "version") return true;
+  // LibTorch 2.x's writer adds the byte order of the records and a random id of the file.
+  if (name == "byteorder" || name == ".data/serialization_id") return true;
   if (name.rfind("data/", 0) == 0) return is_digits(name.substr(5));
   std::string_view code = name;
   if (code.size() > 10 && code.substr(code.size() - 10) == ".debug_pkl") code.remove_suffix(10);
@@ -1061,6 +1063,15 @@ ArchiveContents inspect_archive(std::string_view data) {
   if (!is_digits(digits, 2) || std::stoi(std::string(digits)) < 1 || std::stoi(std::string(digits)) > 10 ||
       (digits.size() != version.size() && digits.size() + 1 != version.size()))
     fail(where("version") + ": expected a format number from 1 to 10");
+
+  // Written by LibTorch 2.x: the records must be little-endian (what this reader and x86 assume),
+  // and the id is a decimal number of at most 64 digits.
+  if (zip.entries.count("byteorder") &&
+      entry_bytes(b, zip, entry("byteorder"), kMaxSmallEntryBytes, budget) != "little")
+    fail(where("byteorder") + ": expected \"little\" (records in little-endian order)");
+  if (zip.entries.count(".data/serialization_id") &&
+      !is_digits(entry_bytes(b, zip, entry(".data/serialization_id"), kMaxSmallEntryBytes, budget), 64))
+    fail(where(".data/serialization_id") + ": expected a decimal id of at most 64 digits");
 
   std::map<std::string, ClassStub> stubs;
   for (const auto& [name, e] : zip.entries) {

@@ -184,12 +184,15 @@ PrecisionChoice cached_or_measured_precision(const std::filesystem::path& file, 
   const CacheLock lock(file.string() + ".lock");
   if (!lock.held()) {
     const PrecisionMeasurement m = measure_precisions();
-    return {choose_precision(m), measured_note(m, choose_precision(m), "not cached: cannot lock " + file.string() + ".lock")};
+    return {choose_precision(m),
+            measured_note(m, choose_precision(m), "not cached: cannot lock " + file.string() + ".lock")};
   }
   nlohmann::json cache = read_cache(file);
-  if (const auto m = cached(cache, key)) return {choose_precision(*m), measured_note(*m, choose_precision(*m), "cached in " + file.string())};
+  if (const auto m = cached(cache, key))
+    return {choose_precision(*m), measured_note(*m, choose_precision(*m), "cached in " + file.string())};
   const PrecisionMeasurement m = measure_precisions();
-  cache["choices"][key] = {{"fp32_ms", m.fp32_ms}, {"bf16_ms", m.bf16_ms}, {"precision", agent::to_string(choose_precision(m))}};
+  cache["choices"][key] = {
+      {"fp32_ms", m.fp32_ms}, {"bf16_ms", m.bf16_ms}, {"precision", agent::to_string(choose_precision(m))}};
   std::string where = "cached in " + file.string();
   try {
     core::write_file_atomic(file, cache.dump(2) + "\n");

@@ -375,8 +375,9 @@ class OptimizerCheck {
     return *t.value;
   }
 
-  // params/0 ... params/N-1: the key (a parameter's address when written, "0x...") under which
-  // each parameter's state is kept, one per agent parameter, all different. Returns key -> index.
+  // params/0 ... params/N-1: the key (a parameter's address when written: "0x..." by LibTorch 1.x,
+  // decimal by 2.x) under which each parameter's state is kept, one per agent parameter, all
+  // different. Returns key -> index.
   std::map<std::string, std::size_t> parameter_keys(std::size_t parameters) {
     const std::string group = kGroup;
     if (count(group + "params/size") != static_cast<std::int64_t>(parameters))
@@ -387,8 +388,10 @@ class OptimizerCheck {
       const std::string& key = text(path);
       const bool hex = key.size() > 2 && key.size() <= 18 && key.rfind("0x", 0) == 0 &&
                        key.find_first_not_of("0123456789abcdef", 2) == std::string::npos;
-      if (!hex)
-        refuse(path + ": expected a parameter key (0x and hexadecimal digits), got '" + key.substr(0, 40) + "'");
+      const bool decimal = !key.empty() && key.size() <= 20 && key.find_first_not_of("0123456789") == std::string::npos;
+      if (!hex && !decimal)
+        refuse(path + ": expected a parameter key (an address: 0x and hexadecimal digits, or decimal digits), got '" +
+               key.substr(0, 40) + "'");
       if (!keys.emplace(key, i).second) refuse(path + ": the key " + key + " is another parameter's too");
     }
     return keys;

@@ -157,7 +157,7 @@ ProcessGroup::~ProcessGroup() = default;
 std::unique_ptr<ProcessGroup> ProcessGroup::connect(const GroupOptions& options) {
   if (options.world_size < 1 || options.rank < 0 || options.rank >= options.world_size)
     throw std::invalid_argument(fmt::format("ProcessGroup: rank {} of {}", options.rank, options.world_size));
-  // c10d logs its errors to stderr; Scout reports each failure as one line.
+    // c10d logs its errors to stderr; Scout reports each failure as one line.
 #ifdef C10_USE_GLOG
   FLAGS_minloglevel = google::GLOG_FATAL;
 #else

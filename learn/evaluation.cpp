@@ -1,7 +1,6 @@
 // Evaluation (METHOD.md § Evaluation): R stochastic runs of the checkpoint's policy over a set of
 // digits with the physics and the camera in the loop, the two random baselines, the classifier on
 // full images and one greedy run.
-#include "learn/auto_precision.hpp"
 #include "learn/evaluation.hpp"
 
 #include <fmt/format.h>
@@ -19,6 +18,7 @@
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"

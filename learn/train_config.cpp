@@ -1,6 +1,5 @@
 // TrainConfig: its schema table, which drives validation, its JSON form (stored in checkpoints and
 // manifests), the command line's options, what a resume may change and what ranks agree on.
-#include "learn/auto_precision.hpp"
 #include "learn/train_config.hpp"
 
 #include <fmt/format.h>
@@ -18,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "env/batch_env.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/internal/archive.hpp"
 
 namespace scout::learn {

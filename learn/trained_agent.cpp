@@ -1,12 +1,12 @@
 // The trained agent behind `scout run --checkpoint`: the checkpoint's networks, its policy on a
 // rollout batch and its classifier, without exposing LibTorch to the CLI.
-#include "learn/auto_precision.hpp"
 #include "learn/trained_agent.hpp"
 
 #include <torch/torch.h>
 
 #include <stdexcept>
 
+#include "learn/auto_precision.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"
 #include "learn/internal/precision.hpp"

@@ -12,7 +12,6 @@
 #include <sstream>
 #include <thread>
 
-#include "learn/auto_precision.hpp"
 #include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/fault_injection.hpp"
@@ -21,6 +20,7 @@
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"

@@ -8,11 +8,11 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "learn/auto_precision.hpp"
 #include "core/error.hpp"
 #include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/timing.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/distributed.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/objective.hpp"

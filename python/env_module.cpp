@@ -285,7 +285,7 @@ class VectorEnvCore {
   py::tuple step(const py::object& action_object) {
     if (!py::isinstance<py::dict>(action_object))
       throw py::type_error("action: expected a dict with 'move' (and optionally 'prediction', 'goal'), got " +
-                           py::str(action_object.get_type().attr("__name__")).cast<std::string>());
+                           py::str(py::type::handle_of(action_object).attr("__name__")).cast<std::string>());
     const auto action = py::reinterpret_borrow<py::dict>(action_object);
     std::vector<std::string> unknown;
     for (const auto& [key, value] : action) {

@@ -1,31 +1,57 @@
 #!/usr/bin/env bash
 # Makes the project's Python environment .venv/, idempotently (scripts/setup.sh runs it after the
-# Debian packages): Debian's /usr/bin/python3 with Debian's site packages visible, so that
-# Debian's NumPy 1.24, PyTorch 1.13, matplotlib 3.6 and pytest keep serving, plus the pinned
-# packages Debian lacks (python/requirements.txt: Gymnasium) from PyPI, installed under
-# python/constraints.txt, which holds NumPy and torch at Debian's versions (a second NumPy or
-# LibTorch in the environment would break Debian's PyTorch and Scout's own modules).
+# Debian packages): a virtual environment of Debian's /usr/bin/python3, isolated from Debian's
+# site packages, with python/requirements.txt from PyPI, pinned exactly: PyTorch (whose wheel
+# carries the LibTorch the C++ program is built against: one LibTorch for the program, the Python
+# package and the examples), NumPy, matplotlib, pytest, pybind11 and Gymnasium.
 #
-# Where PyPI cannot be reached, one line says so and the environment is left without Gymnasium:
-# the Gymnasium tests then skip with one line each (and fail under CI=true). Nothing else fails.
+# Scout cannot be built without a LibTorch: where PyPI cannot be reached, this stops with one line
+# saying so and how to build against another LibTorch (README, "Which PyTorch").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=.venv
-# A folder left by a venv made before python3-venv was installed has no pip: made again.
-if ! "$venv/bin/python" -c "import pip" 2>/dev/null; then
+requirements=python/requirements.txt
+stamp="$venv/requirements.installed"
+
+# A venv of another kind (made before with Debian's site packages visible, or left half-made
+# without pip) is made again.
+if ! "$venv/bin/python" -c "import pip" 2>/dev/null ||
+  grep -q "^include-system-site-packages = true" "$venv/pyvenv.cfg" 2>/dev/null; then
   rm -rf "$venv"
-  /usr/bin/python3 -m venv --system-site-packages "$venv"
+  /usr/bin/python3 -m venv "$venv"
 fi
-if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 20 --retries 1 \
-  -r python/requirements.txt -c python/constraints.txt >"$venv/pip.log" 2>&1; then
-  echo "setup: could not install python/requirements.txt from PyPI (unreachable? pip's log: $venv/pip.log);" \
-    "going on without Gymnasium, whose tests will skip"
+
+# Up to date: nothing to fetch (the stamp is the requirements file this environment was made from).
+if [ -f "$stamp" ] && cmp -s "$stamp" "$requirements"; then
   exit 0
 fi
-# NumPy and torch must still be Debian's (the constraints make pip fail rather than replace them).
-"$venv/bin/python" - <<'PY'
-import numpy, torch
-for module in (numpy, torch):
-    if not module.__file__.startswith("/usr/lib/python3/dist-packages/"):
-        raise SystemExit(f"setup: {module.__name__} in .venv is {module.__file__}, not Debian's: remove .venv and run ./scripts/setup.sh again")
+
+echo "setup: installing $requirements into $venv (PyTorch with its CUDA libraries: about 2.8 GB from PyPI)"
+if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 60 --retries 3 \
+  --only-binary :all: -r "$requirements" >"$venv/pip.log" 2>&1; then
+  echo "setup: could not install $requirements from PyPI (pip's log: $venv/pip.log; the last line:" \
+    "$(grep -v '^\s*$' "$venv/pip.log" | tail -1)); Scout needs its PyTorch to build: reach PyPI and run" \
+    "./scripts/setup.sh again, or build against a LibTorch of your own (README, \"Which PyTorch\")" >&2
+  exit 1
+fi
+# The environment must hold exactly what the file names: a package that came from elsewhere (a
+# pip that resolved differently) would make the C++ build and the Python side disagree.
+"$venv/bin/python" - "$requirements" <<'PY'
+import sys
+from importlib import metadata
+
+wanted = {}
+for line in open(sys.argv[1]):
+    line = line.split("#", 1)[0].strip()
+    if line:
+        name, version = line.split("==")
+        wanted[name.lower().replace("_", "-")] = version
+for name, version in wanted.items():
+    try:
+        found = metadata.version(name)
+    except metadata.PackageNotFoundError:
+        raise SystemExit(f"setup: {name} is missing from .venv after installing {sys.argv[1]}")
+    if found.split("+")[0] != version:
+        raise SystemExit(f"setup: .venv has {name} {found}, {sys.argv[1]} pins {version}")
 PY
+cp "$requirements" "$stamp"

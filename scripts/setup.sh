@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Sets up Scout on a fresh Debian 12 machine, idempotently: installs the Debian packages it
 # needs (only the missing ones), makes the project's Python environment .venv/ (Debian's
-# /usr/bin/python3 with Debian's site packages visible, plus python/requirements.txt from PyPI),
-# builds Scout (Release) into build/, and installs the MNIST data (`scout data`: the whole of
+# /usr/bin/python3 with python/requirements.txt from PyPI: PyTorch, whose LibTorch Scout is built
+# against, NumPy, matplotlib, pytest, pybind11, Gymnasium), builds Scout (Release) into build/, and installs the MNIST data (`scout data`: the whole of
 # MNIST and its 10,000-digit subset; a no-op once done). Run as root, or with sudo available.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,9 +13,8 @@ packages=(
   libosmesa6-dev libgl-dev  # offscreen OpenGL camera (render/)
   libopencv-dev           # trajectory images, PNG floors, MP4 videos
   libgif-dev              # GIF videos (scout run --video)
-  libtorch-dev            # networks (agent/, learn/)
-  libgloo-dev             # Gloo's headers for c10d (data-parallel training, learn/distributed.cpp)
-  libopenblas0-pthread    # fast BLAS for LibTorch (else the reference BLAS)
+  libgloo-dev             # Gloo's headers for c10d (data-parallel training, learn/distributed.cpp;
+                          # LibTorch's wheel has Gloo inside but not its headers)
   libeigen3-dev           # geometry
   libyaml-cpp-dev         # world files
   libcli11-dev libfmt-dev nlohmann-json3-dev zlib1g-dev libssl-dev
@@ -24,9 +23,7 @@ packages=(
   libgtest-dev            # tests
   strace                  # tests: the order of fsync and rename in a durable write
   python3 python3-venv    # the project's Python environment (.venv/, below)
-  python3-numpy python3-matplotlib python3-pytest  # seen from .venv: scout report's figures, the Python tests
-  python3-dev pybind11-dev  # the Python package (python/)
-  python3-torch           # the Python examples' REINFORCE and PPO agents
+  python3-dev             # the Python package's headers (python/; pybind11 comes from .venv)
   dataset-fashion-mnist   # Fashion-MNIST floors
 )
 
@@ -46,8 +43,8 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-# The project's Python environment .venv/ (scripts/python_env.sh): Debian's Python and modules,
-# plus Gymnasium from PyPI; where PyPI cannot be reached, one line says so and the set-up goes on.
+# The project's Python environment .venv/ (scripts/python_env.sh), with the PyTorch whose LibTorch
+# the build uses (cmake/ScoutTorch.cmake finds it through SCOUT_PYTHON).
 ./scripts/python_env.sh
 venv=.venv
 

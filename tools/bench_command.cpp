@@ -12,12 +12,12 @@
 #include <random>
 #include <sstream>
 
-#include "learn/auto_precision.hpp"
 #include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
 #include "core/timing.hpp"
 #include "env/runs.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/distributed.hpp"
 #include "learn/rollout.hpp"
 #include "learn/training_bench.hpp"

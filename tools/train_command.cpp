@@ -13,10 +13,10 @@
 #include <set>
 #include <sstream>
 
-#include "learn/auto_precision.hpp"
 #include "core/digest.hpp"
 #include "core/error.hpp"
 #include "core/folder_lock.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/distributed.hpp"
 #include "learn/trainer.hpp"

@@ -103,6 +103,8 @@ TEST(AutoPrecision, TheKeyNamesTheCpuTheLibraryAndTheCaps) {
 // A damaged cache, or one without this key, is measured and rewritten: the other keys stay.
 // Two processes started together on an empty cache measure once between them and agree.
 TEST(AutoPrecision, AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess) {
+  if (!agent::native_bf16().any())
+    GTEST_SKIP() << "the probe runs only where bf16 is native: " << agent::fp32_without_native_bf16_note();
   const testing::TempDir dir("scout_auto_precision");
   const std::string key = precision_cache_key();
   const auto file = dir.write("precision.json", "{\"choices\": {\"another CPU | LibTorch 0\": {\"fp32_ms\": 1, ");
@@ -136,6 +138,8 @@ TEST(AutoPrecision, AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess) {
 // The probe builds and runs networks: a seeded run draws the same numbers with or without it, and
 // keeps its thread count.
 TEST(AutoPrecision, TheProbeLeavesTheGeneratorAndTheThreadCountAlone) {
+  if (!agent::native_bf16().any())
+    GTEST_SKIP() << "the probe runs only where bf16 is native: " << agent::fp32_without_native_bf16_note();
   torch::manual_seed(11);
   const torch::Tensor expected = torch::rand({8});
   torch::manual_seed(11);

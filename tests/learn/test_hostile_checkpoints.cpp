@@ -416,21 +416,30 @@ std::vector<HostileCase> zip_and_adam_cases() {
        "where the entry before it ends at"},
       {"Adam's params not numeric",
        [](const std::string& real) {
-         // The first parameter key ("0x..."), which params/i and the state share through the memo,
-         // made "0xzzz..." in data.pkl and in the state's class stub alike.
+         // The first parameter key (an address: "0x..." from LibTorch 1.x, decimal digits from
+         // 2.x), which params/i and the state share through the memo, made letters in data.pkl
+         // and in the state's class stub alike. A key is the first BINUNICODE string that is one.
          ZipFile zip = scout::testing::unpack(real);
          const std::string& pickle = scout::testing::entry(zip, "data.pkl");
-         std::size_t at = pickle.find("0x");
-         while (at != std::string::npos && (at < 5 || pickle[at - 5] != 'X')) at = pickle.find("0x", at + 1);
-         if (at == std::string::npos) throw std::runtime_error("no parameter key");
-         const std::string key = pickle.substr(at, scout::testing::le32(pickle, at - 4));
+         const auto is_key = [](const std::string& text) {
+           const bool hex = text.size() > 2 && text.rfind("0x", 0) == 0;
+           return hex || (text.size() >= 8 && text.find_first_not_of("0123456789") == std::string::npos);
+         };
+         std::string key;
+         for (std::size_t at = 5; at < pickle.size() && key.empty(); ++at) {
+           if (pickle[at - 5] != 'X') continue;
+           const std::size_t length = scout::testing::le32(pickle, at - 4);
+           if (length > 0 && length <= 20 && at + length <= pickle.size() && is_key(pickle.substr(at, length)))
+             key = pickle.substr(at, length);
+         }
+         if (key.empty()) throw std::runtime_error("no parameter key");
          const std::string letters = "0x" + std::string(key.size() - 2, 'z');
          for (auto& [name, bytes] : zip.entries)
            for (std::size_t k = bytes.find(key); k != std::string::npos; k = bytes.find(key, k + 1))
              bytes.replace(k, key.size(), letters);
          return scout::testing::pack(zip);
        },
-       "expected a parameter key (0x and hexadecimal digits)"},
+       "expected a parameter key (an address"},
       {"NaN in Adam's betas",
        [](const std::string& real) {
          Parts p = parts_of(real);

@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "agent/networks.hpp"
-#include "learn/auto_precision.hpp"
 #include "agent/state.hpp"
 #include "core/error.hpp"
 #include "core/random.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
@@ -141,7 +141,8 @@ TEST_F(Precision, Bf16GivesTheFp32DistributionsToWithinRounding) {
 TEST_F(Precision, Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32) {
   // Where bf16 is emulated the gradients differ far more (a cosine of about 0.5 on an AVX2 EPYC),
   // which is why auto never picks it there (tests/agent/test_config.cpp).
-  if (!agent::native_bf16().any()) GTEST_SKIP() << "this CPU has no native bf16: " << agent::fp32_without_native_bf16_note();
+  if (!agent::native_bf16().any())
+    GTEST_SKIP() << "this CPU has no native bf16: " << agent::fp32_without_native_bf16_note();
   torch::manual_seed(6);
   agent::Agent agent(agent::NetworkConfig{});
   agent->train();

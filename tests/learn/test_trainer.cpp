@@ -30,8 +30,8 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "learn/auto_precision.hpp"
 #include "core/random.hpp"
+#include "learn/auto_precision.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/internal/agent_policy.hpp"
 #include "learn/internal/checkpoint.hpp"

@@ -164,7 +164,7 @@ def test_the_greedy_agent_is_scout_run_greedy_and_ignores_the_policy_seeds(tmp_p
 THREADS_PROBE = """
 import json, os, numpy as np, scout
 import scout._scout_agent  # LibTorch loaded first: threads a library starts as it loads are not the networks'
-import torch  # Debian's, over the same libtorch_cpu: it reads the setting scout.Agent makes
+import torch  # the environment's, over the same libtorch_cpu: it reads the setting scout.Agent makes
 envs = scout.make_vec(%r, 16, seed=1)
 obs, info = envs.reset()
 def threads(): return len(os.listdir("/proc/self/task"))
@@ -240,7 +240,7 @@ def changed(source, **entries):
      "obs['pose']: expected shape (3, 2), got (2, 2)"),
     (lambda o, i: ("act", changed(o, pose=o["pose"] + 0.5), i), TypeError,
      "obs['pose']: expected integers, got dtype float64"),
-    (lambda o, i: ("act", changed(o, pose=o["pose"] + 2**32), i), ValueError,
+    (lambda o, i: ("act", changed(o, pose=o["pose"].astype(np.int64) + 2**32), i), ValueError,
      "obs['pose']: expected values that fit int32, got 42949"),
     (lambda o, i: ("act", changed(o, pose=o["pose"] + 100), i), ValueError,
      "obs['pose'][0]: expected a cell of the floor"),
