@@ -259,7 +259,7 @@ def main() -> None:
     print("\nmedians, images/s:")
     for mode in modes:
         for precision in precisions:
-            row = [f"mode {mode} {precision}:"]
+            row = []
             scout = medians.get(f"Scout {mode} {precision}")
             if scout is not None:
                 row.append(f"Scout {scout:.1f}")
@@ -268,7 +268,7 @@ def main() -> None:
             if scout is not None and peers:
                 best = max(peers.values())
                 row.append(f"Scout / faster peer {scout / best:.2f}x")
-            print("  " + ", ".join(row))
+            print(f"  mode {mode} {precision}: " + ", ".join(row))
     if args.json:
         document = {"torch": torch.__version__, "threads": args.threads, "rounds": args.rounds,
                     "batches": args.batches, "medians_images_per_s": medians, "runs": results}
