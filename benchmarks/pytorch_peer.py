@@ -98,7 +98,9 @@ class Peer:
         self.action = Planner(c + 3, args.planner_width, args.planner_depth, 2)
         self.classifier = Classifier(c, args.classifier_width, args.classifier_depth, 10)
         modules = [self.goal, self.action, self.classifier]
-        if bf16:  # what oneDNN's bf16 kernels want, as Scout does
+        # bf16: the weights in channels-last, what oneDNN's bf16 kernels want (as Scout has them);
+        # the inputs stay fp32 NCHW, as a PyTorch user writes them, and autocast casts them.
+        if bf16:
             for m in modules:
                 m.to(memory_format=torch.channels_last)
         self.optimizer = torch.optim.Adam([p for m in modules for p in m.parameters()], lr=1e-3)
@@ -178,7 +180,8 @@ def scout_images_per_s(args, mode: str, precision: str) -> float:
         out = Path(tmp) / "bench.json"
         command = [args.scout, "bench", "train", "--modes", mode, "--precision", precision,
                    "--batches", str(args.batches), "--warmup", str(args.warmup),
-                   "--threads", str(args.threads), "--json", str(out),
+                   "--threads", str(args.threads), "--json", str(out), "--data", str(Path(args.data).parent),
+                   "--batch", str(args.batch), "--rollouts", str(args.rollouts),
                    "--planner-width", str(args.planner_width), "--planner-depth", str(args.planner_depth),
                    "--classifier-width", str(args.classifier_width),
                    "--classifier-depth", str(args.classifier_depth)]

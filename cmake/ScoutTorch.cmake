@@ -72,7 +72,12 @@ if(_scout_torch_dir)
   endif()
   set(SCOUT_TORCH_SOURCE "${_scout_torch_dir}")
 else()
-  find_package(Torch REQUIRED)
+  find_package(Torch QUIET)
+  if(NOT Torch_FOUND)
+    message(FATAL_ERROR "No LibTorch: ${SCOUT_PYTHON} has no torch package with include/ and lib/, and "
+                        "find_package(Torch) found none. Run ./scripts/setup.sh (it installs PyTorch into "
+                        ".venv/), or name one with -DSCOUT_TORCH_DIR=/path/to/libtorch")
+  endif()
   add_library(scout::torch INTERFACE IMPORTED GLOBAL)
   target_include_directories(scout::torch SYSTEM INTERFACE ${TORCH_INCLUDE_DIRS})
   target_link_libraries(scout::torch INTERFACE ${TORCH_LIBRARIES})

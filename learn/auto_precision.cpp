@@ -2,12 +2,14 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <sched.h>
 #include <sys/file.h>
 #include <torch/torch.h>
 #include <torch/version.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -27,10 +29,11 @@ namespace scout::learn {
 
 namespace {
 
-constexpr int kProbeRobots = 24;      // enough for the kernels' steady state, small enough for ~1 s in all
-constexpr int kProbeFloor = 28;       // the default floor
-constexpr int kProbeRounds = 3;       // timed steps per precision (medians), after one warm-up each
-constexpr double kBf16Margin = 0.90;  // bf16 must take at most 90 % of fp32's time
+constexpr int kProbeRobots = 24;               // enough for the kernels' steady state, small enough for ~1 s in all
+constexpr int kProbeFloor = 28;                // the default floor
+constexpr int kProbeRounds = 3;                // timed steps per precision (medians), after one warm-up each
+constexpr double kBf16Margin = 0.90;           // bf16 must take at most 90 % of fp32's time
+constexpr std::chrono::seconds kLockWait{60};  // the longest wait for another process's measurement
 
 std::string cpu_model() {
   std::ifstream cpuinfo("/proc/cpuinfo");
@@ -67,6 +70,27 @@ std::string precision_cache_key() {
 
 namespace {
 
+// The cores this process may run on (its affinity mask, which a container's cpuset sets).
+int usable_cores() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (::sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+// While alive, LibTorch runs on every usable core; the process's own count comes back after,
+// whatever the probe throws.
+class ProbeThreads {
+ public:
+  ProbeThreads() : saved_(torch::get_num_threads()) { torch::set_num_threads(usable_cores()); }
+  ~ProbeThreads() { torch::set_num_threads(saved_); }
+  ProbeThreads(const ProbeThreads&) = delete;
+  ProbeThreads& operator=(const ProbeThreads&) = delete;
+
+ private:
+  int saved_;
+};
+
 double median(std::vector<double> values) {
   std::sort(values.begin(), values.end());
   return values[values.size() / 2];
@@ -84,8 +108,7 @@ PrecisionMeasurement measure_precisions() {
   const torch::Tensor u = torch::rand({kProbeRobots, agent::planner_channels(config), kProbeFloor, kProbeFloor});
   const torch::Tensor y = torch::rand({kProbeRobots, config.image_channels, kProbeFloor, kProbeFloor});
   generator.set_state(generator_state);
-  const int threads = torch::get_num_threads();
-  torch::set_num_threads(static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+  const ProbeThreads threads;
 
   auto step_ms = [&](agent::Precision precision) {
     const auto start = std::chrono::steady_clock::now();
@@ -112,7 +135,6 @@ PrecisionMeasurement measure_precisions() {
     fp32.push_back(step_ms(agent::Precision::Float32));
     bf16.push_back(step_ms(agent::Precision::BFloat16));
   }
-  torch::set_num_threads(threads);
   return {median(fp32), median(bf16)};
 }
 
@@ -157,12 +179,16 @@ class CacheLock {
   explicit CacheLock(const std::filesystem::path& file) {
     fd_ = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd_ < 0) return;
-    while (::flock(fd_, LOCK_EX) != 0) {
-      if (errno != EINTR) {
+    // Another process measuring takes about a second; one that holds the lock far longer is
+    // stopped or stuck, and this one measures for itself rather than wait on it.
+    const auto deadline = std::chrono::steady_clock::now() + kLockWait;
+    while (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      if ((errno != EWOULDBLOCK && errno != EINTR) || std::chrono::steady_clock::now() > deadline) {
         ::close(fd_);
         fd_ = -1;
         return;
       }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   }
   ~CacheLock() {
@@ -185,12 +211,13 @@ PrecisionChoice cached_or_measured_precision(const std::filesystem::path& file, 
   if (!lock.held()) {
     const PrecisionMeasurement m = measure_precisions();
     return {choose_precision(m),
-            measured_note(m, choose_precision(m), "not cached: cannot lock " + file.string() + ".lock")};
+            measured_note(m, choose_precision(m), "not cached: cannot lock " + file.string() + ".lock within 60 s")};
   }
   nlohmann::json cache = read_cache(file);
   if (const auto m = cached(cache, key))
     return {choose_precision(*m), measured_note(*m, choose_precision(*m), "cached in " + file.string())};
   const PrecisionMeasurement m = measure_precisions();
+  if (!cache["choices"].is_object()) cache["choices"] = nlohmann::json::object();  // another program's
   cache["choices"][key] = {
       {"fp32_ms", m.fp32_ms}, {"bf16_ms", m.bf16_ms}, {"precision", agent::to_string(choose_precision(m))}};
   std::string where = "cached in " + file.string();

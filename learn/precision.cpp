@@ -6,8 +6,8 @@
 namespace scout::learn {
 
 // LibTorch 2.4 replaced the CPU-specific autocast switches by ones taking the device (and later
-// removed the old ones); 1.13 has only the old.
-#if TORCH_VERSION_MAJOR >= 2
+// removed the old ones); before it, only the old exist.
+#if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 4)
 bool cpu_autocast_enabled() { return at::autocast::is_autocast_enabled(at::kCPU); }
 at::ScalarType cpu_autocast_dtype() { return at::autocast::get_autocast_dtype(at::kCPU); }
 static void set_cpu_autocast_enabled(bool enabled) { at::autocast::set_autocast_enabled(at::kCPU, enabled); }

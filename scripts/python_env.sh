@@ -21,21 +21,20 @@ if ! "$venv/bin/python" -c "import pip" 2>/dev/null ||
   /usr/bin/python3 -m venv "$venv"
 fi
 
-# Up to date: nothing to fetch (the stamp is the requirements file this environment was made from).
-if [ -f "$stamp" ] && cmp -s "$stamp" "$requirements"; then
-  exit 0
+# Installed unless up to date (the stamp is the requirements file this environment was made from).
+if ! [ -f "$stamp" ] || ! cmp -s "$stamp" "$requirements"; then
+  echo "setup: installing $requirements into $venv (PyTorch with its CUDA libraries: about 2.8 GB from PyPI)"
+  if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 60 --retries 3 \
+    --only-binary :all: -r "$requirements" >"$venv/pip.log" 2>&1; then
+    echo "setup: could not install $requirements from PyPI (pip's log: $venv/pip.log; the last line:" \
+      "$(grep -v '^\s*$' "$venv/pip.log" | tail -1)); Scout needs its PyTorch to build: reach PyPI and run" \
+      "./scripts/setup.sh again, or build against a LibTorch of your own (README, \"Which PyTorch\")" >&2
+    exit 1
+  fi
 fi
-
-echo "setup: installing $requirements into $venv (PyTorch with its CUDA libraries: about 2.8 GB from PyPI)"
-if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 60 --retries 3 \
-  --only-binary :all: -r "$requirements" >"$venv/pip.log" 2>&1; then
-  echo "setup: could not install $requirements from PyPI (pip's log: $venv/pip.log; the last line:" \
-    "$(grep -v '^\s*$' "$venv/pip.log" | tail -1)); Scout needs its PyTorch to build: reach PyPI and run" \
-    "./scripts/setup.sh again, or build against a LibTorch of your own (README, \"Which PyTorch\")" >&2
-  exit 1
-fi
-# The environment must hold exactly what the file names: a package that came from elsewhere (a
-# pip that resolved differently) would make the C++ build and the Python side disagree.
+# Every time (a tenth of a second): the environment must hold exactly what the file names. A
+# package changed by hand (a pip install of another torch) would make the C++ build and the Python
+# side disagree.
 "$venv/bin/python" - "$requirements" <<'PY'
 import sys
 from importlib import metadata
@@ -50,8 +49,10 @@ for name, version in wanted.items():
     try:
         found = metadata.version(name)
     except metadata.PackageNotFoundError:
-        raise SystemExit(f"setup: {name} is missing from .venv after installing {sys.argv[1]}")
+        raise SystemExit(f"setup: {name} is missing from .venv, which {sys.argv[1]} pins at {version}:"
+                         " remove .venv/requirements.installed and run ./scripts/setup.sh again")
     if found.split("+")[0] != version:
-        raise SystemExit(f"setup: .venv has {name} {found}, {sys.argv[1]} pins {version}")
+        raise SystemExit(f"setup: .venv has {name} {found}, {sys.argv[1]} pins {version}: remove"
+                         " .venv/requirements.installed and run ./scripts/setup.sh again")
 PY
 cp "$requirements" "$stamp"

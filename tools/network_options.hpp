@@ -42,7 +42,7 @@ class SettingOptions {
 /// Names a setting by its option in learn::TrainConfig::validate's messages ("--rollouts").
 std::string setting_option(const learn::TrainSetting& setting);
 
-/// Prints agent::auto_precision_note() on stderr when `requested` is "auto", and a warning when bf16
+/// Prints learn::auto_precision().note on stderr when `requested` is "auto", and a warning when bf16
 /// is asked for on a CPU that would emulate it.
 void announce_auto_precision(const std::string& requested);
 

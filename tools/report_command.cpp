@@ -414,8 +414,8 @@ fs::path report_script() {
 
 std::string python_interpreter() {
   if (const char* env = std::getenv("SCOUT_PYTHON"); env != nullptr && *env != '\0') return env;
-  // The project's environment (.venv/, made from Debian's /usr/bin/python3, which brings
-  // python3-matplotlib; ../shared/docs/MEASURED.md: another python3 on PATH may lack it).
+  // The project's environment (.venv/, with matplotlib from PyPI; another python3 on PATH may lack
+  // it).
   return SCOUT_PYTHON;
 }
 
@@ -645,9 +645,9 @@ void draw_figures(const ReportInputs& in, const OutputDir& out) {
   interrupt_token().throw_if_requested();  // a Ctrl-C reached the plotting script too
   if (plot.failed()) {
     const bool missing_module = plot.last_line.find("ModuleNotFoundError") != std::string::npos;
-    throw InputError(fmt::format("{} {} failed {}{}", python_interpreter(), in.script.string(),
-                                 plot.describe(python_interpreter()),
-                                 missing_module ? "; install python3-matplotlib (./scripts/setup.sh)" : ""));
+    throw InputError(
+        fmt::format("{} {} failed {}{}", python_interpreter(), in.script.string(), plot.describe(python_interpreter()),
+                    missing_module ? "; run ./scripts/setup.sh (it installs matplotlib into .venv/)" : ""));
   }
   std::error_code ec;
   fs::remove(out.path() / ".plot.log", ec);

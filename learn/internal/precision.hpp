@@ -28,7 +28,7 @@ class ComputePrecision {
   at::ScalarType previous_dtype_ = at::kBFloat16;
 };
 
-/// LibTorch's CPU autocast state, through whichever API this LibTorch has (1.13's or 2.x's).
+/// LibTorch's CPU autocast state, through whichever API this LibTorch has (before 2.4 or since).
 bool cpu_autocast_enabled();
 at::ScalarType cpu_autocast_dtype();
 

@@ -3,10 +3,9 @@
 // invisible to a seeded run, and one line saying which and why. These hold on every CPU: the
 // choice itself is this machine's, so the tests check how it is made, not what it is.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <torch/torch.h>
-#include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -100,7 +99,7 @@ TEST(AutoPrecision, TheKeyNamesTheCpuTheLibraryAndTheCaps) {
   EXPECT_NE(capped.find("ONEDNN_MAX_CPU_ISA=AVX512_CORE_BF16"), std::string::npos) << capped;
 }
 
-// A damaged cache, or one without this key, is measured and rewritten: the other keys stay.
+// A damaged or foreign cache, or one without this key, is measured and rewritten: the other keys stay.
 // Two processes started together on an empty cache measure once between them and agree.
 TEST(AutoPrecision, AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess) {
   if (!agent::native_bf16().any())
@@ -115,24 +114,40 @@ TEST(AutoPrecision, AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess) {
   EXPECT_GT(cache["choices"][key]["bf16_ms"].get<double>(), 0);
   EXPECT_EQ(cache["choices"][key]["precision"], agent::to_string(first.precision));
 
-  // Another key is kept when this one is added.
+  // Another program's file of that name: measured again and made Scout's.
+  dir.write("precision.json", "{\"choices\": 5}");
+  EXPECT_EQ(cached_or_measured_precision(file, key).note.find("not cached"), std::string::npos);
+  EXPECT_TRUE(read_json(file)["choices"].contains(key));
+
+  // Another key is kept when this one is added, and a second process started at the same time
+  // (this test program again, not a fork: LibTorch's OpenMP runtime does not survive a fork after
+  // it has run) waits for this one's measurement and agrees with it.
   std::filesystem::remove(file);
   dir.write("precision.json", cache_with("another CPU | LibTorch 0", 1, 2));
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    const PrecisionChoice in_child = cached_or_measured_precision(file, key);
-    ::_exit(in_child.precision == agent::Precision::BFloat16 ? 2 : 3);
-  }
+  const std::string command = "SCOUT_AUTO_PRECISION_CHILD='" + file.string() + "' '" +
+                              std::filesystem::read_symlink("/proc/self/exe").string() +
+                              "' --gtest_filter=AutoPrecision.ChildOfTheConcurrencyTest 2>&1";
+  FILE* child = ::popen(command.c_str(), "r");
+  ASSERT_NE(child, nullptr);
   const PrecisionChoice in_parent = cached_or_measured_precision(file, key);
-  int status = 0;
-  ASSERT_EQ(::waitpid(child, &status, 0), child);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), in_parent.precision == agent::Precision::BFloat16 ? 2 : 3)
-      << "the two processes disagree";
+  std::string output;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof buffer, child) != nullptr) output += buffer;
+  ASSERT_EQ(::pclose(child), 0) << output;
+  EXPECT_NE(output.find(std::string("child's choice: ") + agent::to_string(in_parent.precision) + "\n"),
+            std::string::npos)
+      << "the two processes disagree: " << output;
   cache = read_json(file);
   EXPECT_TRUE(cache["choices"].contains("another CPU | LibTorch 0")) << cache.dump();
   EXPECT_TRUE(cache["choices"].contains(key)) << cache.dump();
+}
+
+// The second process of the test above (skipped when run on its own).
+TEST(AutoPrecision, ChildOfTheConcurrencyTest) {
+  const char* file = std::getenv("SCOUT_AUTO_PRECISION_CHILD");
+  if (file == nullptr) GTEST_SKIP() << "started by AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess";
+  const PrecisionChoice choice = cached_or_measured_precision(file, precision_cache_key());
+  std::printf("child's choice: %s\n", agent::to_string(choice.precision));
 }
 
 // The probe builds and runs networks: a seeded run draws the same numbers with or without it, and

@@ -513,7 +513,7 @@ TEST_F(Resume, AnEarlierModeCannotGrowAfterALaterOne) {
 
 TEST_F(Resume, AnInterruptedRunResumedIsTheUninterruptedRun) { interrupted_run_resumed_is_the_uninterrupted_run(); }
 
-// The same in bf16 (what auto picks where bf16 is native): autocast's weight cache lives for one batch only,
+// The same in bf16 (what auto picks where bf16 is native and faster): autocast's weight cache lives for one batch only,
 // so nothing of it crosses a checkpoint.
 TEST_F(Resume, AnInterruptedBf16RunResumedIsTheUninterruptedRun) {
   if (const std::string why = agent::bf16_unavailable(); !why.empty()) GTEST_SKIP() << "bf16 cannot run here: " << why;

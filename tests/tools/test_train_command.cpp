@@ -34,7 +34,7 @@ using namespace scout::testing::train_cli_support;
 TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   const Result r = run("train " + world() + " --out " + path("run") + " --epochs 1,1,1 --seed 7" + kTiny);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  // auto: what this CPU runs natively (fp32 where bf16 would be emulated).
+  // auto: the faster precision on this CPU, as measured and cached (fp32 where bf16 would be emulated).
   const std::string resolved = scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto));
   EXPECT_NE(r.out.find("(1 LibTorch threads, " + resolved + ";"), std::string::npos) << r.out;
   for (const char* mode : {"mode i   epoch   1:", "mode ii  epoch   1:", "mode iii epoch   1:"})
