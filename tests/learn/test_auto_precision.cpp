@@ -124,9 +124,13 @@ TEST(AutoPrecision, AMissingEntryIsMeasuredOnceAndWrittenForTheNextProcess) {
   // it has run) waits for this one's measurement and agrees with it.
   std::filesystem::remove(file);
   dir.write("precision.json", cache_with("another CPU | LibTorch 0", 1, 2));
-  const std::string command = "SCOUT_AUTO_PRECISION_CHILD='" + file.string() + "' '" +
-                              std::filesystem::read_symlink("/proc/self/exe").string() +
-                              "' --gtest_filter=AutoPrecision.ChildOfTheConcurrencyTest 2>&1";
+  // Without gtest's sharding variables: under a sharded run the child's one test would fall in
+  // another shard and not run.
+  const std::string command =
+      "env -u GTEST_SHARD_INDEX -u GTEST_TOTAL_SHARDS -u GTEST_SHARD_STATUS_FILE -u "
+      "GTEST_OUTPUT SCOUT_AUTO_PRECISION_CHILD='" +
+      file.string() + "' '" + std::filesystem::read_symlink("/proc/self/exe").string() +
+      "' --gtest_filter=AutoPrecision.ChildOfTheConcurrencyTest 2>&1";
   FILE* child = ::popen(command.c_str(), "r");
   ASSERT_NE(child, nullptr);
   const PrecisionChoice in_parent = cached_or_measured_precision(file, key);
