@@ -142,6 +142,16 @@ const char* to_string(ClassifierKind kind) {
   return variant != nullptr ? variant->name : "?";
 }
 
+std::string describe_planners(const NetworkConfig& config) {
+  std::string text = std::to_string(config.planner_width) + "x" + std::to_string(config.planner_depth);
+  std::string extras;
+  auto add = [&](const std::string& what) { extras += (extras.empty() ? " with " : ", ") + what; };
+  if (config.occupancy) add("the occupancy channel");
+  if (config.goal_context > 0) add("a goal context branch of " + std::to_string(config.goal_context));
+  if (config.goals_only) add("no action planner (goals only)");
+  return text + extras;
+}
+
 std::string describe_classifier(const NetworkConfig& config) {
   const ClassifierVariant* variant = find_classifier_variant(config.classifier);
   if (variant == nullptr) return "?";
@@ -170,6 +180,7 @@ void NetworkConfig::validate() const {
   check_range("planner_depth", planner_depth, 1, kMaxPlannerDepth);
   check_range("classifier_width", classifier_width, 1, kMaxWidth);
   check_range("classifier_depth", classifier_depth, 1, kMaxClassifierDepth);
+  check_range("goal_context", goal_context, 0, kMaxWidth);
   // An enum cast from an out-of-range integer would otherwise reach make_classifier.
   const ClassifierVariant* variant = find_classifier_variant(classifier);
   if (variant == nullptr) {
@@ -197,7 +208,12 @@ std::int64_t planner(const NetworkConfig& c, std::int64_t head_channels) {
   const std::int64_t in = planner_channels(c);
   std::int64_t n = 0;
   for (int k = 0; k < c.planner_depth; ++k) n += conv(in + std::int64_t{k} * c.planner_width, c.planner_width, 3, true);
-  return n + conv(in + std::int64_t{c.planner_depth} * c.planner_width, head_channels, 1, true);
+  n += conv(in + std::int64_t{c.planner_depth} * c.planner_width, head_channels, 1, true);
+  if (head_channels == 1 && c.goal_context > 0) {  // the goal planner's context branch and its head inputs
+    const std::int64_t k = c.goal_context;
+    n += conv(in, k, 3, true) + conv(k, k, 3, true) + kGoalContextBlocks * conv(k, k, 3, true) + 2 * k;
+  }
+  return n;
 }
 
 std::int64_t classifier(const NetworkConfig& c) {
@@ -247,7 +263,7 @@ std::int64_t classifier(const NetworkConfig& c) {
 }  // namespace
 
 std::int64_t parameter_count(const NetworkConfig& config) {
-  return planner(config, 1) + planner(config, 2) + classifier(config);
+  return planner(config, 1) + (config.goals_only ? 0 : planner(config, 2)) + classifier(config);
 }
 
 }  // namespace scout::agent

@@ -65,6 +65,9 @@ const char* to_string(ClassifierKind kind);  ///< the row's name ("paper", "stri
 struct NetworkConfig;
 /// The classifier as logs and reports name it: "paper 16x3" (width x depth), "resnet18 width 16".
 std::string describe_classifier(const NetworkConfig& config);
+/// The planners as logs and reports name them: "16x3" (width x depth), then what is beyond the paper:
+/// "16x3 with the occupancy channel, a goal context branch of 32, no action planner (goals only)".
+std::string describe_planners(const NetworkConfig& config);
 /// Parses a row's name; throws std::invalid_argument naming the choices.
 ClassifierKind parse_classifier_kind(const std::string& text);
 /// The names joined by `separator`: "paper, paper-strided, paper-strided-gn, strided, resnet18".
@@ -110,6 +113,17 @@ struct NetworkConfig {
   /// The planners also read o, the occupancy channel (docs/SCENARIOS.md § Obstacles): 1 on the
   /// cells where the robot cannot stand beside its run's obstacles, 0 elsewhere.
   bool occupancy = false;
+  /// Channels of the goal planner's context branch (beyond the paper; 0, the paper's planner, has
+  /// none): the planner input at 1/4 resolution through kGoalContextBlocks 3 x 3 convolutions, which
+  /// see about 31 x 31 floor pixels where the dense stack sees 2r + 1; the map upsampled back and its
+  /// global average are read by the goal head beside the dense stack's features (2 x goal_context
+  /// channels). It lets f1 choose a goal from the whole revealed digit and the whole visit mask h
+  /// rather than from a 7 x 7 neighbourhood of each pixel.
+  int goal_context = 0;
+  /// No action planner f2 (beyond the paper): the axis of every move that needs one is drawn i.i.d.
+  /// 1/2 - 1/2 in every mode, as mode (ii) draws it. The agent then has no f2 parameters and spends
+  /// no arithmetic on it in training or inference; it trains in modes (i) and (ii) only.
+  bool goals_only = false;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
@@ -132,6 +146,8 @@ inline constexpr int kMaxImageChannels = 4;
 inline constexpr int kMaxWidth = 512;
 inline constexpr int kMaxPlannerDepth = 16;
 inline constexpr int kMaxClassifierDepth = 8;
+/// The goal planner's context branch: two stride-2 convolutions, then this many at 1/4 resolution.
+inline constexpr int kGoalContextBlocks = 3;
 /// The widest classifier block (width doubles each block): classifier_width x 2^(depth - 1).
 inline constexpr int kMaxClassifierBlockWidth = 4096;
 

@@ -261,12 +261,38 @@ torch::Tensor DenseStackImpl::forward(torch::Tensor x) {
 
 PlannerImpl::PlannerImpl(const NetworkConfig& config, Head head) : kind_(head) {
   config.validate();
-  body_ = register_module("body", DenseStack(planner_channels(config), config.planner_width, config.planner_depth));
-  head_ = register_module("head", conv1x1(body_->out_channels(), head == Head::GoalPixels ? 1 : 2));
+  const int in = planner_channels(config);
+  body_ = register_module("body", DenseStack(in, config.planner_width, config.planner_depth));
+  int features = body_->out_channels();
+  if (head == Head::GoalPixels && config.goal_context > 0) {
+    const int k = config.goal_context;
+    nn::Sequential context(conv3x3(in, k, 2), nn::ReLU(nn::ReLUOptions(true)), conv3x3(k, k, 2),
+                           nn::ReLU(nn::ReLUOptions(true)));
+    for (int b = 0; b < kGoalContextBlocks; ++b) {
+      context->push_back(conv3x3(k, k));
+      context->push_back(nn::ReLU(nn::ReLUOptions(true)));
+    }
+    context_ = register_module("context", context);
+    features += 2 * k;  // the map, upsampled, and its global average
+  }
+  head_ = register_module("head", conv1x1(features, head == Head::GoalPixels ? 1 : 2));
 }
 
 torch::Tensor PlannerImpl::forward(torch::Tensor u) {
-  const torch::Tensor maps = head_->forward(body_->forward(u));
+  torch::Tensor features = body_->forward(u);
+  if (context_) {
+    // Bilinear: the coarse map's cells blend into smooth goal logits rather than 4 x 4 steps. The
+    // coarse convolutions see about 31 x 31 pixels around each cell; the global average gives every
+    // pixel's goal logit the whole floor (a corner's ink reaches the opposite corner).
+    namespace F = torch::nn::functional;
+    const torch::Tensor coarse = context_->forward(u);
+    const std::vector<std::int64_t> size{u.size(2), u.size(3)};
+    const torch::Tensor local =
+        F::interpolate(coarse, F::InterpolateFuncOptions().size(size).mode(torch::kBilinear).align_corners(false));
+    const torch::Tensor whole = coarse.mean({2, 3}, /*keepdim=*/true).expand({-1, -1, size[0], size[1]});
+    features = torch::cat({features, local.to(features.scalar_type()), whole.to(features.scalar_type())}, 1);
+  }
+  const torch::Tensor maps = head_->forward(features);
   // Goals: [B, 1, H, W] -> [B, H * W], pixel (x, y) is logit y * W + x, the floor's row-major order.
   return kind_ == Head::GoalPixels ? maps.flatten(1) : global_average(maps);
 }
@@ -322,35 +348,53 @@ std::shared_ptr<ClassifierImpl> make_classifier(const NetworkConfig& config) {
 AgentImpl::AgentImpl(const NetworkConfig& config) : config_(config) {
   config_.validate();
   goal = register_module("goal", Planner(config_, PlannerImpl::Head::GoalPixels));
-  action = register_module("action", Planner(config_, PlannerImpl::Head::ActionAxes));
+  if (!config_.goals_only) action = register_module("action", Planner(config_, PlannerImpl::Head::ActionAxes));
   classifier = register_module("classifier", make_classifier(config_));
 }
 
-void copy_adding_occupancy(const AgentImpl& from, AgentImpl& to) {
-  NetworkConfig widened = from.config();
-  widened.occupancy = true;
-  if (from.config().occupancy || !(widened == to.config()))
+void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
+  const NetworkConfig& has = from.config();
+  const NetworkConfig& wants = to.config();
+  NetworkConfig grown = has;
+  grown.occupancy = wants.occupancy;
+  grown.goal_context = wants.goal_context;
+  grown.goals_only = wants.goals_only;
+  const bool adds_occupancy = wants.occupancy && !has.occupancy;
+  const bool adds_context = wants.goal_context > 0 && has.goal_context == 0;
+  const bool drops_actions = wants.goals_only && !has.goals_only;
+  if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions) ||
+      (has.occupancy && !wants.occupancy) || (has.goals_only && !wants.goals_only) ||
+      (has.goal_context != wants.goal_context && !adds_context))
     throw std::invalid_argument(
-        "copy_adding_occupancy: the target must be the source's networks with the occupancy "
-        "channel added");
-  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs...]: o is channel
-  // `at` of every planner convolution's input, and the channels after it move up by one.
-  const std::int64_t at = planner_channels(from.config());
+        "copy_into_grown: the target must be the source's networks with the occupancy channel or a goal "
+        "context branch added, or the action planner removed");
+  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs..., (context)]: o is
+  // channel `at` of every planner convolution's input, the channels after it move up by one, and
+  // the goal head's context channels come last.
+  const std::int64_t at = planner_channels(has);
+  const std::int64_t inserted = adds_occupancy ? 1 : 0;
   torch::NoGradGuard no_grad;
   const auto source = from.named_parameters(/*recurse=*/true);
   for (auto& item : to.named_parameters(/*recurse=*/true)) {
-    const torch::Tensor& src = source[item.key()];
     torch::Tensor& dst = item.value();
+    if (!source.contains(item.key())) {
+      if (adds_context && item.key().rfind("goal.context.", 0) == 0) continue;  // the new branch: its own init
+      throw std::invalid_argument("copy_into_grown: the source has no " + item.key());
+    }
+    const torch::Tensor& src = source[item.key()];
     if (src.sizes() == dst.sizes()) {
       dst.copy_(src);
       continue;
     }
     const bool planner = item.key().rfind("goal.", 0) == 0 || item.key().rfind("action.", 0) == 0;
-    if (!planner || src.dim() != 4 || dst.size(1) != src.size(1) + 1)
-      throw std::invalid_argument("copy_adding_occupancy: " + item.key() + " does not widen by one input channel");
+    const bool goal_head = item.key() == "goal.head.weight";
+    const std::int64_t appended = goal_head && adds_context ? 2 * wants.goal_context : 0;
+    if (!planner || src.dim() != 4 || dst.size(0) != src.size(0) ||
+        dst.size(1) != src.size(1) + inserted + appended)
+      throw std::invalid_argument("copy_into_grown: " + item.key() + " does not widen by the added input channels");
     dst.zero_();
     dst.narrow(1, 0, at).copy_(src.narrow(1, 0, at));
-    dst.narrow(1, at + 1, src.size(1) - at).copy_(src.narrow(1, at, src.size(1) - at));
+    dst.narrow(1, at + inserted, src.size(1) - at).copy_(src.narrow(1, at, src.size(1) - at));
   }
 }
 

@@ -25,7 +25,8 @@ TORCH_MODULE(DenseStack);
 
 /// f1 and f2, one network with two heads: a dense stack, then a 1 x 1 convolution.
 /// - f1, the goal planner: u_g [B, planner_channels, H, W] -> goal logits [B, H*W], one per floor pixel
-///   (softmax over them, row-major);
+///   (softmax over them, row-major); with config.goal_context > 0 the head also reads the context
+///   branch (NetworkConfig::goal_context), upsampled bilinearly to H x W, and its global average;
 /// - f2, the action planner: u_a [B, planner_channels, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical),
 ///   the head's two maps averaged over the floor.
 class PlannerImpl : public torch::nn::Module {
@@ -37,6 +38,7 @@ class PlannerImpl : public torch::nn::Module {
  private:
   Head kind_;
   DenseStack body_{nullptr};
+  torch::nn::Sequential context_{nullptr};  ///< the goal planner's context branch, where configured
   torch::nn::Conv2d head_{nullptr};
 };
 TORCH_MODULE(Planner);
@@ -58,7 +60,7 @@ class AgentImpl : public torch::nn::Module {
   const NetworkConfig& config() const { return config_; }
 
   Planner goal{nullptr};    ///< f1, Head::GoalPixels
-  Planner action{nullptr};  ///< f2, Head::ActionAxes
+  Planner action{nullptr};  ///< f2, Head::ActionAxes; null (no module, no parameters) with config.goals_only
   std::shared_ptr<ClassifierImpl> classifier;
 
  private:
@@ -66,11 +68,16 @@ class AgentImpl : public torch::nn::Module {
 };
 TORCH_MODULE(Agent);
 
-/// Copies `from`'s weights into `to`, whose config is `from`'s with the occupancy channel added:
-/// every planner convolution of `to` reads one more input channel, o, whose weights are set to
-/// zero, so that `to` computes exactly what `from` does whatever o holds, and training can learn
-/// to use it (fine-tuning a model trained without obstacles: `scout train --init-from`). Throws
-/// std::invalid_argument when the configs differ otherwise.
-void copy_adding_occupancy(const AgentImpl& from, AgentImpl& to);
+/// Copies `from`'s weights into `to`, whose config is `from`'s grown by what a fine-tuning run may
+/// add (`scout train --init-from`), so that `to` computes exactly what `from` does and training can
+/// learn to use the new inputs:
+/// - the occupancy channel: every planner convolution of `to` reads one more input channel, o,
+///   whose weights are set to zero;
+/// - a goal context branch (from none): the branch keeps its fresh initialisation and the goal
+///   head's weights on its channels are set to zero;
+/// - the action planner removed (goals_only): its weights are left behind, and the grown agent
+///   computes what the source does with i.i.d. actions (its goals-only figure).
+/// Throws std::invalid_argument when the configs differ otherwise.
+void copy_into_grown(const AgentImpl& from, AgentImpl& to);
 
 }  // namespace scout::agent

@@ -34,6 +34,8 @@ void AgentPolicy::begin(std::span<const std::uint64_t> seeds, const Sampling& sa
   const int count = static_cast<int>(seeds.size());
   if (count <= 0 || count > max_robots_) throw std::invalid_argument("AgentPolicy::begin: bad robot count");
   sampling_ = sampling;
+  // Without an action planner every axis is i.i.d., whatever the mode asks for.
+  if (!agent_.action) sampling_.learned_actions = false;
   count_ = count;
   rngs_.clear();
   rngs_.reserve(count);

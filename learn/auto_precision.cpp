@@ -116,12 +116,15 @@ PrecisionMeasurement measure_precisions() {
       const torch::NoGradGuard no_grad;
       const ComputePrecision guard(precision);
       (void)networks->goal->forward(network_input(u, precision));
-      (void)networks->action->forward(network_input(u, precision));
+      if (networks->action) (void)networks->action->forward(network_input(u, precision));
     }
     {
       const ComputePrecision guard(precision);
       const torch::Tensor loss = networks->goal->forward(network_input(u, precision)).to(torch::kFloat).mean() +
-                                 networks->action->forward(network_input(u, precision)).to(torch::kFloat).mean() +
+                                 (networks->action ? networks->action->forward(network_input(u, precision))
+                                                         .to(torch::kFloat)
+                                                         .mean()
+                                                   : torch::zeros({})) +
                                  classifier_log_probs(*networks, y, precision).mean();
       loss.backward();
     }

@@ -151,11 +151,6 @@ class Evaluator {
   int batch_ = 1;
 };
 
-double mean_of(const std::vector<double>& v) {
-  double sum = 0;
-  for (double x : v) sum += x;
-  return v.empty() ? 0 : sum / static_cast<double>(v.size());
-}
 
 }  // namespace
 
@@ -242,6 +237,8 @@ struct EvalSetup {
 
 EvalSetup prepare(const EvalConfig& config) {
   if (config.runs < 1) throw InputError(fmt::format("--runs: expected a positive integer, got {}", config.runs));
+  if (config.baseline_runs < 1)
+    throw InputError(fmt::format("--baseline-runs: expected a positive integer, got {}", config.baseline_runs));
   if (config.batch_robots < 1)
     throw std::invalid_argument("evaluate: batch_robots must be positive, got " + std::to_string(config.batch_robots));
   EvalSetup s;
@@ -271,11 +268,11 @@ EvalSetup prepare(const EvalConfig& config) {
 void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, const core::StopToken& stop,
                   EvalTally& tally, core::Clock::time_point t0) {
   const int classes = s.state.config.network.classes, runs = config.runs;
-  // Progress in rollouts: per run the agent's pass and its baselines, then the greedy pass.
-  const int passes_per_run = config.agent_only ? 1 : (s.learned.goals ? 3 : 2);
-  EvalProgress progress{.rollouts_total = static_cast<long>(end - begin) *
-                                          (static_cast<long>(passes_per_run) * runs + (config.agent_only ? 0 : 1)),
-                        .runs = runs};
+  const int baseline_runs = config.agent_only ? 0 : std::min(config.baseline_runs, runs);
+  // Progress in rollouts: the agent's passes, the baselines' (one or two per baseline run), then
+  // the greedy pass.
+  const long passes = runs + static_cast<long>(baseline_runs) * (s.learned.goals ? 2 : 1) + (config.agent_only ? 0 : 1);
+  EvalProgress progress{.rollouts_total = static_cast<long>(end - begin) * passes, .runs = runs};
   auto on_batch = [&](int robots) {
     progress.rollouts_done += robots;
     progress.seconds = core::seconds_since(t0);
@@ -295,7 +292,7 @@ void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, co
     const std::int64_t* p = predicted.data_ptr<std::int64_t>();
     const std::span<double> confusion = tally.confusion_of_run(k);
     for (int i = begin; i < end; ++i) confusion[s.data.set.labels[i] * classes + p[i - begin]] += 1;
-    if (config.agent_only) continue;
+    if (k >= baseline_runs) continue;
     tally.iid_correct[k] = evaluator.run(s.iid, core::derive_seed(seed_k, streams::kEvalIid), begin, end).correct;
     // Without a learned goal layer the baseline would only measure an untrained planner.
     if (s.learned.goals)
@@ -315,7 +312,8 @@ void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, co
 // The figures of the summed counts.
 void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& tally, EvalReport& report) {
   const int n = s.data.set.images.count, classes = s.state.config.network.classes, runs = config.runs;
-  std::vector<double> accuracy(runs), top2(runs), iid_accuracy(runs), goals_only_accuracy(runs);
+  const int baseline_runs = config.agent_only ? 0 : std::min(config.baseline_runs, runs);
+  std::vector<double> accuracy(runs), top2(runs), iid_accuracy(baseline_runs), goals_only_accuracy(baseline_runs);
   double revealed_px = 0;
   std::vector<long> row_counts(classes, 0);
   for (int label : report.labels) ++row_counts[label];
@@ -323,9 +321,11 @@ void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& ta
     accuracy[k] = tally.correct[k] / n;
     top2[k] = tally.top2[k] / n;
     revealed_px += tally.revealed_px[k];
-    iid_accuracy[k] = tally.iid_correct[k] / n;
-    goals_only_accuracy[k] =
-        s.learned.goals ? tally.goals_only_correct[k] / n : std::numeric_limits<double>::quiet_NaN();
+    if (k < baseline_runs) {
+      iid_accuracy[k] = tally.iid_correct[k] / n;
+      goals_only_accuracy[k] =
+          s.learned.goals ? tally.goals_only_correct[k] / n : std::numeric_limits<double>::quiet_NaN();
+    }
     // This run's confusion counts, row-normalised; rows of absent labels stay 0.
     const std::span<const double> counts = tally.confusion_of_run(k);
     for (int row = 0; row < classes; ++row)
@@ -340,8 +340,12 @@ void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& ta
     report.iid_accuracy = report.goals_only_accuracy = report.full_image_accuracy = report.greedy_accuracy =
         kNotMeasured;
   } else {
-    report.iid_accuracy = mean_of(iid_accuracy);
-    report.goals_only_accuracy = mean_of(goals_only_accuracy);
+    const Interval iid = mean_ci95(iid_accuracy), goals_only = mean_ci95(goals_only_accuracy);
+    report.iid_accuracy = iid.mean;
+    report.iid_ci95 = iid.ci95;
+    report.goals_only_accuracy = goals_only.mean;
+    report.goals_only_ci95 = goals_only.ci95;
+    report.baseline_runs = baseline_runs;
     report.full_image_accuracy = *tally.full_image_correct / n;
     report.greedy_accuracy = *tally.greedy_correct / n;
   }
@@ -404,8 +408,12 @@ std::string report_json(const EvalReport& report) {
   j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
   j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
   j["confusion"] = report.confusion;
-  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", nullptr}};
-  if (!std::isnan(report.goals_only_accuracy)) j["baselines"]["goals_only"] = report.goals_only_accuracy;
+  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", nullptr}, {"iid_ci95", report.iid_ci95},
+                    {"goals_only_ci95", nullptr}, {"runs", report.baseline_runs}};
+  if (!std::isnan(report.goals_only_accuracy)) {
+    j["baselines"]["goals_only"] = report.goals_only_accuracy;
+    j["baselines"]["goals_only_ci95"] = report.goals_only_ci95;
+  }
   j["full_image_accuracy"] = report.full_image_accuracy;
   j["greedy_accuracy"] = report.greedy_accuracy;
   j["revealed_fraction"] = report.revealed_fraction;

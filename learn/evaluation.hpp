@@ -30,6 +30,10 @@ struct EvalConfig {
   std::filesystem::path images, labels;                 ///< any IDX image and label files
   std::optional<std::filesystem::path> world_file;      ///< default: the checkpoint's world
   int runs = 20;                                        ///< R
+  /// The baselines (i.i.d. moves, goals only) drive the first min(baseline_runs, R) runs' digits
+  /// too: they are context for the agent's figure, and 5 runs give them an interval at a quarter
+  /// of the cost of 20.
+  int baseline_runs = 5;
   std::uint64_t seed = 1;                               ///< run k uses derive_seed(seed, k)
   int batch_robots = 240;                               ///< robots per rollout batch
   agent::Precision precision = agent::Precision::Auto;  ///< Auto: this CPU's best (never the checkpoint's)
@@ -53,8 +57,10 @@ struct EvalReport {
   Interval accuracy;  ///< stochastic, the checkpoint's learned layers
   Interval top2;
   std::vector<std::vector<double>> confusion;  ///< D x D, rows = true label, row-normalised, mean over runs
-  double iid_accuracy = 0;                     ///< baseline: i.i.d. goals and actions, same classifier
+  double iid_accuracy = 0;                     ///< baseline: i.i.d. goals and actions, same classifier (mean)
   double goals_only_accuracy = 0;              ///< baseline: learned goals, i.i.d. actions (NaN: no learned goal layer)
+  double iid_ci95 = 0, goals_only_ci95 = 0;    ///< the baselines' 95 % half-widths over their runs
+  int baseline_runs = 0;                       ///< runs of each baseline (0: not measured)
   double full_image_accuracy = 0;              ///< the classifier on full images (u_c = x)
   double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
   double revealed_fraction = 0;                ///< share of the floor's pixels seen by the end, stochastic runs

@@ -105,6 +105,14 @@ constexpr Row kRows[] = {
     row("occupancy", "network", T::Flag, &NetworkConfig::occupancy, 0, 0, "--occupancy", "",
         "Planners also read the occupancy channel o: where the robot cannot stand beside its run's obstacles "
         "(beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true, /*stored_unless_default=*/true),
+    row("goal_context", "network", T::Integer, &NetworkConfig::goal_context, 0, agent::kMaxWidth, "--goal-context", "",
+        "Channels of the goal planner's context branch, which sees the whole floor at 1/4 resolution (beyond the "
+        "paper; 0: none, the paper's planner)", kBoth, R::Kept, A::Networks, false, false, true,
+        /*stored_unless_default=*/true),
+    row("goals_only", "network", T::Flag, &NetworkConfig::goals_only, 0, 0, "--goals-only", "",
+        "No action planner: every move's axis is drawn i.i.d. 1/2 - 1/2, no f2 parameters or arithmetic; trains in "
+        "modes i and ii only (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,
+        /*stored_unless_default=*/true),
     row("pretrain_epochs", "", T::Integer, &TrainConfig::pretrain_epochs, 0, kMaxEpochs, "--pretrain-epochs", "",
         "Epochs of the classifier on full images, first", kTrain, R::Kept, A::Training),
     row("epochs", "", T::Epochs, &TrainConfig::epochs, 0, kMaxEpochs, "--epochs", "I,II,III", "Epochs of modes i,ii,iii",
@@ -148,7 +156,7 @@ constexpr bool well_formed() {
       return false;
     if ((r.member.index() == 1 || r.member.index() == 7 || r.member.index() == 11) != (s.section == "network"))
       return false;
-    if (s.stored_unless_default && s.type != SettingType::Flag) return false;
+    if (s.stored_unless_default && s.type != SettingType::Flag && s.type != SettingType::Integer) return false;
     if (s.type == SettingType::Integer || s.type == SettingType::Epochs) {
       if (s.lo_open || s.hi_open || s.lo > s.hi || static_cast<double>(static_cast<int>(s.lo)) != s.lo ||
           static_cast<double>(static_cast<int>(s.hi)) != s.hi)
@@ -176,6 +184,11 @@ int& integer_at(TrainConfig& c, const Member& m) {
 bool& flag_at(TrainConfig& c, const Member& m) {
   if (const auto* p = std::get_if<bool TrainConfig::*>(&m)) return c.**p;
   return c.network.*std::get<bool NetworkConfig::*>(m);
+}
+// A setting added after files without it were written, at its default (off, 0): left out of the
+// file, so that those files stay as they were.
+bool is_default_zero(TrainConfig& c, const Row& r) {
+  return r.setting.type == SettingType::Flag ? !flag_at(c, r.member) : integer_at(c, r.member) == 0;
 }
 template <class V>
 V& at(TrainConfig& c, const Member& m) {
@@ -506,6 +519,10 @@ void TrainConfig::validate(SettingName name) const {
       if (s.section == "network" && s.key == field) throw InputError(name(s) + what.substr(field.size()));
     throw InputError("network." + what);
   }
+  if (network.goals_only && epochs[2] > 0)
+    throw InputError(fmt::format("{}: a goals-only agent ({}) has no action layer to train in mode iii: expected 0 "
+                                 "epochs of mode iii, got {} (give them to mode ii)",
+                                 name(train_setting("epochs")), name(train_setting("network.goals_only")), epochs[2]));
   const TrainSetting& batch = train_setting("batch_images");
   const TrainSetting& n = train_setting("rollouts");
   const int team = world.team.robots;  // a rollout is a team of K robots
@@ -528,7 +545,7 @@ std::string TrainConfig::to_json() const {
   for (const Row& r : kRows) {
     json& parent = r.setting.section.empty() ? j : j[std::string(r.setting.section)];
     // Off is the default of a flag added after files without it were written: those stay as they were.
-    if (r.setting.stored_unless_default && !flag_at(const_cast<TrainConfig&>(*this), r.member)) continue;
+    if (r.setting.stored_unless_default && is_default_zero(const_cast<TrainConfig&>(*this), r)) continue;
     parent[std::string(r.setting.key)] = value_json(*this, r);
     if (r.setting.type == SettingType::World) parent["world_file"] = world.file.string();
   }
@@ -583,6 +600,8 @@ const char* to_string(Stage stage) {
   return "?";
 }
 
+constexpr int kGoalContextBlocksForMemory = agent::kGoalContextBlocks;
+
 std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, int height_px, int world_size) {
   const agent::NetworkConfig& n = config.network;
   const double area = static_cast<double>(width_px) * height_px;
@@ -592,6 +611,9 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
   const double planner_in = agent::planner_channels(n);
   for (int k = 0; k <= n.planner_depth; ++k) planner += planner_in + k * double(n.planner_width);
   planner += n.planner_depth * double(n.planner_width);
+  // The goal context branch: its upsampled map and the head's wider input at full resolution, its
+  // convolutions' inputs and outputs at 1/4 (1/16 of the area).
+  planner += 2.0 * n.goal_context + 2.0 * (kGoalContextBlocksForMemory + 2) * n.goal_context / 16;
   planner *= area * element;
   double classifier = 0;  // activations kept for one image
   const double w = n.classifier_width;

@@ -46,16 +46,17 @@ std::array<int, kTrainingStages> stage_epochs(const TrainConfig& c) {
   return {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
 }
 
-torch::nn::Module& layer(agent::AgentImpl& a, Layer l) {
+// The layer's module; null for the action layer of a goals-only agent, which has none.
+torch::nn::Module* layer(agent::AgentImpl& a, Layer l) {
   switch (l) {
     case Layer::Goal:
-      return *a.goal;
+      return a.goal.get();
     case Layer::Action:
-      return *a.action;
+      return a.action ? a.action.get() : nullptr;
     case Layer::Classifier:
       break;
   }
-  return *a.classifier;
+  return a.classifier.get();
 }
 
 }  // namespace
@@ -211,7 +212,8 @@ struct Trainer::Impl {
   void set_trainable(Stage s) {
     for (int l = 0; l < 3; ++l) {
       const bool trainable = s == Stage::Pretrain ? static_cast<Layer>(l) == Layer::Classifier : !config.frozen[l];
-      for (torch::Tensor& p : layer(*agent, static_cast<Layer>(l)).parameters()) p.set_requires_grad(trainable);
+      if (torch::nn::Module* m = layer(*agent, static_cast<Layer>(l)))
+        for (torch::Tensor& p : m->parameters()) p.set_requires_grad(trainable);
     }
   }
 
@@ -245,7 +247,7 @@ struct Trainer::Impl {
     // Frozen layers keep their BatchNorm statistics too (ResNet-18).
     if (s != Stage::Pretrain)
       for (int l = 0; l < 3; ++l)
-        if (config.frozen[l]) layer(*agent, static_cast<Layer>(l)).eval();
+        if (torch::nn::Module* m = layer(*agent, static_cast<Layer>(l)); m && config.frozen[l]) m->eval();
     clear_gradients(*agent);
     const auto [first, end] = share(static_cast<int>(indices.size()));
     const std::span<const int> mine = indices.subspan(first, end - first);
@@ -539,8 +541,8 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool 
                                    data.image_channels));
     if (has == data)
       initial_weights->contents().load_into(*impl_->agent, nullptr);
-    else  // the model's networks with the occupancy channel added, its weights zero
-      agent::copy_adding_occupancy(*initial_weights->contents().networks(), *impl_->agent);
+    else  // the model's networks grown by an occupancy channel or a goal context branch, read at zero
+      agent::copy_into_grown(*initial_weights->contents().networks(), *impl_->agent);
   }
 }
 

@@ -340,7 +340,7 @@ void print_train_bench(const TrainBenchOptions& opt, const learn::TrainConfig& c
       report.robots, agent::to_string(c.precision),
       report.world_size > 1 ? fmt::format("{} processes x ", report.world_size) : "", report.threads, opt.batches,
       opt.warmup);
-  fmt::print("  widths: planners {} x {} (width x depth), classifier {}\n", n.planner_width, n.planner_depth,
+  fmt::print("  widths: planners {} (width x depth), classifier {}\n", agent::describe_planners(n),
              agent::describe_classifier(n));
   fmt::print("  {:<5} {:>9} {:>9}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12}\n", "mode", "images/s", "s/step",
              "physics", "render", "state", "forward", "backward", "adam", "chi=1/batch");
@@ -363,7 +363,8 @@ void print_train_bench(const TrainBenchOptions& opt, const learn::TrainConfig& c
           m.sum.total_s > 0 ? 100 * m.sum.all_reduce_s / m.sum.total_s : 0.0);
   // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
   constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
-  const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3;
+  const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3 &&
+                      !n.goals_only;
   for (const learn::ModeBench& m : report.modes) {
     if (!preset || m.mode != learn::Stage::ModeIII) continue;
     fmt::print(
@@ -393,7 +394,9 @@ void write_train_bench_json(const TrainBenchOptions& opt, const learn::TrainConf
                   {"planner_depth", n.planner_depth},
                   {"classifier", agent::to_string(n.classifier)},
                   {"classifier_width", n.classifier_width},
-                  {"classifier_depth", n.classifier_depth}};
+                  {"classifier_depth", n.classifier_depth},
+                  {"goal_context", n.goal_context},
+                  {"goals_only", n.goals_only}};
   nlohmann::ordered_json modes = nlohmann::ordered_json::array();
   for (const learn::ModeBench& m : report.modes) {
     const double total = m.sum.total_s;

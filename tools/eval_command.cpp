@@ -35,6 +35,8 @@ struct EvalOptions {
   std::string checkpoint, images, labels, world;
   std::string seed;  // empty: 1
   int runs = 20;
+  int baseline_runs = 5;
+  bool baseline_runs_given = false;
   int limit = 0;  // the first K images only (0: all)
   std::string json_out, predictions_out;
   std::string precision = "auto";
@@ -62,11 +64,13 @@ void print_table(const learn::EvalReport& r) {
              r.seed, layers);
   fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "accuracy", r.accuracy.mean, r.accuracy.ci95);
   fmt::print("  {:<26}{:.4f} ± {:.4f}\n", "top-2 accuracy", r.top2.mean, r.top2.ci95);
-  fmt::print("  {:<26}{:.4f}\n", "i.i.d. baseline", r.iid_accuracy);
+  const std::string baseline_runs = fmt::format("({} run{})", r.baseline_runs, r.baseline_runs == 1 ? "" : "s");
+  fmt::print("  {:<26}{:.4f} ± {:.4f}  {}\n", "i.i.d. baseline", r.iid_accuracy, r.iid_ci95, baseline_runs);
   if (std::isnan(r.goals_only_accuracy))
     fmt::print("  {:<26}{}\n", "goals-only baseline", "n/a (no learned goal layer)");
   else
-    fmt::print("  {:<26}{:.4f}\n", "goals-only baseline", r.goals_only_accuracy);
+    fmt::print("  {:<26}{:.4f} ± {:.4f}  {}\n", "goals-only baseline", r.goals_only_accuracy, r.goals_only_ci95,
+               baseline_runs);
   fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
   fmt::print("  {:<26}{}\n", "precision", agent::to_string(r.precision));
@@ -88,6 +92,11 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   config.labels = opt.labels;
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
+  if (opt.baseline_runs_given && opt.baseline_runs > opt.runs)
+    throw InputError(fmt::format("--baseline-runs: expected at most --runs = {} (the baselines drive the first runs' "
+                                 "digits), got {}",
+                                 opt.runs, opt.baseline_runs));
+  config.baseline_runs = opt.baseline_runs;
   config.image_limit = opt.limit;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);
   config.precision = agent::parse_precision(opt.precision);  // checked by the option; auto resolved by evaluate
@@ -146,7 +155,8 @@ void add_eval_command(CLI::App& app, const Context& context) {
       "eval",
       "Evaluate a checkpoint on a set of digits (METHOD.md § Evaluation): R stochastic runs with the physics and the "
       "camera in the loop (mean ± 95 % Student-t half-width), top-2, the confusion matrix, the i.i.d. and goals-only "
-      "baselines with the same classifier, the classifier on full images and one greedy run.");
+      "baselines with the same classifier (in the first --baseline-runs runs), the classifier on full images and one "
+      "greedy run.");
   cmd->add_option("--checkpoint", opt->checkpoint,
                   "RUN/checkpoint.pt, the RUN folder, or a model file written by scout train")
       ->required();
@@ -158,6 +168,11 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--runs", opt->runs, "R: independent stochastic runs over all images")
       ->capture_default_str()
       ->check(decimal_in(1, 10000));
+  cmd->add_option("--baseline-runs", opt->baseline_runs,
+                  "Runs of each baseline (i.i.d. moves, goals only), the first of the R runs (at most R)")
+      ->capture_default_str()
+      ->check(decimal_in(1, 10000))
+      ->each([opt](const std::string&) { opt->baseline_runs_given = true; });
   cmd->add_option("--seed", opt->seed,
                   "Seed, an integer in [0, 2^64 - 1] (default 1); run k uses a seed derived from it")
       ->check(seed_validator());

@@ -41,10 +41,9 @@ void export_command(const ExportOptions& o) {
   const agent::NetworkConfig& n = c.network;
   // What a stranger needs to drive the model: a team's size, and the occupancy channel its planners read.
   const std::string team = c.world.team.single() ? "" : fmt::format(", K = {} robots a team", c.world.team.robots);
-  fmt::print("task: m = {}, E = {}, T = {}, step {} px{}; N = {}, B = {}; planners {}x{}{}, classifier {}, {}\n",
+  fmt::print("task: m = {}, E = {}, T = {}, step {} px{}; N = {}, B = {}; planners {}, classifier {}, {}\n",
              c.world.camera.patch_px, c.world.task.episodes, c.world.task.steps, c.world.task.step_px, team, c.rollouts,
-             c.batch_images, n.planner_width, n.planner_depth, n.occupancy ? " with the occupancy channel" : "",
-             agent::describe_classifier(n), agent::to_string(c.precision));
+             c.batch_images, agent::describe_planners(n), agent::describe_classifier(n), agent::to_string(c.precision));
 }
 
 }  // namespace

@@ -189,19 +189,28 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
 // --init-from: the model's networks are the new run's; a network option given as well must agree.
 void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, learn::TrainConfig& config) {
   const learn::TrainConfig& model = init.info().config;
-  // The one change allowed: an occupancy channel added to a model without one (its weights start at zero).
+  // The changes allowed: an occupancy channel or a goal context branch added to a model without one
+  // (the weights that read them start at zero).
   const bool adds_occupancy = config.network.occupancy && !model.network.occupancy;
+  const bool adds_context = config.network.goal_context > 0 && model.network.goal_context == 0;
+  const bool drops_actions = config.network.goals_only && !model.network.goals_only;
   for (const learn::TrainSetting& s : learn::train_settings()) {
-    if (s.section != "network" || !o.settings.given(s) || (adds_occupancy && s.key == "occupancy")) continue;
+    if (s.section != "network" || !o.settings.given(s) || (adds_occupancy && s.key == "occupancy") ||
+        (adds_context && s.key == "goal_context") || (drops_actions && s.key == "goals_only"))
+      continue;
     const std::string has = learn::setting_text(model, s), asked = learn::setting_text(config, s);
     if (has != asked)
       throw InputError(
           fmt::format("{}: --init-from {} has {}, the command line asks for {} (a run started from a "
-                      "model keeps its networks, but may add --occupancy; leave {} out)",
+                      "model keeps its networks, but may add --occupancy or --goal-context, or drop its action "
+                      "planner with --goals-only; leave {} out)",
                       s.option, o.init_from, has, asked, s.option));
   }
+  const int goal_context = config.network.goal_context;
   config.network = model.network;
   config.network.occupancy = model.network.occupancy || adds_occupancy;
+  if (adds_context) config.network.goal_context = goal_context;
+  config.network.goals_only = model.network.goals_only || drops_actions;
 }
 
 learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint* init) {
@@ -341,11 +350,10 @@ OpenedRun open_group_run(const TrainOptions& o, const fs::path& run, const learn
 // What the leader prints before training: the run and its settings, and where a resume goes on.
 void print_run_header(const learn::Trainer& trainer, const fs::path& run, bool resuming) {
   const learn::TrainConfig& c = trainer.config();
-  fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}x{}{}, classifier {}; N = {}, B = {}, lr {})\n",
+  fmt::print("training {} -> {} ({}{} LibTorch threads, {}; planner {}, classifier {}; N = {}, B = {}, lr {})\n",
              c.world.file.string(), run.string(),
              trainer.world_size() > 1 ? fmt::format("{} processes x ", trainer.world_size()) : "", trainer.threads(),
-             agent::to_string(c.precision), c.network.planner_width, c.network.planner_depth,
-             c.network.occupancy ? " with the occupancy channel" : "", agent::describe_classifier(c.network),
+             agent::to_string(c.precision), agent::describe_planners(c.network), agent::describe_classifier(c.network),
              c.rollouts, c.batch_images, c.learning_rate);
   if (resuming) {
     const learn::ScheduleCursor& k = trainer.cursor();

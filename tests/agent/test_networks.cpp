@@ -207,6 +207,7 @@ TEST(Networks, ParameterCountWithoutBuildingEqualsTheBuiltAgents) {
   for (ClassifierKind kind : kKinds) {
     for (const Shape& s : shapes) {
       NetworkConfig config;
+      config.goal_context = s.planner_width % 2 == 0 ? 2 * s.planner_width : 0;
       config.image_channels = s.channels;
       config.classes = s.classes;
       config.planner_width = s.planner_width;
@@ -217,7 +218,8 @@ TEST(Networks, ParameterCountWithoutBuildingEqualsTheBuiltAgents) {
       const Agent agent(config);
       std::int64_t built = 0;
       for (const auto& p : agent->parameters()) built += p.numel();
-      EXPECT_EQ(parameter_count(config), built) << to_string(kind) << " width " << s.classifier_width;
+      EXPECT_EQ(parameter_count(config), built)
+          << to_string(kind) << " width " << s.classifier_width << " goal context " << config.goal_context;
     }
   }
 }
@@ -413,7 +415,7 @@ TEST(Networks, AddingTheOccupancyChannelKeepsWhatThePlannersCompute) {
   widened.occupancy = true;
   Agent to(widened);
   EXPECT_EQ(planner_channels(widened), planner_channels(config) + 1);
-  copy_adding_occupancy(*from, *to);
+  copy_into_grown(*from, *to);
   torch::NoGradGuard no_grad;
   const torch::Tensor u = torch::rand({4, planner_channels(config), 9, 7}) - 0.5;
   for (const double o : {0.0, 1.0}) {
@@ -434,11 +436,64 @@ TEST(Networks, AddingTheOccupancyChannelKeepsWhatThePlannersCompute) {
   to->goal->named_parameters()["body.blocks.0.weight"].narrow(1, planner_channels(config), 1).fill_(0.5);
   EXPECT_FALSE(torch::allclose(to->goal->forward(u_1), from->goal->forward(u), 1e-3, 1e-3));
   // Anything else than one added channel is refused.
-  EXPECT_THROW(copy_adding_occupancy(*from, *from), std::invalid_argument);
+  EXPECT_THROW(copy_into_grown(*from, *from), std::invalid_argument);
   NetworkConfig wider = widened;
   wider.planner_width = 6;
   Agent other(wider);
-  EXPECT_THROW(copy_adding_occupancy(*from, *other), std::invalid_argument);
+  EXPECT_THROW(copy_into_grown(*from, *other), std::invalid_argument);
+}
+
+// The goal context branch sees the whole 28 x 28 floor: a change at one corner moves the goal logits
+// at the opposite corner, which the dense stack alone (7 x 7) cannot see.
+TEST(Networks, GoalContextBranchSeesTheWholeFloor) {
+  torch::manual_seed(5);
+  NetworkConfig config;
+  config.goal_context = 8;
+  Planner goal(config, PlannerImpl::Head::GoalPixels);
+  torch::NoGradGuard no_grad;
+  const int n = 28;
+  const torch::Tensor u = torch::rand({1, planner_channels(config), n, n}) - 0.5;
+  torch::Tensor v = u.clone();
+  v[0][0][0][0] += 1.0;
+  const torch::Tensor a = goal->forward(u), b = goal->forward(v);
+  ASSERT_EQ(a.sizes(), (std::vector<std::int64_t>{1, n * n}));
+  EXPECT_GT((b - a).abs()[0][n * n - 1].item<float>(), 0.0f);
+  NetworkConfig plain;
+  Planner local(plain, PlannerImpl::Head::GoalPixels);
+  EXPECT_EQ((local->forward(v) - local->forward(u)).abs()[0][n * n - 1].item<float>(), 0.0f);
+  // Any floor size, odd ones included.
+  const torch::Tensor odd = torch::rand({2, planner_channels(config), 9, 13}) - 0.5;
+  EXPECT_EQ(goal->forward(odd).sizes(), (std::vector<std::int64_t>{2, 9 * 13}));
+}
+
+// Fine-tuning a trained model with a goal context branch added (and the occupancy channel with it):
+// the goal head reads the branch with zero weights, so the grown agent computes what the model did.
+TEST(Networks, AddingAGoalContextBranchKeepsWhatThePlannersCompute) {
+  torch::manual_seed(4);
+  NetworkConfig config;
+  config.planner_width = 5;
+  Agent from(config);
+  NetworkConfig grown = config;
+  grown.goal_context = 6;
+  grown.occupancy = true;
+  Agent to(grown);
+  copy_into_grown(*from, *to);
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({3, planner_channels(config), 11, 10}) - 0.5;
+  const torch::Tensor u_o = torch::cat({u, (torch::rand({3, 1, 11, 10}) > 0.5).to(torch::kFloat)}, 1);
+  EXPECT_TRUE(torch::allclose(to->goal->forward(u_o), from->goal->forward(u), 1e-6, 1e-6));
+  EXPECT_TRUE(torch::allclose(to->action->forward(u_o), from->action->forward(u), 1e-6, 1e-6));
+  EXPECT_EQ(parameter_count(grown),
+            static_cast<std::int64_t>(torch::nn::utils::parameters_to_vector(to->parameters()).numel()));
+  // The branch is live: weights on its channels change the goals.
+  to->goal->named_parameters()["head.weight"].narrow(1, -2 * grown.goal_context, 2 * grown.goal_context).fill_(0.5);
+  EXPECT_FALSE(torch::allclose(to->goal->forward(u_o), from->goal->forward(u), 1e-3, 1e-3));
+  // A branch of another width, or one taken away, is refused.
+  NetworkConfig other = grown;
+  other.goal_context = 3;
+  Agent with_three(other);
+  EXPECT_THROW(copy_into_grown(*to, *with_three), std::invalid_argument);
+  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
 }
 
 }  // namespace

@@ -73,6 +73,7 @@ TEST(TrainSettings, EveryChangedSettingRoundTrips) {
   c.network.classifier_depth = 2;
   c.network.classes = 7;
   c.network.occupancy = true;
+  c.network.goal_context = 24;
   c.pretrain_epochs = 3;
   c.epochs = {1, 0, 5};
   c.rollouts = 3;
@@ -111,6 +112,20 @@ TEST(TrainSettings, TheOccupancyFlagIsStoredOnlyWhenOn) {
   std::string bad = c.to_json();
   bad.replace(bad.find("\"occupancy\": true"), std::string("\"occupancy\": true").size(), "\"occupancy\": 3");
   EXPECT_NE(refusal(bad).find("occupancy"), std::string::npos) << refusal(bad);
+}
+
+// The goal context branch came later still: 0 (none) is not written and an absent key reads 0; a
+// width is written, reads back, and a value out of range is refused naming the field.
+TEST(TrainSettings, TheGoalContextIsStoredOnlyWhenThePlannerHasOne) {
+  TrainConfig c = valid_config();
+  EXPECT_EQ(c.to_json().find("goal_context"), std::string::npos);
+  EXPECT_EQ(TrainConfig::from_json(c.to_json(), "run").network.goal_context, 0);
+  c.network.goal_context = 32;
+  EXPECT_EQ(nlohmann::ordered_json::parse(c.to_json())["network"]["goal_context"], 32);
+  EXPECT_EQ(TrainConfig::from_json(c.to_json(), "run").network.goal_context, 32);
+  std::string bad = c.to_json();
+  bad.replace(bad.find("\"goal_context\": 32"), std::string("\"goal_context\": 32").size(), "\"goal_context\": 100000");
+  EXPECT_NE(refusal(bad).find("goal_context"), std::string::npos) << refusal(bad);
 }
 
 // An option's text sets its setting and reads back the same; a bad one is refused with the row's
