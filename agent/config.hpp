@@ -115,10 +115,10 @@ struct NetworkConfig {
   bool occupancy = false;
   /// Channels of the goal planner's context branch (beyond the paper; 0, the paper's planner, has
   /// none): the planner input at 1/4 resolution through kGoalContextBlocks 3 x 3 convolutions, which
-  /// see about 31 x 31 floor pixels where the dense stack sees 2r + 1; the map upsampled back and its
-  /// global average are read by the goal head beside the dense stack's features (2 x goal_context
-  /// channels). It lets f1 choose a goal from the whole revealed digit and the whole visit mask h
-  /// rather than from a 7 x 7 neighbourhood of each pixel.
+  /// see about 31 x 31 floor pixels where the dense stack sees 2r + 1; a 1 x 1 head scores each
+  /// coarse cell from its features and their global average, and the scores, upsampled to the
+  /// floor, are added to the goal logits. It lets f1 choose a goal from the whole revealed digit and
+  /// the whole visit mask h rather than from a 7 x 7 neighbourhood of each pixel.
   int goal_context = 0;
   /// No action planner f2 (beyond the paper): the axis of every move that needs one is drawn i.i.d.
   /// 1/2 - 1/2 in every mode, as mode (ii) draws it. The agent then has no f2 parameters and spends

@@ -263,7 +263,7 @@ PlannerImpl::PlannerImpl(const NetworkConfig& config, Head head) : kind_(head) {
   config.validate();
   const int in = planner_channels(config);
   body_ = register_module("body", DenseStack(in, config.planner_width, config.planner_depth));
-  int features = body_->out_channels();
+  const int features = body_->out_channels();
   if (head == Head::GoalPixels && config.goal_context > 0) {
     const int k = config.goal_context;
     nn::Sequential context(conv3x3(in, k, 2), nn::ReLU(nn::ReLUOptions(true)), conv3x3(k, k, 2),
@@ -273,26 +273,25 @@ PlannerImpl::PlannerImpl(const NetworkConfig& config, Head head) : kind_(head) {
       context->push_back(nn::ReLU(nn::ReLUOptions(true)));
     }
     context_ = register_module("context", context);
-    features += 2 * k;  // the map, upsampled, and its global average
+    context_head_ = register_module("context_head", conv1x1(2 * k, 1));  // the coarse map and its global average
   }
   head_ = register_module("head", conv1x1(features, head == Head::GoalPixels ? 1 : 2));
 }
 
 torch::Tensor PlannerImpl::forward(torch::Tensor u) {
-  torch::Tensor features = body_->forward(u);
+  torch::Tensor maps = head_->forward(body_->forward(u));
   if (context_) {
-    // Bilinear: the coarse map's cells blend into smooth goal logits rather than 4 x 4 steps. The
-    // coarse convolutions see about 31 x 31 pixels around each cell; the global average gives every
-    // pixel's goal logit the whole floor (a corner's ink reaches the opposite corner).
-    namespace F = torch::nn::functional;
+    // The coarse convolutions see about 31 x 31 pixels around each cell; the global average gives
+    // every cell the whole floor (a corner's ink reaches the opposite corner). Their 1 x 1 head
+    // scores the coarse cells, and the scores are upsampled (bilinear: smooth, not 4 x 4 steps)
+    // and added to the dense stack's logits. One channel is upsampled, not the branch's k: the
+    // full-resolution copy of k channels cost a third of a training step.
     const torch::Tensor coarse = context_->forward(u);
-    const std::vector<std::int64_t> size{u.size(2), u.size(3)};
-    const torch::Tensor local =
-        F::interpolate(coarse, F::InterpolateFuncOptions().size(size).mode(torch::kBilinear).align_corners(false));
-    const torch::Tensor whole = coarse.mean({2, 3}, /*keepdim=*/true).expand({-1, -1, size[0], size[1]});
-    features = torch::cat({features, local.to(features.scalar_type()), whole.to(features.scalar_type())}, 1);
+    const torch::Tensor whole = coarse.mean({2, 3}, /*keepdim=*/true).expand_as(coarse);
+    const torch::Tensor scores = context_head_->forward(torch::cat({coarse, whole}, 1));
+    maps = maps + torch::upsample_bilinear2d(scores, {u.size(2), u.size(3)}, /*align_corners=*/false)
+                      .to(maps.scalar_type());
   }
-  const torch::Tensor maps = head_->forward(features);
   // Goals: [B, 1, H, W] -> [B, H * W], pixel (x, y) is logit y * W + x, the floor's row-major order.
   return kind_ == Head::GoalPixels ? maps.flatten(1) : global_average(maps);
 }
@@ -368,9 +367,8 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
     throw std::invalid_argument(
         "copy_into_grown: the target must be the source's networks with the occupancy channel or a goal "
         "context branch added, or the action planner removed");
-  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs..., (context)]: o is
-  // channel `at` of every planner convolution's input, the channels after it move up by one, and
-  // the goal head's context channels come last.
+  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs...]: o is channel `at`
+  // of every planner convolution's input, and the channels after it move up by one.
   const std::int64_t at = planner_channels(has);
   const std::int64_t inserted = adds_occupancy ? 1 : 0;
   torch::NoGradGuard no_grad;
@@ -378,7 +376,12 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
   for (auto& item : to.named_parameters(/*recurse=*/true)) {
     torch::Tensor& dst = item.value();
     if (!source.contains(item.key())) {
-      if (adds_context && item.key().rfind("goal.context.", 0) == 0) continue;  // the new branch: its own init
+      // The new branch keeps its own initialisation, except its head, whose zero scores add nothing.
+      if (adds_context && item.key().rfind("goal.context_head.", 0) == 0) {
+        dst.zero_();
+        continue;
+      }
+      if (adds_context && item.key().rfind("goal.context.", 0) == 0) continue;
       throw std::invalid_argument("copy_into_grown: the source has no " + item.key());
     }
     const torch::Tensor& src = source[item.key()];
@@ -387,10 +390,7 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
       continue;
     }
     const bool planner = item.key().rfind("goal.", 0) == 0 || item.key().rfind("action.", 0) == 0;
-    const bool goal_head = item.key() == "goal.head.weight";
-    const std::int64_t appended = goal_head && adds_context ? 2 * wants.goal_context : 0;
-    if (!planner || src.dim() != 4 || dst.size(0) != src.size(0) ||
-        dst.size(1) != src.size(1) + inserted + appended)
+    if (!planner || src.dim() != 4 || dst.size(0) != src.size(0) || dst.size(1) != src.size(1) + inserted)
       throw std::invalid_argument("copy_into_grown: " + item.key() + " does not widen by the added input channels");
     dst.zero_();
     dst.narrow(1, 0, at).copy_(src.narrow(1, 0, at));

@@ -25,8 +25,8 @@ TORCH_MODULE(DenseStack);
 
 /// f1 and f2, one network with two heads: a dense stack, then a 1 x 1 convolution.
 /// - f1, the goal planner: u_g [B, planner_channels, H, W] -> goal logits [B, H*W], one per floor pixel
-///   (softmax over them, row-major); with config.goal_context > 0 the head also reads the context
-///   branch (NetworkConfig::goal_context), upsampled bilinearly to H x W, and its global average;
+///   (softmax over them, row-major); with config.goal_context > 0 the context branch's scores
+///   (NetworkConfig::goal_context), upsampled bilinearly to H x W, are added to the logits;
 /// - f2, the action planner: u_a [B, planner_channels, H, W] -> axis logits [B, 2] (0 horizontal, 1 vertical),
 ///   the head's two maps averaged over the floor.
 class PlannerImpl : public torch::nn::Module {
@@ -38,7 +38,8 @@ class PlannerImpl : public torch::nn::Module {
  private:
   Head kind_;
   DenseStack body_{nullptr};
-  torch::nn::Sequential context_{nullptr};  ///< the goal planner's context branch, where configured
+  torch::nn::Sequential context_{nullptr};   ///< the goal planner's context branch, where configured
+  torch::nn::Conv2d context_head_{nullptr};  ///< its scores per coarse cell, added to the goal logits
   torch::nn::Conv2d head_{nullptr};
 };
 TORCH_MODULE(Planner);
@@ -73,8 +74,8 @@ TORCH_MODULE(Agent);
 /// learn to use the new inputs:
 /// - the occupancy channel: every planner convolution of `to` reads one more input channel, o,
 ///   whose weights are set to zero;
-/// - a goal context branch (from none): the branch keeps its fresh initialisation and the goal
-///   head's weights on its channels are set to zero;
+/// - a goal context branch (from none): the branch keeps its fresh initialisation and its score
+///   head is set to zero;
 /// - the action planner removed (goals_only): its weights are left behind, and the grown agent
 ///   computes what the source does with i.i.d. actions (its goals-only figure).
 /// Throws std::invalid_argument when the configs differ otherwise.

@@ -611,9 +611,9 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
   const double planner_in = agent::planner_channels(n);
   for (int k = 0; k <= n.planner_depth; ++k) planner += planner_in + k * double(n.planner_width);
   planner += n.planner_depth * double(n.planner_width);
-  // The goal context branch: its upsampled map and the head's wider input at full resolution, its
-  // convolutions' inputs and outputs at 1/4 (1/16 of the area).
-  planner += 2.0 * n.goal_context + 2.0 * (kGoalContextBlocksForMemory + 2) * n.goal_context / 16;
+  // The goal context branch: its convolutions' inputs and outputs at 1/4 resolution (1/16 of the
+  // area), its upsampled scores at full resolution.
+  planner += 2.0 * (kGoalContextBlocksForMemory + 3) * n.goal_context / 16 + 2;
   planner *= area * element;
   double classifier = 0;  // activations kept for one image
   const double w = n.classifier_width;

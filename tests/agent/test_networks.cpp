@@ -448,13 +448,13 @@ TEST(Networks, AddingTheOccupancyChannelKeepsWhatThePlannersCompute) {
 TEST(Networks, GoalContextBranchSeesTheWholeFloor) {
   torch::manual_seed(5);
   NetworkConfig config;
-  config.goal_context = 8;
+  config.goal_context = 32;
   Planner goal(config, PlannerImpl::Head::GoalPixels);
   torch::NoGradGuard no_grad;
   const int n = 28;
   const torch::Tensor u = torch::rand({1, planner_channels(config), n, n}) - 0.5;
   torch::Tensor v = u.clone();
-  v[0][0][0][0] += 1.0;
+  v.narrow(2, 0, 4).narrow(3, 0, 4) += 1.0;  // ink in the top left 4 x 4 corner, in every channel
   const torch::Tensor a = goal->forward(u), b = goal->forward(v);
   ASSERT_EQ(a.sizes(), (std::vector<std::int64_t>{1, n * n}));
   EXPECT_GT((b - a).abs()[0][n * n - 1].item<float>(), 0.0f);
@@ -467,7 +467,7 @@ TEST(Networks, GoalContextBranchSeesTheWholeFloor) {
 }
 
 // Fine-tuning a trained model with a goal context branch added (and the occupancy channel with it):
-// the goal head reads the branch with zero weights, so the grown agent computes what the model did.
+// the branch's score head starts at zero, so the grown agent computes what the model did.
 TEST(Networks, AddingAGoalContextBranchKeepsWhatThePlannersCompute) {
   torch::manual_seed(4);
   NetworkConfig config;
@@ -486,7 +486,8 @@ TEST(Networks, AddingAGoalContextBranchKeepsWhatThePlannersCompute) {
   EXPECT_EQ(parameter_count(grown),
             static_cast<std::int64_t>(torch::nn::utils::parameters_to_vector(to->parameters()).numel()));
   // The branch is live: weights on its channels change the goals.
-  to->goal->named_parameters()["head.weight"].narrow(1, -2 * grown.goal_context, 2 * grown.goal_context).fill_(0.5);
+  EXPECT_EQ(to->goal->named_parameters()["context_head.weight"].abs().sum().item<float>(), 0.0f);
+  to->goal->named_parameters()["context_head.weight"].fill_(0.5);
   EXPECT_FALSE(torch::allclose(to->goal->forward(u_o), from->goal->forward(u), 1e-3, 1e-3));
   // A branch of another width, or one taken away, is refused.
   NetworkConfig other = grown;
