@@ -99,6 +99,9 @@ class Evaluator {
     batch_ = rollouts;
   }
 
+  AxisTally axis_tally() const { return engine_->axis_tally(); }
+  void reset_axis_tally() { engine_->reset_axis_tally(); }
+
   // One rollout per image of [begin, end). Image i's start and choices derive from
   // (stream_seed, i) alone, so a run's figures do not depend on how the images are split into
   // batches or over processes.
@@ -187,7 +190,7 @@ namespace {
 struct EvalTally {
   EvalTally(int runs, int images, int classes)
       : cells(static_cast<std::size_t>(classes) * classes),
-        storage(kPerRun * runs + runs * cells + static_cast<std::size_t>(images) * classes + 2, 0.0) {
+        storage(kPerRun * runs + runs * cells + static_cast<std::size_t>(images) * classes + 2 + 4, 0.0) {
     std::span<double> rest(storage);
     auto take = [&](std::size_t count) {
       const std::span<double> part = rest.first(count);
@@ -204,6 +207,13 @@ struct EvalTally {
     probability_sums = take(static_cast<std::size_t>(images) * classes);
     full_image_correct = &take(1)[0];
     greedy_correct = &take(1)[0];
+    axes = take(4);
+  }
+  void add(const AxisTally& t) {
+    axes[0] += static_cast<double>(t.decisions);
+    axes[1] += static_cast<double>(t.differing);
+    axes[2] += static_cast<double>(t.chose_more);
+    axes[3] += static_cast<double>(t.gap_px);
   }
   EvalTally(const EvalTally&) = delete;
   EvalTally& operator=(const EvalTally&) = delete;
@@ -222,6 +232,7 @@ struct EvalTally {
   std::span<double> probability_sums;  // per image: pi_c summed over the runs (D values)
   double* full_image_correct = nullptr;
   double* greedy_correct = nullptr;
+  std::span<double> axes;  // the agent's runs' AxisTally: decisions, differing, chose_more, gap_px
 };
 
 // What an evaluation reads before it drives: the checkpoint, the world, the digits, the policies.
@@ -283,7 +294,9 @@ void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, co
   for (int k = 0; k < runs; ++k) {
     const std::uint64_t seed_k = core::derive_seed(config.seed, static_cast<std::uint64_t>(k));
     progress.run = k + 1;
+    evaluator.reset_axis_tally();
     const Pass pass = evaluator.run(s.sampling, seed_k, begin, end);
+    tally.add(evaluator.axis_tally());
     tally.correct[k] = pass.correct;
     tally.top2[k] = pass.top2;
     tally.revealed_px[k] = static_cast<double>(pass.revealed_px);
@@ -349,6 +362,11 @@ void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& ta
     report.full_image_accuracy = *tally.full_image_correct / n;
     report.greedy_accuracy = *tally.greedy_correct / n;
   }
+  const double decisions = tally.axes[0], differing = tally.axes[1];
+  report.axis_decisions_per_rollout = decisions / (static_cast<double>(n) * runs);
+  report.axis_differing_share = decisions > 0 ? differing / decisions : 0;
+  report.axis_chose_more_share = differing > 0 ? tally.axes[2] / differing : 0;
+  report.axis_gap_px = differing > 0 ? tally.axes[3] / differing : 0;
   report.probabilities.resize(n);
   for (int i = 0; i < n; ++i) {
     const std::span<const double> sums = tally.probability_sums.subspan(static_cast<std::size_t>(i) * classes, classes);
@@ -417,6 +435,10 @@ std::string report_json(const EvalReport& report) {
   j["full_image_accuracy"] = report.full_image_accuracy;
   j["greedy_accuracy"] = report.greedy_accuracy;
   j["revealed_fraction"] = report.revealed_fraction;
+  j["axis_decisions"] = {{"per_rollout", report.axis_decisions_per_rollout},
+                         {"differing_share", report.axis_differing_share},
+                         {"chose_more_share", report.axis_chose_more_share},
+                         {"gap_px", report.axis_gap_px}};
   j["runs"] = report.runs;
   j["images"] = report.images;
   j["seconds"] = report.seconds;

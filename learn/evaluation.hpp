@@ -64,6 +64,11 @@ struct EvalReport {
   double full_image_accuracy = 0;              ///< the classifier on full images (u_c = x)
   double greedy_accuracy = 0;                  ///< argmax goals and actions (one run)
   double revealed_fraction = 0;                ///< share of the floor's pixels seen by the end, stochastic runs
+  /// The agent's axis decisions (learn/rollout.hpp AxisTally) over its R runs: how many per rollout
+  /// (chi = 1), the share whose two candidate moves would reveal different numbers of new pixels,
+  /// the share of those where the chosen axis reveals more (1/2 for i.i.d. axes), and the mean
+  /// difference in pixels where they differ.
+  double axis_decisions_per_rollout = 0, axis_differing_share = 0, axis_chose_more_share = 0, axis_gap_px = 0;
   int runs = 0, images = 0;
   double seconds = 0;
   std::vector<int> labels;                                 ///< per image

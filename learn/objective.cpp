@@ -84,6 +84,18 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   };
   torch::Tensor objective = surrogate_objective(learned ? per_rollout(policy.log_pi()) : torch::Tensor(), reward,
                                                 estimator, learned ? per_rollout(policy.entropy()) : torch::Tensor());
+  if (estimator.distillation > 0 && sampling.with_grad) {
+    // The teacher: the classifier on the whole floor (what u_c would be had the robot seen it all),
+    // without gradient; the student: the same classifier on what the rollout revealed.
+    torch::Tensor teacher;
+    {
+      const torch::NoGradGuard no_teacher_gradient;
+      torch::Tensor floors = full_images(batch.floors, batch.count, engine.state().frame);
+      if (batch.team > 1) floors = floors.slice(0, 0, batch.count, batch.team);
+      teacher = classifier_log_probs(agent, floors, sampling.precision).exp();
+    }
+    objective = objective + estimator.distillation * (teacher * log_probs).sum(1).mean();
+  }
   return {objective, log_probs.detach(), reward.detach()};
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -137,6 +138,29 @@ void RolloutEngine::record_moves(std::vector<RolloutRecord>& records, int e, int
   }
 }
 
+void RolloutEngine::tally_axis_decisions(int count) {
+  const int step = task_.step_px, patch = state_.patch_px;
+  auto new_px = [&](int robot, grid::Axis axis) {
+    const grid::Cell& pose = state_.pose[robot];
+    const grid::Cell to = pose + grid::move_command(pose, state_.goal[robot], axis, step);
+    const grid::Window w = grid::camera_window(to, patch, state_.frame);
+    const grid::RevealMask& seen = state_.seen[robot];
+    int fresh = 0;
+    for (int y = w.y0; y < w.y1; ++y)
+      for (int x = w.x0; x < w.x1; ++x) fresh += seen.seen(x, y) ? 0 : 1;
+    return fresh;
+  };
+  for (int i = 0; i < count; ++i) {
+    if (!need_[i]) continue;
+    const int h = new_px(i, grid::Axis::Horizontal), v = new_px(i, grid::Axis::Vertical);
+    ++axis_tally_.decisions;
+    if (h == v) continue;
+    ++axis_tally_.differing;
+    axis_tally_.gap_px += std::abs(h - v);
+    axis_tally_.chose_more += (axes_[i] == grid::Axis::Horizontal) == (h > v) ? 1 : 0;
+  }
+}
+
 std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floors, std::span<const grid::Cell> starts,
                                               std::span<const std::uint64_t> motion_seeds, Policy& policy,
                                               bool record) {
@@ -170,6 +194,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
       t0 = Clock::now();
       env::forced_axes(state_.pose, state_.goal, need_, axes_);
       policy.choose_axes(state_, need_, std::span(axes_.data(), count));
+      tally_axis_decisions(count);
       env::move_commands(state_.pose, state_.goal, axes_, task_.step_px, commands_);
       other_s_ += seconds_since(t0);
 

@@ -103,6 +103,17 @@ struct RolloutTiming {
   double other_s = 0;  ///< the policy, the protocol, the records
 };
 
+/// What the axis decisions (chi = 1: both axes move toward the goal) could change, counted since
+/// the last RolloutEngine::reset_axis_tally(): for each, the new pixels of the window each of the
+/// two candidate moves would end at (on the grid, before the physics), against what the robot (its
+/// team) had seen. Where the two counts are equal the choice reveals the same amount either way.
+struct AxisTally {
+  long decisions = 0;   ///< chi = 1 decisions
+  long differing = 0;   ///< ... whose two candidates would reveal different numbers of new pixels
+  long chose_more = 0;  ///< ... of those, where the chosen axis reveals more
+  long gap_px = 0;      ///< summed |new pixels(horizontal) - new pixels(vertical)|
+};
+
 /// Runs batches of rollouts: E episodes of T moves of the paper's protocol (env/protocol.hpp),
 /// with goals and axes from a Policy, over an env::BatchEnv (the physics and the camera).
 /// In a world with teams of K robots (world.team), each robot drives E / K episodes, the team's
@@ -124,6 +135,9 @@ class RolloutEngine {
   /// Where the time went.
   RolloutTiming timing() const;
   void reset_timing();
+  /// The axis decisions of the rollouts run since the last reset (AxisTally).
+  const AxisTally& axis_tally() const { return axis_tally_; }
+  void reset_axis_tally() { axis_tally_ = {}; }
   int max_robots() const;
   /// The GL renderer in use (for manifests).
   std::string camera_description() const;
@@ -134,6 +148,7 @@ class RolloutEngine {
   void open_records(std::vector<RolloutRecord>& records, std::span<const grid::Cell> starts);
   void record_snapshots(std::vector<RolloutRecord>& records, int episode, bool with_goal) const;
   void record_moves(std::vector<RolloutRecord>& records, int e, int t) const;
+  void tally_axis_decisions(int count);
 
   worlds::TaskSpec task_;
   int team_size_ = 1;  // K: robots per floor, each driving E / K episodes
@@ -144,6 +159,7 @@ class RolloutEngine {
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
   double other_s_ = 0;
+  AxisTally axis_tally_;
 };
 
 }  // namespace scout::learn

@@ -127,6 +127,10 @@ constexpr Row kRows[] = {
         "Leave-one-out baseline (beyond the paper; off in the paper preset)", kBoth, R::Kept, A::Training),
     row("entropy_bonus", "", T::Number, &TrainConfig::entropy_bonus, 0, 100, "--entropy-bonus", "",
         "Entropy bonus beta (beyond the paper; 0 in the paper preset)", kTrain, R::Kept, A::Training, /*lo_open=*/false, /*hi_open=*/true),
+    row("distillation", "", T::Number, &TrainConfig::distillation, 0, 100, "--distill", "",
+        "Weight lambda of the full-image teacher: the classifier also learns, from what each rollout revealed, the "
+        "probabilities it gives the whole floor (beyond the paper; 0 in the paper preset)", kTrain, R::Kept,
+        A::Training, /*lo_open=*/false, /*hi_open=*/true, /*shows_default=*/true, /*stored_unless_default=*/true),
     row("precision", "", T::Precision, &TrainConfig::precision, 0, 0, "--precision", "PRECISION",
         "Networks' arithmetic: auto (the faster on this CPU, measured once; bf16 only where native) | bf16 (bfloat16 "
         "convolutions, "
@@ -156,7 +160,9 @@ constexpr bool well_formed() {
       return false;
     if ((r.member.index() == 1 || r.member.index() == 7 || r.member.index() == 11) != (s.section == "network"))
       return false;
-    if (s.stored_unless_default && s.type != SettingType::Flag && s.type != SettingType::Integer) return false;
+    if (s.stored_unless_default && s.type != SettingType::Flag && s.type != SettingType::Integer &&
+        s.type != SettingType::Number)
+      return false;
     if (s.type == SettingType::Integer || s.type == SettingType::Epochs) {
       if (s.lo_open || s.hi_open || s.lo > s.hi || static_cast<double>(static_cast<int>(s.lo)) != s.lo ||
           static_cast<double>(static_cast<int>(s.hi)) != s.hi)
@@ -187,12 +193,19 @@ bool& flag_at(TrainConfig& c, const Member& m) {
 }
 // A setting added after files without it were written, at its default (off, 0): left out of the
 // file, so that those files stay as they were.
-bool is_default_zero(TrainConfig& c, const Row& r) {
-  return r.setting.type == SettingType::Flag ? !flag_at(c, r.member) : integer_at(c, r.member) == 0;
-}
 template <class V>
 V& at(TrainConfig& c, const Member& m) {
   return c.*std::get<V TrainConfig::*>(m);
+}
+bool is_default_zero(TrainConfig& c, const Row& r) {
+  switch (r.setting.type) {
+    case SettingType::Flag:
+      return !flag_at(c, r.member);
+    case SettingType::Number:
+      return at<double>(c, r.member) == 0;
+    default:
+      return integer_at(c, r.member) == 0;
+  }
 }
 
 std::string interval_text(const TrainSetting& s) {

@@ -43,6 +43,9 @@ struct TrainConfig {
   double learning_rate = 1e-3;            ///< Adam's step size
   bool leave_one_out = false;             ///< leave-one-out baseline (beyond the paper)
   double entropy_bonus = 0;               ///< beta of the entropy bonus (beyond the paper)
+  /// lambda of the full-image teacher (beyond the paper): the classifier also learns, from what a
+  /// rollout revealed, the probabilities it gives the whole floor (EstimatorOptions::distillation).
+  double distillation = 0;
   /// The networks' arithmetic (weights stay fp32). A new run resolves Auto for its CPU
   /// (agent::resolve_precision); checkpoints and manifests hold the resolved fp32 or bf16.
   agent::Precision precision = agent::Precision::Auto;

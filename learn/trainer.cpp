@@ -277,7 +277,8 @@ struct Trainer::Impl {
                                             static_cast<std::uint64_t>(first) * config.rollouts);
       const EstimatorOptions est{.rollouts_per_image = config.rollouts,
                                  .leave_one_out = config.leave_one_out,
-                                 .entropy_bonus = config.entropy_bonus};
+                                 .entropy_bonus = config.entropy_bonus,
+                                 .distillation = config.distillation};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
       figures = {out.reward.sum().item<double>(), static_cast<double>(count_correct(out.log_probs, batch.labels)),

@@ -84,7 +84,10 @@ StepTimes time_step(const TrainConfig& c, const BenchSetup& b, const RolloutBatc
                     const Sampling& sampling, RolloutEngine& engine, ModeState& m, ProcessGroup* group,
                     TrainBenchReport& report) {
   const EstimatorOptions estimator{
-      .rollouts_per_image = c.rollouts, .leave_one_out = c.leave_one_out, .entropy_bonus = c.entropy_bonus};
+      .rollouts_per_image = c.rollouts,
+      .leave_one_out = c.leave_one_out,
+      .entropy_bonus = c.entropy_bonus,
+      .distillation = c.distillation};
   agent::AgentImpl& agent = *m.agent;
   engine.reset_timing();
   m.policy->reset_timing();

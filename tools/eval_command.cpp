@@ -73,6 +73,10 @@ void print_table(const learn::EvalReport& r) {
                baseline_runs);
   fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
+  fmt::print("  {:<26}{:.2f} per rollout; {:.1f} % with candidates revealing different pixels (by {:.1f} px), "
+             "the more revealing chosen in {:.1f} %\n",
+             "axis decisions (chi = 1)", r.axis_decisions_per_rollout, 100 * r.axis_differing_share, r.axis_gap_px,
+             100 * r.axis_chose_more_share);
   fmt::print("  {:<26}{}\n", "precision", agent::to_string(r.precision));
   fmt::print("  {:<26}{}\n", "runs", r.runs);
   fmt::print("  {:<26}{}\n", "images", r.images);

@@ -12,6 +12,9 @@ struct EstimatorOptions {
   int rollouts_per_image = 4;  ///< N: robots i*N .. i*N+N-1 drove over image i
   bool leave_one_out = false;  ///< subtract the mean reward of the image's other N-1 rollouts from sg(r)
   double entropy_bonus = 0;  ///< beta: adds beta * (mean over robots of the summed entropies of its learned decisions)
+  /// lambda: adds lambda * (mean over robots of sum_c p_full(c) log pi_c(c)), p_full the classifier's
+  /// own probabilities on the whole floor without gradient: a teacher that sees everything (run_batch).
+  double distillation = 0;
 };
 
 /// J-hat = mean over robots of [log_pi * sg(r - b) + r] (+ beta * entropy), b = 0 or the

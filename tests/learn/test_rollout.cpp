@@ -246,6 +246,63 @@ TEST(RandomPolicy, GoalsCoverTheFloorUniformlyAndAxesAreFair) {
   EXPECT_NEAR(double(vertical) / total, 0.5, 0.01);
 }
 
+// The axis tally (what the action layer's choices could change): a policy that, at every chi = 1
+// decision, takes the axis whose move reveals more new pixels (by its own count on the same state)
+// is credited with all of the differing decisions, and one that takes the other axis with none;
+// i.i.d. goals, so the decisions are the same for both; the physics and the camera in the loop.
+class RevealCountingPolicy final : public Policy {
+ public:
+  RevealCountingPolicy(std::span<const std::uint64_t> seeds, int step_px, bool prefer_more)
+      : goals_(seeds), step_px_(step_px), prefer_more_(prefer_more) {}
+  void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override {
+    goals_.choose_goals(state, episode, goals);
+  }
+  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override {
+    for (std::size_t i = 0; i < need.size(); ++i) {
+      if (!need[i]) continue;
+      ++decisions;
+      const int h = fresh(state, static_cast<int>(i), grid::Axis::Horizontal);
+      const int v = fresh(state, static_cast<int>(i), grid::Axis::Vertical);
+      differing += h != v ? 1 : 0;
+      axes[i] = (h > v) == prefer_more_ ? grid::Axis::Horizontal : grid::Axis::Vertical;
+    }
+  }
+  long decisions = 0, differing = 0;
+
+ private:
+  int fresh(const BatchState& state, int robot, grid::Axis axis) const {
+    const grid::Cell to = state.pose[robot] + grid::move_command(state.pose[robot], state.goal[robot], axis, step_px_);
+    const grid::Window w = grid::camera_window(to, state.patch_px, state.frame);
+    int count = 0;
+    for (int y = w.y0; y < w.y1; ++y)
+      for (int x = w.x0; x < w.x1; ++x) count += state.seen[robot].seen(x, y) ? 0 : 1;
+    return count;
+  }
+  RandomPolicy goals_;
+  int step_px_;
+  bool prefer_more_;
+};
+
+TEST(RolloutEngine, TheAxisTallyCreditsTheMoreRevealingChoice) {
+  const worlds::World world = preset_world();
+  RolloutEngine engine(world, kFloor, 60);
+  const Batch b = random_batch(60, 9);
+  for (const bool prefer_more : {true, false}) {
+    RevealCountingPolicy policy(b.seeds, world.task.step_px, prefer_more);
+    engine.reset_axis_tally();
+    engine.run(b.floors, b.starts, b.motion_seeds, policy, /*record=*/false);
+    const AxisTally& t = engine.axis_tally();
+    EXPECT_EQ(t.decisions, policy.decisions);
+    EXPECT_EQ(t.differing, policy.differing);
+    EXPECT_GT(t.differing, 0);
+    EXPECT_LT(t.differing, t.decisions) << "equal candidates happen too (a fresh floor in both directions)";
+    EXPECT_EQ(t.chose_more, prefer_more ? t.differing : 0);
+    EXPECT_GE(t.gap_px, t.differing);
+  }
+  engine.reset_axis_tally();
+  EXPECT_EQ(engine.axis_tally().decisions, 0);
+}
+
 TEST(RolloutEngine, RunsBatchesSmallerThanItsCapacity) {
   // A command's last batch is usually partial (e.g. 5,000 runs = 20 x 240 + 200).
   const worlds::World world = preset_world();

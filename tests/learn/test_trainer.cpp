@@ -437,6 +437,106 @@ TEST_F(Resume, AddingModeIIIsTheUninterruptedRun) {
   expect_same_checkpoints("a", "b");
 }
 
+// A goals-only agent (--goals-only) has no action planner: no parameters, and where mode (iii)
+// would ask for learned axes it draws them i.i.d., exactly as mode (ii) and the goals-only baseline
+// do: the same goals and classifier, grown from an agent with an action planner, classify the
+// same batch identically either way. It trains in modes (i) and (ii) only.
+TEST_F(Resume, AGoalsOnlyAgentHasNoActionPlannerAndDrivesAsTheGoalsOnlyBaseline) {
+  ASSERT_EQ(train("full", {1, 1, 0}).size(), 2u);
+  agent::Agent full = load_agent(temp_.path() / "full" / kCheckpointFile);
+  TrainConfig c = config({1, 1, 0});
+  c.network.goals_only = true;
+  Trainer trainer(c, run_dir("goals"), kThreads);
+  ASSERT_EQ(trainer.run({}).outcome, TrainOutcome::Finished);
+  const agent::Agent trained = load_agent(trainer.checkpoint_file());
+  EXPECT_TRUE(trained->action.is_empty());
+  std::int64_t count = 0;
+  for (const auto& item : trained->named_parameters()) {
+    EXPECT_NE(item.key().rfind("action.", 0), 0u) << item.key();
+    count += item.value().numel();
+  }
+  EXPECT_EQ(count, agent::parameter_count(c.network));
+  EXPECT_LT(count, agent::parameter_count(full->config()));
+
+  agent::NetworkConfig without = full->config();
+  without.goals_only = true;
+  agent::Agent grown(without);
+  agent::copy_into_grown(*full, *grown);
+  const grid::FloorFrame frame{kSide, kSide, world_.floor.pixel_size_m};
+  const worlds::LabeledImages data = worlds::load_split(data_, worlds::Split::Train);
+  const std::vector<int> indices = {0, 1, 2, 3, 4, 5};
+  const RolloutBatch batch = make_batch(data, indices, 2, world_, frame, 99);
+  auto log_probs = [&](agent::AgentImpl& agent, bool learned_actions) {
+    torch::NoGradGuard no_grad;
+    RolloutEngine engine(world_, frame, batch.count);
+    AgentPolicy policy(agent, frame, world_.camera.patch_px, batch.count);
+    Sampling sampling;
+    sampling.learned_goals = true;
+    sampling.learned_actions = learned_actions;
+    return run_batch(agent, engine, policy, batch, sampling, {2, false, 0}).log_probs;
+  };
+  EXPECT_TRUE(torch::equal(log_probs(*grown, /*learned_actions=*/true), log_probs(*full, false)));
+  EXPECT_FALSE(torch::equal(log_probs(*full, true), log_probs(*full, false))) << "the control: learned axes differ";
+
+  c.epochs = {1, 1, 1};
+  try {
+    c.validate();
+    FAIL() << "mode iii epochs were accepted for a goals-only agent";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("goals-only agent"), std::string::npos) << e.what();
+  }
+}
+
+// The full-image teacher (--distill lambda) changes the classifier's gradient only: the same batch
+// gives the planners the same gradient with and without it, and J-hat grows by exactly
+// lambda * mean(sum_c p_full(c) log pi_c(c)), p_full the classifier's probabilities on the floors.
+TEST_F(Resume, TheFullImageTeacherTeachesTheClassifierOnly) {
+  TrainConfig c = config({0, 0, 1});
+  torch::manual_seed(21);
+  agent::Agent agent(c.network);
+  const grid::FloorFrame frame{kSide, kSide, world_.floor.pixel_size_m};
+  const worlds::LabeledImages data = worlds::load_split(data_, worlds::Split::Train);
+  const std::vector<int> indices = {0, 1, 2, 3};
+  const RolloutBatch batch = make_batch(data, indices, 2, world_, frame, 7);
+  struct Outcome {
+    double objective;
+    std::vector<torch::Tensor> gradients;  // in named_parameters() order
+    torch::Tensor log_probs;
+  };
+  auto step = [&](double lambda) {
+    clear_gradients(*agent);
+    RolloutEngine engine(world_, frame, batch.count);
+    AgentPolicy policy(*agent, frame, world_.camera.patch_px, batch.count);
+    Sampling sampling;
+    sampling.learned_goals = sampling.learned_actions = sampling.with_grad = true;
+    const BatchOutcome out =
+        run_batch(*agent, engine, policy, batch, sampling, {.rollouts_per_image = 2, .distillation = lambda});
+    out.objective.backward();
+    Outcome o{out.objective.item<double>(), {}, out.log_probs};
+    for (const auto& item : agent->named_parameters()) o.gradients.push_back(item.value().grad().clone());
+    return o;
+  };
+  const Outcome plain = step(0), taught = step(0.5);
+  torch::Tensor teacher;
+  {
+    torch::NoGradGuard no_grad;
+    teacher = torch::softmax(agent->classifier->forward(full_images(batch.floors, batch.count, frame)), 1);
+  }
+  EXPECT_NEAR(taught.objective - plain.objective, 0.5 * (teacher * plain.log_probs).sum(1).mean().item<double>(),
+              1e-5);
+  int index = 0, classifier_changed = 0;
+  for (const auto& item : agent->named_parameters()) {
+    const bool classifier = item.key().rfind("classifier.", 0) == 0;
+    const bool same = torch::allclose(taught.gradients[index], plain.gradients[index], 1e-6, 1e-7);
+    if (!classifier) {
+      EXPECT_TRUE(same) << item.key();
+    }
+    classifier_changed += classifier && !same ? 1 : 0;
+    ++index;
+  }
+  EXPECT_GT(classifier_changed, 0);
+}
+
 // --resume with a learning rate: the same rate as stored changes nothing (bit for bit); a tenth
 // of it moves the weights by far less than the stored rate does (Adam's step scales with it),
 // and each epoch's row records the rate it ran with.
