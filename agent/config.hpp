@@ -124,15 +124,20 @@ struct NetworkConfig {
   /// 1/2 - 1/2 in every mode, as mode (ii) draws it. The agent then has no f2 parameters and spends
   /// no arithmetic on it in training or inference; it trains in modes (i) and (ii) only.
   bool goals_only = false;
+  /// The planners also read t_p and t_g (beyond the paper): where the team's other robots stand
+  /// and where their goals are (agent/state.hpp), and a team's robots choose their goals one after
+  /// the other, each seeing the goals its teammates have just chosen (a joint proposal, factorised).
+  bool team_channels = false;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
   bool operator==(const NetworkConfig&) const = default;
 };
 
-/// Input channels of both planners: y (c), l, h, g_l, and o with `occupancy`.
+/// Input channels of both planners: y (c), l, h, g_l, o with `occupancy`, t_p and t_g with
+/// `team_channels`.
 inline int planner_channels(const NetworkConfig& config) {
-  return config.image_channels + 3 + (config.occupancy ? 1 : 0);
+  return config.image_channels + 3 + (config.occupancy ? 1 : 0) + (config.team_channels ? 2 : 0);
 }
 
 /// The agent's trainable parameters (all three networks) for `config`, counted without building

@@ -358,19 +358,38 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
   grown.occupancy = wants.occupancy;
   grown.goal_context = wants.goal_context;
   grown.goals_only = wants.goals_only;
+  grown.team_channels = wants.team_channels;
   const bool adds_occupancy = wants.occupancy && !has.occupancy;
+  const bool adds_team = wants.team_channels && !has.team_channels;
   const bool adds_context = wants.goal_context > 0 && has.goal_context == 0;
   const bool drops_actions = wants.goals_only && !has.goals_only;
-  if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions) ||
+  if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions && !adds_team) ||
       (has.occupancy && !wants.occupancy) || (has.goals_only && !wants.goals_only) ||
+      (has.team_channels && !wants.team_channels) ||
       (has.goal_context != wants.goal_context && !adds_context))
     throw std::invalid_argument(
-        "copy_into_grown: the target must be the source's networks with the occupancy channel or a goal "
-        "context branch added, or the action planner removed");
-  // The planners' inputs are concatenated [y, l, h, g_l, (o), block outputs...]: o is channel `at`
-  // of every planner convolution's input, and the channels after it move up by one.
-  const std::int64_t at = planner_channels(has);
-  const std::int64_t inserted = adds_occupancy ? 1 : 0;
+        "copy_into_grown: the target must be the source's networks with the occupancy channel, the "
+        "teammates' channels or a goal context branch added, or the action planner removed");
+  // The planners' inputs are concatenated [y, l, h, g_l, (o), (t_p, t_g), block outputs...]: each
+  // of the source's input channels goes to its place in the target's order, and the added ones
+  // (read with zero weights) fill the gaps.
+  struct Layout {
+    std::int64_t o = -1, team = -1, blocks = 0;  // first channel of each part (-1: absent)
+  };
+  const std::int64_t base = has.image_channels + 3;  // y, l, h, g_l
+  auto layout = [base](const NetworkConfig& c) {
+    Layout l;
+    std::int64_t at = base;
+    if (c.occupancy) l.o = at++;
+    if (c.team_channels) {
+      l.team = at;
+      at += 2;
+    }
+    l.blocks = at;
+    return l;
+  };
+  const Layout from_layout = layout(has), to_layout = layout(wants);
+  const std::int64_t inserted = to_layout.blocks - from_layout.blocks;
   torch::NoGradGuard no_grad;
   const auto source = from.named_parameters(/*recurse=*/true);
   for (auto& item : to.named_parameters(/*recurse=*/true)) {
@@ -393,8 +412,11 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
     if (!planner || src.dim() != 4 || dst.size(0) != src.size(0) || dst.size(1) != src.size(1) + inserted)
       throw std::invalid_argument("copy_into_grown: " + item.key() + " does not widen by the added input channels");
     dst.zero_();
-    dst.narrow(1, 0, at).copy_(src.narrow(1, 0, at));
-    dst.narrow(1, at + inserted, src.size(1) - at).copy_(src.narrow(1, at, src.size(1) - at));
+    dst.narrow(1, 0, base).copy_(src.narrow(1, 0, base));
+    if (from_layout.o >= 0) dst.narrow(1, to_layout.o, 1).copy_(src.narrow(1, from_layout.o, 1));
+    if (from_layout.team >= 0) dst.narrow(1, to_layout.team, 2).copy_(src.narrow(1, from_layout.team, 2));
+    const std::int64_t blocks = src.size(1) - from_layout.blocks;
+    dst.narrow(1, to_layout.blocks, blocks).copy_(src.narrow(1, from_layout.blocks, blocks));
   }
 }
 

@@ -72,8 +72,8 @@ TORCH_MODULE(Agent);
 /// Copies `from`'s weights into `to`, whose config is `from`'s grown by what a fine-tuning run may
 /// add (`scout train --init-from`), so that `to` computes exactly what `from` does and training can
 /// learn to use the new inputs:
-/// - the occupancy channel: every planner convolution of `to` reads one more input channel, o,
-///   whose weights are set to zero;
+/// - the occupancy channel or the teammates' channels: every planner convolution of `to` reads
+///   one (o) or two (t_p, t_g) more input channels, whose weights are set to zero;
 /// - a goal context branch (from none): the branch keeps its fresh initialisation and its score
 ///   head is set to zero;
 /// - the action planner removed (goals_only): its weights are left behind, and the grown agent

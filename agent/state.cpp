@@ -23,7 +23,7 @@ void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, 
 }
 
 void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst,
-                         bool occupancy) {
+                         bool occupancy, bool team) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   float* y = dst;
   float* l = dst + n;
@@ -42,13 +42,22 @@ void write_planner_input(const grid::FloorFrame& frame, int patch_px, const Robo
   std::fill(g, g + n, 1.0f);
   if (view.goal != nullptr) fill_window(grid::camera_window(*view.goal, patch_px, frame), frame.width_px, 0.0f, g);
 
-  if (!occupancy) return;
-  float* o = dst + 4 * n;
-  if (view.occupied == nullptr) {
-    std::fill(o, o + n, 0.0f);
-  } else {
-    for (std::size_t i = 0; i < n; ++i) o[i] = view.occupied[i] != 0 ? 1.0f : 0.0f;
+  if (occupancy) {
+    float* o = dst + 4 * n;
+    if (view.occupied == nullptr) {
+      std::fill(o, o + n, 0.0f);
+    } else {
+      for (std::size_t i = 0; i < n; ++i) o[i] = view.occupied[i] != 0 ? 1.0f : 0.0f;
+    }
   }
+  if (!team) return;
+  float* tp = dst + (occupancy ? 5 : 4) * n;
+  float* tg = tp + n;
+  std::fill(tp, tp + 2 * n, 1.0f);
+  for (const grid::Cell& pose : view.teammate_poses)
+    fill_window(grid::camera_window(pose, patch_px, frame), frame.width_px, 0.0f, tp);
+  for (const grid::Cell& goal : view.teammate_goals)
+    fill_window(grid::camera_window(goal, patch_px, frame), frame.width_px, 0.0f, tg);
 }
 
 }  // namespace scout::agent

@@ -1,6 +1,8 @@
 #include "learn/internal/agent_policy.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -77,37 +79,92 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<g
     }
     return;
   }
+  // The goals the robots hold while they choose: none before the first episode, then the last
+  // ones, replaced as the new ones are drawn.
+  goals_now_.assign(state.goal.begin(), state.goal.begin() + count);
+  has_goal_.assign(count, episode > 0 ? 1 : 0);
+  const int team = agent_.config().team_channels ? std::max(1, state.team) : 1;
+  if (team == 1) {
+    rows_.resize(count);
+    std::iota(rows_.begin(), rows_.end(), std::int64_t{0});
+    sample_goals(state, rows_, goals);
+    return;
+  }
+  // With the teammates' channels a team's robots choose one after the other, member 0 first, each
+  // seeing the goals just chosen by those before it: a joint proposal of the team's goals as a
+  // product of conditionals, whose log-probability is the sum of theirs.
+  for (int member = 0; member < team; ++member) {
+    rows_.clear();
+    for (int i = member; i < count; i += team) rows_.push_back(i);
+    sample_goals(state, rows_, goals);
+  }
+}
+
+agent::RobotView AgentPolicy::view_of(const BatchState& state, int i, const grid::Cell* goal,
+                                      std::span<const grid::Cell> team_goals, std::span<const std::uint8_t> has_goal) {
+  agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i], goal,
+                        state.occupied_cells(i)};
+  if (!agent_.config().team_channels || state.team <= 1) return view;
+  teammate_poses_.clear();
+  teammate_goals_.clear();
+  const int first = i - i % state.team;
+  for (int j = first; j < first + state.team; ++j) {
+    if (j == i) continue;
+    teammate_poses_.push_back(state.pose[j]);
+    if (has_goal[j]) teammate_goals_.push_back(team_goals[j]);
+  }
+  view.teammate_poses = teammate_poses_;
+  view.teammate_goals = teammate_goals_;
+  return view;
+}
+
+void AgentPolicy::sample_goals(const BatchState& state, std::span<const std::int64_t> rows,
+                               std::span<grid::Cell> goals) {
+  const int k = static_cast<int>(rows.size()), width = frame_.width_px, area = frame_.area_px();
+  const bool whole_batch = k == count_;
   std::optional<torch::NoGradGuard> no_grad;
   if (!sampling_.with_grad) no_grad.emplace();
   const ComputePrecision precision(sampling_.precision);
   auto t0 = Clock::now();
   // Fresh storage each call: autograd keeps the input of the first convolution for backward.
-  const int channels = agent::planner_channels(agent_.config());
-  torch::Tensor input = torch::empty({count, channels, frame_.height_px, width});
+  const agent::NetworkConfig& config = agent_.config();
+  const int channels = agent::planner_channels(config);
+  torch::Tensor input = torch::empty({k, channels, frame_.height_px, width});
   float* data = input.data_ptr<float>();
-  for (int i = 0; i < count; ++i) {
-    agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i],
-                          episode > 0 ? &state.goal[i] : nullptr, state.occupied_cells(i)};
-    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(i) * channels * area,
-                               agent_.config().occupancy);
+  for (int r = 0; r < k; ++r) {
+    const auto i = static_cast<int>(rows[r]);
+    const agent::RobotView view = view_of(state, i, has_goal_[i] ? &goals_now_[i] : nullptr, goals_now_, has_goal_);
+    agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area,
+                               config.occupancy, config.team_channels);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);
   t0 = Clock::now();
-  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input).to(torch::kFloat), 1);  // [count, H*W]
+  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input).to(torch::kFloat), 1);  // [k, H*W]
   torch::Tensor p = log_p.detach().exp().contiguous();
   const float* probabilities = p.data_ptr<float>();
-  std::vector<std::int64_t> chosen(count);
-  for (int i = 0; i < count; ++i) {
-    const float* row = probabilities + static_cast<std::size_t>(i) * area;
+  std::vector<std::int64_t> chosen(k);
+  for (int r = 0; r < k; ++r) {
+    const auto i = static_cast<std::size_t>(rows[r]);
+    const float* row = probabilities + static_cast<std::size_t>(r) * area;
     const int pixel = sample(rngs_[i], row, area);
-    chosen[i] = pixel;
+    chosen[r] = pixel;
     goals[i] = {pixel % width, pixel / width};
+    goals_now_[i] = goals[i];
+    has_goal_[i] = 1;
     if (sampling_.record_goal_maps) goal_maps_[i].emplace_back(row, row + area);
   }
-  torch::Tensor index = torch::from_blob(chosen.data(), {count, 1}, torch::kLong).clone();
-  log_pi_ = log_pi_ + log_p.gather(1, index).squeeze(1);
-  entropy_ = entropy_ - (log_p.exp() * log_p).sum(1);
+  torch::Tensor index = torch::from_blob(chosen.data(), {k, 1}, torch::kLong).clone();
+  const torch::Tensor chosen_log_p = log_p.gather(1, index).squeeze(1);
+  const torch::Tensor entropy = -(log_p.exp() * log_p).sum(1);
+  if (whole_batch) {  // every robot in order: a plain sum (what a batch without teams has always done)
+    log_pi_ = log_pi_ + chosen_log_p;
+    entropy_ = entropy_ + entropy;
+  } else {
+    const torch::Tensor where = torch::from_blob(const_cast<std::int64_t*>(rows.data()), {k}, torch::kLong).clone();
+    log_pi_ = log_pi_.index_add(0, where, chosen_log_p);
+    entropy_ = entropy_.index_add(0, where, entropy);
+  }
   timing_.forward_s += seconds_since(t0);
 }
 
@@ -134,14 +191,15 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   }
   const int k = static_cast<int>(rows_.size()), area = frame_.area_px();
   const int channels = agent::planner_channels(agent_.config());
+  all_goals_.assign(count, 1);
   torch::Tensor input = torch::empty({k, channels, frame_.height_px, frame_.width_px});
   float* data = input.data_ptr<float>();
   for (int r = 0; r < k; ++r) {
     const auto i = static_cast<std::size_t>(rows_[r]);
-    agent::RobotView view{state.revealed_image(static_cast<int>(i)), state.seen[i].data().data(), state.pose[i],
-                          &state.goal[i], state.occupied_cells(static_cast<int>(i))};
+    // Every robot holds a goal while it moves: the teammates' are theirs now.
+    const agent::RobotView view = view_of(state, static_cast<int>(i), &state.goal[i], state.goal, all_goals_);
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area,
-                               agent_.config().occupancy);
+                               agent_.config().occupancy, agent_.config().team_channels);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);

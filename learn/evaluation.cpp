@@ -72,6 +72,7 @@ Data read_data(const EvalConfig& config, const worlds::World& world, int classes
 struct Pass {
   int correct = 0, top2 = 0;
   long revealed_px = 0;     // summed over the images: pixels seen by the end of the rollout
+  long stalled_moves = 0;   // summed over the images: moves that did not arrive (a team's, all its robots')
   torch::Tensor log_probs;  // [images, D]
 };
 
@@ -119,6 +120,7 @@ class Evaluator {
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
       for (int i = 0; i < k; ++i)  // a team's robots hold its seen pixels
         pass.revealed_px += engine_->state().seen[static_cast<std::size_t>(i) * batch.team].count();
+      for (const int stalled : engine_->stalled_moves()) pass.stalled_moves += stalled;
       pass.correct += count_correct(out.log_probs, batch.labels, 1);
       pass.top2 += count_correct(out.log_probs, batch.labels, std::min(2, agent_.config().classes));
       parts.push_back(out.log_probs);
@@ -190,7 +192,7 @@ namespace {
 struct EvalTally {
   EvalTally(int runs, int images, int classes)
       : cells(static_cast<std::size_t>(classes) * classes),
-        storage(kPerRun * runs + runs * cells + static_cast<std::size_t>(images) * classes + 2 + 4, 0.0) {
+        storage(kPerRun * runs + runs * cells + static_cast<std::size_t>(images) * classes + 2 + 5, 0.0) {
     std::span<double> rest(storage);
     auto take = [&](std::size_t count) {
       const std::span<double> part = rest.first(count);
@@ -208,6 +210,7 @@ struct EvalTally {
     full_image_correct = &take(1)[0];
     greedy_correct = &take(1)[0];
     axes = take(4);
+    stalled_moves = &take(1)[0];
   }
   void add(const AxisTally& t) {
     axes[0] += static_cast<double>(t.decisions);
@@ -233,6 +236,7 @@ struct EvalTally {
   double* full_image_correct = nullptr;
   double* greedy_correct = nullptr;
   std::span<double> axes;  // the agent's runs' AxisTally: decisions, differing, chose_more, gap_px
+  double* stalled_moves = nullptr;  // the agent's runs' moves that did not arrive
 };
 
 // What an evaluation reads before it drives: the checkpoint, the world, the digits, the policies.
@@ -297,6 +301,7 @@ void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, co
     evaluator.reset_axis_tally();
     const Pass pass = evaluator.run(s.sampling, seed_k, begin, end);
     tally.add(evaluator.axis_tally());
+    *tally.stalled_moves += static_cast<double>(pass.stalled_moves);
     tally.correct[k] = pass.correct;
     tally.top2[k] = pass.top2;
     tally.revealed_px[k] = static_cast<double>(pass.revealed_px);
@@ -367,6 +372,7 @@ void summarise(const EvalConfig& config, const EvalSetup& s, const EvalTally& ta
   report.axis_differing_share = decisions > 0 ? differing / decisions : 0;
   report.axis_chose_more_share = differing > 0 ? tally.axes[2] / differing : 0;
   report.axis_gap_px = differing > 0 ? tally.axes[3] / differing : 0;
+  report.stalled_moves_per_rollout = *tally.stalled_moves / (static_cast<double>(n) * runs);
   report.probabilities.resize(n);
   for (int i = 0; i < n; ++i) {
     const std::span<const double> sums = tally.probability_sums.subspan(static_cast<std::size_t>(i) * classes, classes);
@@ -435,6 +441,7 @@ std::string report_json(const EvalReport& report) {
   j["full_image_accuracy"] = report.full_image_accuracy;
   j["greedy_accuracy"] = report.greedy_accuracy;
   j["revealed_fraction"] = report.revealed_fraction;
+  j["stalled_moves_per_rollout"] = report.stalled_moves_per_rollout;
   j["axis_decisions"] = {{"per_rollout", report.axis_decisions_per_rollout},
                          {"differing_share", report.axis_differing_share},
                          {"chose_more_share", report.axis_chose_more_share},

@@ -69,6 +69,9 @@ struct EvalReport {
   /// the share of those where the chosen axis reveals more (1/2 for i.i.d. axes), and the mean
   /// difference in pixels where they differ.
   double axis_decisions_per_rollout = 0, axis_differing_share = 0, axis_chose_more_share = 0, axis_gap_px = 0;
+  /// The agent's moves per rollout (a team's: all its robots') that did not arrive: blocked by an
+  /// obstacle or a teammate, or out of ticks (RolloutEngine::stalled_moves).
+  double stalled_moves_per_rollout = 0;
   int runs = 0, images = 0;
   double seconds = 0;
   std::vector<int> labels;                                 ///< per image

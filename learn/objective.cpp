@@ -82,8 +82,15 @@ BatchOutcome run_batch(agent::AgentImpl& agent, RolloutEngine& engine, AgentPoli
   auto per_rollout = [&](const torch::Tensor& per_robot) {
     return batch.team > 1 ? per_robot.view({rollouts, batch.team}).sum(1) : per_robot;
   };
-  torch::Tensor objective = surrogate_objective(learned ? per_rollout(policy.log_pi()) : torch::Tensor(), reward,
-                                                estimator, learned ? per_rollout(policy.entropy()) : torch::Tensor());
+  torch::Tensor cost;
+  if (learned && estimator.stalled_move_cost > 0) {
+    const std::span<const int> stalled = engine.stalled_moves();
+    cost = torch::tensor(std::vector<float>(stalled.begin(), stalled.end())) * estimator.stalled_move_cost;
+    cost = per_rollout(cost);
+  }
+  torch::Tensor objective =
+      surrogate_objective(learned ? per_rollout(policy.log_pi()) : torch::Tensor(), reward, estimator,
+                          learned ? per_rollout(policy.entropy()) : torch::Tensor(), cost);
   if (estimator.distillation > 0 && sampling.with_grad) {
     // The teacher: the classifier on the whole floor (what u_c would be had the robot seen it all),
     // without gradient; the student: the same classifier on what the rollout revealed.

@@ -68,6 +68,7 @@ void RolloutEngine::reset_timing() {
 // The policy's view of the environment's arrays and the goals.
 void RolloutEngine::refresh_state() {
   state_.count = env_->count();
+  state_.team = team_size_;
   state_.pose = env_->poses();
   state_.seen = env_->seen();
   state_.revealed = env_->revealed();
@@ -173,6 +174,7 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
   commands_.assign(count, grid::Cell::Zero());
   need_.assign(count, 0);
   axes_.assign(count, grid::Axis::None);
+  stalled_.assign(count, 0);
 
   std::vector<RolloutRecord> records(record ? count : 0);
   if (record) open_records(records, starts);
@@ -200,6 +202,9 @@ std::vector<RolloutRecord> RolloutEngine::run(std::span<const std::uint8_t> floo
 
       env_->step(commands_);
       refresh_state();
+      const std::span<const env::MoveResult> results = env_->last_results();
+      for (int i = 0; i < count; ++i)
+        stalled_[i] += results[i].blocked || (results[i].ticks > 0 && !results[i].settled) ? 1 : 0;
 
       t0 = Clock::now();
       if (record) record_moves(records, e, t);

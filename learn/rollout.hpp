@@ -22,6 +22,7 @@ struct BatchState {
   grid::FloorFrame frame;
   int patch_px = 0;
   int count = 0;                           ///< robots in this rollout batch
+  int team = 1;                            ///< K: robots t*K .. t*K+K-1 share floor t
   std::span<const grid::Cell> pose;        ///< the pose each robot reads (env::BatchEnv::poses)
   std::span<const grid::Cell> goal;        ///< current goal per robot
   std::span<const grid::RevealMask> seen;  ///< pixels seen so far, per robot (h = 1 - seen)
@@ -135,6 +136,10 @@ class RolloutEngine {
   /// Where the time went.
   RolloutTiming timing() const;
   void reset_timing();
+  /// Per robot of the last run: its moves that did not arrive, because an obstacle or a teammate
+  /// blocked them or they ran out of ticks (MoveResult: blocked, or ticks > 0 and not settled);
+  /// what trajectory.json marks blocked or unsettled, less the no-op moves at a goal.
+  std::span<const int> stalled_moves() const { return {stalled_.data(), static_cast<std::size_t>(state_.count)}; }
   /// The axis decisions of the rollouts run since the last reset (AxisTally).
   const AxisTally& axis_tally() const { return axis_tally_; }
   void reset_axis_tally() { axis_tally_ = {}; }
@@ -160,6 +165,7 @@ class RolloutEngine {
   std::vector<grid::Axis> axes_;
   double other_s_ = 0;
   AxisTally axis_tally_;
+  std::vector<int> stalled_;  // per robot, this run
 };
 
 }  // namespace scout::learn

@@ -109,6 +109,10 @@ constexpr Row kRows[] = {
         "Channels of the goal planner's context branch, which sees the whole floor at 1/4 resolution (beyond the "
         "paper; 0: none, the paper's planner)", kBoth, R::Kept, A::Networks, false, false, true,
         /*stored_unless_default=*/true),
+    row("team_channels", "network", T::Flag, &NetworkConfig::team_channels, 0, 0, "--team-channels", "",
+        "Planners also read where the teammates stand and where their goals are, and a team's robots choose their "
+        "goals one after the other (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,
+        /*stored_unless_default=*/true),
     row("goals_only", "network", T::Flag, &NetworkConfig::goals_only, 0, 0, "--goals-only", "",
         "No action planner: every move's axis is drawn i.i.d. 1/2 - 1/2, no f2 parameters or arithmetic; trains in "
         "modes i and ii only (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,
@@ -129,8 +133,12 @@ constexpr Row kRows[] = {
         "Entropy bonus beta (beyond the paper; 0 in the paper preset)", kTrain, R::Kept, A::Training, /*lo_open=*/false, /*hi_open=*/true),
     row("distillation", "", T::Number, &TrainConfig::distillation, 0, 100, "--distill", "",
         "Weight lambda of the full-image teacher: the classifier also learns, from what each rollout revealed, the "
-        "probabilities it gives the whole floor (beyond the paper; 0 in the paper preset)", kTrain, R::Kept,
+        "probabilities it gives the whole floor (beyond the paper; 0 in the paper preset)", kTrain, R::Changes,
         A::Training, /*lo_open=*/false, /*hi_open=*/true, /*shows_default=*/true, /*stored_unless_default=*/true),
+    row("stalled_move_cost", "", T::Number, &TrainConfig::stalled_move_cost, 0, 100, "--stalled-move-cost", "",
+        "Cost kappa of each move that does not arrive (blocked by an obstacle or a teammate) in the planners' reward "
+        "r - kappa * stalled moves (beyond the paper; 0 in the paper preset)", kTrain, R::Kept, A::Training,
+        /*lo_open=*/false, /*hi_open=*/true, /*shows_default=*/true, /*stored_unless_default=*/true),
     row("precision", "", T::Precision, &TrainConfig::precision, 0, 0, "--precision", "PRECISION",
         "Networks' arithmetic: auto (the faster on this CPU, measured once; bf16 only where native) | bf16 (bfloat16 "
         "convolutions, "

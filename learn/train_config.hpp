@@ -46,6 +46,9 @@ struct TrainConfig {
   /// lambda of the full-image teacher (beyond the paper): the classifier also learns, from what a
   /// rollout revealed, the probabilities it gives the whole floor (EstimatorOptions::distillation).
   double distillation = 0;
+  /// kappa: what each move that does not arrive (blocked by an obstacle or a teammate) costs the
+  /// planners' reward (beyond the paper; EstimatorOptions::stalled_move_cost).
+  double stalled_move_cost = 0;
   /// The networks' arithmetic (weights stay fp32). A new run resolves Auto for its CPU
   /// (agent::resolve_precision); checkpoints and manifests hold the resolved fp32 or bf16.
   agent::Precision precision = agent::Precision::Auto;

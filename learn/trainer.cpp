@@ -278,7 +278,8 @@ struct Trainer::Impl {
       const EstimatorOptions est{.rollouts_per_image = config.rollouts,
                                  .leave_one_out = config.leave_one_out,
                                  .entropy_bonus = config.entropy_bonus,
-                                 .distillation = config.distillation};
+                                 .distillation = config.distillation,
+                                 .stalled_move_cost = config.stalled_move_cost};
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling_for(s, true, config.precision), est);
       loss = -out.objective;
       figures = {out.reward.sum().item<double>(), static_cast<double>(count_correct(out.log_probs, batch.labels)),
@@ -559,6 +560,7 @@ std::unique_ptr<Trainer> Trainer::resume(const Checkpoint& checkpoint, const fs:
   if (epochs) state.config.epochs = *epochs;
   if (options.data_folder) state.config.data_folder = fs::absolute(*options.data_folder);
   if (options.learning_rate) state.config.learning_rate = *options.learning_rate;
+  if (options.distillation) state.config.distillation = *options.distillation;
   if (options.precision) state.config.precision = resolve_precision(*options.precision);
   state.config.validate();
   impl->config = state.config;

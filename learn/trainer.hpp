@@ -101,6 +101,8 @@ struct ResumeOptions {
   /// native bf16): the weights, Adam's state and the schedule carry over; the continuation is no
   /// longer bit for bit what an uninterrupted run in the old precision would give.
   std::optional<agent::Precision> precision = std::nullopt;
+  /// The full-image teacher's weight lambda from the next batch on (TrainConfig::distillation).
+  std::optional<double> distillation = std::nullopt;
 };
 
 /// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.

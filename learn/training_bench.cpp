@@ -87,7 +87,8 @@ StepTimes time_step(const TrainConfig& c, const BenchSetup& b, const RolloutBatc
       .rollouts_per_image = c.rollouts,
       .leave_one_out = c.leave_one_out,
       .entropy_bonus = c.entropy_bonus,
-      .distillation = c.distillation};
+      .distillation = c.distillation,
+      .stalled_move_cost = c.stalled_move_cost};
   agent::AgentImpl& agent = *m.agent;
   engine.reset_timing();
   m.policy->reset_timing();

@@ -77,6 +77,8 @@ void print_table(const learn::EvalReport& r) {
              "the more revealing chosen in {:.1f} %\n",
              "axis decisions (chi = 1)", r.axis_decisions_per_rollout, 100 * r.axis_differing_share, r.axis_gap_px,
              100 * r.axis_chose_more_share);
+  fmt::print("  {:<26}{:.2f} per rollout (blocked by an obstacle or a teammate, or out of ticks)\n", "stalled moves",
+             r.stalled_moves_per_rollout);
   fmt::print("  {:<26}{}\n", "precision", agent::to_string(r.precision));
   fmt::print("  {:<26}{}\n", "runs", r.runs);
   fmt::print("  {:<26}{}\n", "images", r.images);

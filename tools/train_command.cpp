@@ -194,16 +194,18 @@ void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, le
   const bool adds_occupancy = config.network.occupancy && !model.network.occupancy;
   const bool adds_context = config.network.goal_context > 0 && model.network.goal_context == 0;
   const bool drops_actions = config.network.goals_only && !model.network.goals_only;
+  const bool adds_team = config.network.team_channels && !model.network.team_channels;
   for (const learn::TrainSetting& s : learn::train_settings()) {
     if (s.section != "network" || !o.settings.given(s) || (adds_occupancy && s.key == "occupancy") ||
-        (adds_context && s.key == "goal_context") || (drops_actions && s.key == "goals_only"))
+        (adds_context && s.key == "goal_context") || (drops_actions && s.key == "goals_only") ||
+        (adds_team && s.key == "team_channels"))
       continue;
     const std::string has = learn::setting_text(model, s), asked = learn::setting_text(config, s);
     if (has != asked)
       throw InputError(
           fmt::format("{}: --init-from {} has {}, the command line asks for {} (a run started from a "
-                      "model keeps its networks, but may add --occupancy or --goal-context, or drop its action "
-                      "planner with --goals-only; leave {} out)",
+                      "model keeps its networks, but may add --occupancy, --team-channels or --goal-context, or "
+                      "drop its action planner with --goals-only; leave {} out)",
                       s.option, o.init_from, has, asked, s.option));
   }
   const int goal_context = config.network.goal_context;
@@ -211,6 +213,7 @@ void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, le
   config.network.occupancy = model.network.occupancy || adds_occupancy;
   if (adds_context) config.network.goal_context = goal_context;
   config.network.goals_only = model.network.goals_only || drops_actions;
+  config.network.team_channels = model.network.team_channels || adds_team;
 }
 
 learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint* init) {
@@ -273,10 +276,15 @@ std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::pa
     if (o.settings.given("epochs")) resume.epochs = asked.epochs;
     resume.data_folder = data_folder;
     if (lr_given) resume.learning_rate = lr;
+    const bool distill_given = o.settings.given("distillation");
+    if (distill_given) resume.distillation = asked.distillation;
     resume.precision = resume_precision(o, info.config, o.resume);
     auto trainer = learn::Trainer::resume(checkpoint, run, threads, resume);
     if (lr_given && lr != info.config.learning_rate && !trainer->finished())
       fmt::print("learning rate {} -> {} from the next batch on\n", info.config.learning_rate, lr);
+    if (distill_given && asked.distillation != info.config.distillation && !trainer->finished())
+      fmt::print("full-image teacher's weight {} -> {} from the next batch on\n", info.config.distillation,
+                 asked.distillation);
     if (resume.precision && *resume.precision != info.config.precision && !trainer->finished())
       fmt::print("precision {} -> {} from the next batch on (not bit for bit what {} would give)\n",
                  agent::to_string(info.config.precision), agent::to_string(*resume.precision),

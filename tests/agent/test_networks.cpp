@@ -497,5 +497,28 @@ TEST(Networks, AddingAGoalContextBranchKeepsWhatThePlannersCompute) {
   EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
 }
 
+// The teammates' channels added to a model that reads o already: t_p and t_g come after o, read
+// with zero weights, so the grown planners compute what the model's did whatever they hold.
+TEST(Networks, AddingTheTeammatesChannelsKeepsWhatThePlannersCompute) {
+  torch::manual_seed(6);
+  NetworkConfig config;
+  config.planner_width = 4;
+  config.occupancy = true;
+  config.goal_context = 4;
+  Agent from(config);
+  NetworkConfig grown = config;
+  grown.team_channels = true;
+  Agent to(grown);
+  copy_into_grown(*from, *to);
+  EXPECT_EQ(planner_channels(grown), planner_channels(config) + 2);
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({3, planner_channels(config), 9, 8}) - 0.5;
+  const torch::Tensor team = (torch::rand({3, 2, 9, 8}) > 0.5).to(torch::kFloat);
+  const torch::Tensor u_t = torch::cat({u, team}, 1);
+  EXPECT_TRUE(torch::allclose(to->goal->forward(u_t), from->goal->forward(u), 1e-6, 1e-6));
+  EXPECT_TRUE(torch::allclose(to->action->forward(u_t), from->action->forward(u), 1e-6, 1e-6));
+  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace scout::agent

@@ -185,5 +185,34 @@ TEST(AgentState, TheOccupancyChannelIsWrittenOnlyWhenAskedFor) {
   for (int i = 4 * kN; i < 5 * kN; ++i) EXPECT_TRUE(std::isnan(u[static_cast<std::size_t>(i)]));
 }
 
+// The teammates' channels, after o: t_p is 0 on the camera windows (m = 3) at the teammates'
+// poses, t_g on those around their goals; a robot alone has both all ones. Without o they follow
+// g_l directly.
+TEST(AgentState, TheTeammatesChannelsMarkTheirWindowsAndGoals) {
+  const grid::Cell goal{5, 4};
+  const std::vector<grid::Cell> poses = {{0, 0}, {4, 2}}, goals = {{2, 3}};
+  std::vector<float> u(7 * kN, std::numeric_limits<float>::quiet_NaN());
+  RobotView view{kObserved.data(), kSeen.data(), {2, 2}, &goal, nullptr, poses, goals};
+  write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true, /*team=*/true);
+  expect_channel(u, 5, plane("001111"
+                             "001000"
+                             "111000"
+                             "111000"
+                             "111111"), "t_p");
+  expect_channel(u, 6, plane("111111"
+                             "111111"
+                             "100011"
+                             "100011"
+                             "100011"), "t_g");
+  std::vector<float> without_o(6 * kN, std::numeric_limits<float>::quiet_NaN());
+  write_planner_input(kFloor, 3, view, without_o.data(), /*occupancy=*/false, /*team=*/true);
+  for (int i = 0; i < 2 * kN; ++i) EXPECT_FLOAT_EQ(without_o[4 * kN + i], u[5 * kN + i]);
+  view.teammate_poses = {};
+  view.teammate_goals = {};
+  write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true, /*team=*/true);
+  expect_channel(u, 5, plane(std::string(kN, '1')), "t_p alone");
+  expect_channel(u, 6, plane(std::string(kN, '1')), "t_g alone");
+}
+
 }  // namespace
 }  // namespace scout::agent

@@ -78,6 +78,20 @@ TEST(EstimatorSurrogate, LeaveOneOutWeightIsRewardMinusMeanOfTheOthers) {
   EXPECT_TRUE(torch::allclose(reward.grad(), torch::full({8}, 1.0f / 8), 1e-6, 1e-7)) << reward.grad();
 }
 
+// A cost per rollout (stalled moves) lowers the planners' REINFORCE weight, before the baseline,
+// and leaves the classifier's term r as it is.
+TEST(EstimatorSurrogate, ACostLowersThePlannersWeightOnly) {
+  torch::Tensor log_pi = values({-1.0f, -2.0f, -0.5f, -3.0f}).requires_grad_();
+  torch::Tensor reward = values({1.0f, 2.0f, 3.0f, 6.0f}).requires_grad_();
+  const torch::Tensor cost = values({0.0f, 0.5f, 0.0f, 1.5f});
+  const EstimatorOptions options{.rollouts_per_image = 4, .leave_one_out = true};
+  surrogate_objective(log_pi, reward, options, {}, cost).backward();
+  // r - cost = 1, 1.5, 3, 4.5; minus the mean of the other three: -2, -1.333, 0.667, 2.667.
+  const torch::Tensor weight = values({1 - 9.0f / 3, 1.5f - 8.5f / 3, 3 - 7.0f / 3, 4.5f - 5.5f / 3});
+  EXPECT_TRUE(torch::allclose(log_pi.grad(), weight / 4, 1e-5, 1e-6)) << log_pi.grad();
+  EXPECT_TRUE(torch::allclose(reward.grad(), torch::full({4}, 0.25f), 1e-6, 1e-7)) << reward.grad();
+}
+
 TEST(EstimatorSurrogate, RejectsInvalidInputs) {
   const torch::Tensor log_pi = torch::zeros({6});
   const torch::Tensor reward = torch::zeros({6});

@@ -15,7 +15,11 @@
 #include <utility>
 #include <vector>
 
+#include "core/random.hpp"
+#include "env/runs.hpp"
+#include "learn/internal/agent_policy.hpp"
 #include "learn/internal/objective.hpp"
+#include "learn/rollout.hpp"
 #include "tests/support/training_fixture.hpp"
 
 namespace scout::learn {
@@ -93,6 +97,64 @@ TEST_F(MakeBatch, RefusesNoRolloutsAndIndicesOutOfRange) {
   EXPECT_THROW(batch({0}, 0, 1), std::invalid_argument);
   EXPECT_THROW(batch({5}, 1, 1), std::out_of_range);
   EXPECT_THROW(batch({-1}, 1, 1), std::out_of_range);
+}
+
+// With the teammates' channels a team's robots choose their goals one after the other. A goal
+// planner that scores t_g alone (logit 50 where no teammate's goal window is, 0 on one) then never
+// sends member 1 into the goal window member 0 has just chosen, nor member 0 into member 1's last
+// one; the same planner reading all ones (no teammates' channels: the channel is not there, so its
+// weight is dropped) draws goals uniformly and lands in them now and then. The physics and the
+// camera in the loop, in worlds/scenarios/team-2.yaml (K = 2, each robot 2 episodes of 5 moves).
+TEST(TeamGoals, EachMemberSeesTheGoalsItsTeammatesHaveJustChosen) {
+  const worlds::World world = worlds::load_world(fs::path(SCOUT_SOURCE_DIR) / "worlds/scenarios/team-2.yaml");
+  const grid::FloorFrame frame{28, 28, world.floor.pixel_size_m};
+  constexpr int kTeams = 120, kRobots = 2 * kTeams;
+  std::vector<std::uint8_t> floors(static_cast<std::size_t>(kRobots) * frame.area_px(), 128);
+  std::vector<grid::Cell> starts;
+  std::vector<std::uint64_t> seeds, motion_seeds;
+  core::Rng rng(17);
+  for (int t = 0; t < kTeams; ++t) {
+    const std::uint64_t motion = core::derive_seed(99, static_cast<std::uint64_t>(t));
+    for (const grid::Cell& start : env::draw_team_starts(world, frame, motion, rng)) starts.push_back(start);
+    for (int m = 0; m < 2; ++m) {
+      seeds.push_back(core::derive_seed(5, static_cast<std::uint64_t>(2 * t + m)));
+      motion_seeds.push_back(env::member_seed(motion, m));
+    }
+  }
+  auto collisions = [&](bool team_channels) {
+    agent::NetworkConfig config;
+    config.planner_width = 2;
+    config.planner_depth = 1;
+    config.team_channels = team_channels;
+    agent::Agent agent(config);
+    {
+      torch::NoGradGuard no_grad;
+      for (auto& p : agent->goal->parameters()) p.zero_();
+      if (team_channels) agent->goal->named_parameters()["head.weight"][0][agent::planner_channels(config) - 1] = 50.0;
+    }
+    RolloutEngine engine(world, frame, kRobots);
+    AgentPolicy policy(*agent, frame, world.camera.patch_px, kRobots);
+    Sampling sampling;
+    sampling.learned_goals = true;
+    policy.begin(seeds, sampling);
+    const auto records = engine.run(floors, starts, motion_seeds, policy);
+    const int steps = world.task.steps, episodes = world.task.episodes / 2;
+    auto inside = [&](const grid::Cell& goal, const grid::Cell& around) {
+      const grid::Window w = grid::camera_window(around, world.camera.patch_px, frame);
+      return goal.x() >= w.x0 && goal.x() < w.x1 && goal.y() >= w.y0 && goal.y() < w.y1;
+    };
+    int hits = 0;
+    for (int t = 0; t < kTeams; ++t)
+      for (int e = 0; e < episodes; ++e) {
+        const grid::Cell first = records[2 * t].steps[e * steps].goal;
+        const grid::Cell second = records[2 * t + 1].steps[e * steps].goal;
+        hits += inside(second, first) ? 1 : 0;
+        if (e > 0) hits += inside(first, records[2 * t + 1].steps[(e - 1) * steps].goal) ? 1 : 0;
+      }
+    return hits;
+  };
+  EXPECT_EQ(collisions(true), 0);
+  EXPECT_GT(collisions(false), 0) << "uniform goals fall into a teammate's window now and then";
 }
 
 TEST(CountCorrect, CountsArgmaxAndTopTwoHits) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <filesystem>
 #include <random>
 
 #include "core/random.hpp"
@@ -301,6 +302,26 @@ TEST(RolloutEngine, TheAxisTallyCreditsTheMoreRevealingChoice) {
   }
   engine.reset_axis_tally();
   EXPECT_EQ(engine.axis_tally().decisions, 0);
+}
+
+// Stalled moves (what --stalled-move-cost charges and scout eval counts) are the recorded moves
+// marked blocked, or with ticks but not settled, in a world whose boxes block robots.
+TEST(RolloutEngine, StalledMovesAreTheRecordedBlockedOrUnsettledMoves) {
+  const worlds::World world =
+      worlds::load_world(std::filesystem::path(SCOUT_SOURCE_DIR) / "worlds/scenarios/obstacles-strong.yaml");
+  RolloutEngine engine(world, kFloor, 60);
+  const Batch b = random_batch(60, 4);
+  RandomPolicy policy(b.seeds);
+  const auto records = engine.run(b.floors, b.starts, b.motion_seeds, policy);
+  long total = 0;
+  for (int i = 0; i < 60; ++i) {
+    int stalled = 0;
+    for (const StepRecord& s : records[i].steps)
+      stalled += s.result.blocked || (s.result.ticks > 0 && !s.result.settled) ? 1 : 0;
+    EXPECT_EQ(engine.stalled_moves()[i], stalled) << "robot " << i;
+    total += stalled;
+  }
+  EXPECT_GT(total, 0) << "random moves among boxes end against one now and then";
 }
 
 TEST(RolloutEngine, RunsBatchesSmallerThanItsCapacity) {

@@ -81,6 +81,7 @@ TEST(TrainSettings, EveryChangedSettingRoundTrips) {
   c.learning_rate = 0.0025;
   c.leave_one_out = true;
   c.entropy_bonus = 0.5;
+  c.distillation = 0.25;
   c.precision = agent::Precision::BFloat16;
   c.frozen = {true, false, true};
   c.seed = 18446744073709551615ull;
@@ -114,9 +115,10 @@ TEST(TrainSettings, TheOccupancyFlagIsStoredOnlyWhenOn) {
   EXPECT_NE(refusal(bad).find("occupancy"), std::string::npos) << refusal(bad);
 }
 
-// The goal context branch came later still: 0 (none) is not written and an absent key reads 0; a
-// width is written, reads back, and a value out of range is refused naming the field.
-TEST(TrainSettings, TheGoalContextIsStoredOnlyWhenThePlannerHasOne) {
+// The goal context branch and the full-image teacher came later still: 0 (none) is not written and
+// an absent key reads 0; a value is written, reads back, and one out of range is refused naming the
+// field.
+TEST(TrainSettings, TheGoalContextAndTheTeachersWeightAreStoredOnlyWhenSet) {
   TrainConfig c = valid_config();
   EXPECT_EQ(c.to_json().find("goal_context"), std::string::npos);
   EXPECT_EQ(TrainConfig::from_json(c.to_json(), "run").network.goal_context, 0);
@@ -126,6 +128,11 @@ TEST(TrainSettings, TheGoalContextIsStoredOnlyWhenThePlannerHasOne) {
   std::string bad = c.to_json();
   bad.replace(bad.find("\"goal_context\": 32"), std::string("\"goal_context\": 32").size(), "\"goal_context\": 100000");
   EXPECT_NE(refusal(bad).find("goal_context"), std::string::npos) << refusal(bad);
+  // The full-image teacher's weight alike: 0 unwritten (absent reads 0), any other value written.
+  EXPECT_EQ(c.to_json().find("distillation"), std::string::npos);
+  c.distillation = 0.5;
+  EXPECT_EQ(nlohmann::ordered_json::parse(c.to_json())["distillation"], 0.5);
+  EXPECT_EQ(TrainConfig::from_json(c.to_json(), "run").distillation, 0.5);
 }
 
 // An option's text sets its setting and reads back the same; a bad one is refused with the row's
@@ -199,7 +206,7 @@ TEST(TrainSettings, ABatchTheCameraCannotDrawIsRefusedUpFront) {
 
 // The table's columns: every option is one setting's, the ranks compare what a run's numbers
 // depend on (not paths, not what comes from the data), and a resume may change only the schedule,
-// the rate, the arithmetic and where the data is.
+// the rate, the full-image teacher's weight, the arithmetic and where the data is.
 TEST(TrainSettings, TheTableSaysWhatEachCommandResumeAndRankDoes) {
   std::set<std::string_view> options;
   std::set<std::string> changes;
@@ -209,7 +216,7 @@ TEST(TrainSettings, TheTableSaysWhatEachCommandResumeAndRankDoes) {
     }
     if (s.on_resume == OnResume::Changes) changes.insert(setting_key(s));
   }
-  EXPECT_EQ(changes, (std::set<std::string>{"data_folder", "epochs", "learning_rate", "precision"}));
+  EXPECT_EQ(changes, (std::set<std::string>{"data_folder", "distillation", "epochs", "learning_rate", "precision"}));
   EXPECT_EQ(train_setting("rollouts").commands, SettingCommands::TrainAndBench);
   EXPECT_EQ(train_setting("seed").commands, SettingCommands::Train);
 
