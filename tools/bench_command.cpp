@@ -321,6 +321,14 @@ learn::TrainBenchConfig bench_train_config(const TrainBenchOptions& opt) {
   c.data_folder = worlds::dataset_folder(c.world.floor.dataset, data_root);
   c.precision = learn::resolve_precision(c.precision);
   c.seed = c.world.seed;
+  if (c.network.goals_only) {
+    // The bench runs no schedule, but a goals-only agent has no mode iii to time.
+    c.epochs[2] = 0;
+    for (const learn::Stage mode : config.modes)
+      if (mode == learn::Stage::ModeIII)
+        throw InputError("--modes: a goals-only agent (--goals-only) has no mode iii (its actions are i.i.d.: time mode "
+                         "ii)");
+  }
   c.validate(setting_option);
   config.batches = opt.batches;
   config.warmup = opt.warmup;
