@@ -40,11 +40,21 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
-// The paper's figures (§ Experiments) and, for scale, RAM's (Mnih et al. 2014, MNIST 28 x 28).
+// The paper's figures (§ Experiments) and, for scale, the glimpse models' published points on
+// MNIST 28 x 28: another task (a glimpse jumps anywhere, Scout's robot drives), drawn at the
+// largest share of the digit their glimpses can reveal.
 constexpr double kPaperAccuracy = 94.61, kPaperCi95 = 0.17, kPaperTop2 = 98.30, kPaperFullImage = 94.92;
 constexpr double kPaperTransfer = 95.19;
-constexpr double kRamAccuracy = 98.88;
-constexpr int kRamGlimpses = 6, kRamSide = 8;
+struct GlimpsePoint {
+  const char* source;
+  int glimpses, side;
+  double accuracy;  // per cent
+};
+constexpr GlimpsePoint kGlimpsePoints[] = {
+    {"RAM (Mnih et al. 2014)", 4, 8, 98.46},
+    {"RAM (Mnih et al. 2014)", 6, 8, 98.88},
+    {"MRAM (2025; glimpses taken as RAM's 8 x 8)", 7, 8, 99.20},
+};
 
 struct ReportOptions {
   std::string model;  // a model file or a run folder
@@ -52,7 +62,9 @@ struct ReportOptions {
   std::string eval_file;
   std::string images, labels;  // default: the official test digits of data set mnist
   std::string data_root;
-  std::vector<std::string> compare;  // LABEL=EVAL.json
+  std::vector<std::string> compare;        // LABEL=EVAL.json
+  std::vector<std::string> sweep_compare;  // LABEL=MODEL: its budget curve beside this model's
+  std::vector<std::string> scenario_agents;  // WORLD.yaml=MODEL: an agent trained for that world
   int runs = 20;
   int sweep_digits = 1000;
   int sweep_runs = 2;
@@ -252,14 +264,16 @@ learn::EvalReport evaluate_agent(const ReportOptions& opt, const learn::Checkpoi
 // The budget sweep: the same networks at other patch sizes m, and at other numbers of episodes E
 // (T as trained), on the first `digits` test digits.
 json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const fs::path& images,
-                  const fs::path& labels, std::uint64_t seed) {
+                  const fs::path& labels, std::uint64_t seed, bool moves_only = false,
+                  const std::string& label = "budget point") {
   const worlds::World& trained = checkpoint.info().config.world;
   struct Point {
     int patch, episodes;
     const char* kind;
   };
   std::vector<Point> points;
-  for (int m : {2, 4, 6, 8, 10}) points.push_back({m, trained.task.episodes, "patch"});
+  if (!moves_only)
+    for (int m : {2, 4, 6, 8, 10}) points.push_back({m, trained.task.episodes, "patch"});
   // A team of K robots shares the E episodes out: only the E that K divides.
   for (int e : {1, 2, 4, 6, 8})
     if (e % trained.team.robots == 0) points.push_back({trained.camera.patch_px, e, "moves"});
@@ -278,7 +292,7 @@ json budget_sweep(const ReportOptions& opt, const learn::Checkpoint& checkpoint,
     world.task.episodes = p.episodes;
     const learn::EvalReport r =
         evaluate_agent(opt, checkpoint, {world, images, labels, opt.sweep_runs, opt.sweep_digits, seed},
-                       fmt::format("budget point {} of {}", point, points.size()));
+                       fmt::format("{} {} of {}", label, point, points.size()));
     out["points"].push_back({{"kind", p.kind},
                              {"patch_px", p.patch},
                              {"episodes", p.episodes},
@@ -314,8 +328,10 @@ json robustness(const ReportOptions& opt, const learn::Checkpoint& checkpoint, c
                            {"file", row == 1 ? std::string() : world.file.string()},
                            {"accuracy", r.accuracy.mean},
                            {"ci95", r.accuracy.ci95},
-                           {"revealed_fraction", r.revealed_fraction}});
-    fmt::print("  robustness: {:<20} accuracy {:.4f} ± {:.4f}\n", name, r.accuracy.mean, r.accuracy.ci95);
+                           {"revealed_fraction", r.revealed_fraction},
+                           {"stalled_moves", r.stalled_moves_per_rollout}});
+    fmt::print("  robustness: {:<20} accuracy {:.4f} ± {:.4f}, {:.2f} stalled moves per rollout\n", name,
+               r.accuracy.mean, r.accuracy.ci95, r.stalled_moves_per_rollout);
     std::fflush(stdout);
   }
   return out;
@@ -450,9 +466,24 @@ struct ReportInputs {
   std::vector<Compared> compared;
   json eval;                             // the model's evaluation; null: the report evaluates it
   std::vector<worlds::World> scenarios;  // --scenarios, loaded
+  std::vector<std::pair<std::string, learn::Checkpoint>> sweep_compared;  // --sweep-compare, opened
+  struct ScenarioAgent {
+    worlds::World world;
+    std::string model;
+    learn::Checkpoint opened;
+  };
+  std::vector<ScenarioAgent> scenario_agents;  // --scenario-agent, loaded and opened
   worlds::ImageSet test_images;
   std::vector<std::uint8_t> test_labels;
 };
+
+// "LEFT=RIGHT" split at the first '=', both sides non-empty; else one line naming the option.
+std::pair<std::string, std::string> split_pair(const std::string& entry, const char* option, const char* expected) {
+  const std::size_t eq = entry.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == entry.size())
+    throw InputError(fmt::format("{}: expected {}, got \"{}\"", option, expected, entry));
+  return {entry.substr(0, eq), entry.substr(eq + 1)};
+}
 
 std::vector<Compared> read_compared(const ReportOptions& opt) {
   std::vector<Compared> compared;
@@ -521,6 +552,15 @@ ReportInputs gather_report_inputs(const ReportOptions& opt) {
         fmt::format("{}: the report's plotting script is missing (set SCOUT_REPORT_SCRIPT)", in.script.string()));
   in.compared = read_compared(opt);
   for (const std::string& file : opt.scenarios) in.scenarios.push_back(worlds::load_world(file));
+  for (const std::string& entry : opt.sweep_compare) {
+    auto [label, model] = split_pair(entry, "--sweep-compare", "LABEL=MODEL");
+    in.sweep_compared.emplace_back(label, learn::open_checkpoint(learn::resolve_checkpoint(model)));
+  }
+  for (const std::string& entry : opt.scenario_agents) {
+    auto [world, model] = split_pair(entry, "--scenario-agent", "WORLD.yaml=MODEL");
+    in.scenario_agents.push_back(
+        {worlds::load_world(world), model, learn::open_checkpoint(learn::resolve_checkpoint(model))});
+  }
   in.checkpoint_sha = core::sha256_hex(checkpoint);
   read_model_eval(opt, in);
   worlds::LabeledImages test = worlds::read_labeled_idx(in.images, in.labels);
@@ -553,16 +593,19 @@ json evaluate_model(const ReportOptions& opt, const ReportInputs& in, const Cont
 }
 
 json paper_figures() {
+  json glimpse_models = json::array();
+  for (const GlimpsePoint& g : kGlimpsePoints)
+    glimpse_models.push_back({{"source", g.source},
+                              {"accuracy", g.accuracy},
+                              {"glimpses", g.glimpses},
+                              {"side", g.side},
+                              {"revealed_fraction", std::min(1.0, g.glimpses * g.side * g.side / 784.0)}});
   return {{"accuracy", kPaperAccuracy},
           {"ci95", kPaperCi95},
           {"top2", kPaperTop2},
           {"full_image", kPaperFullImage},
           {"transfer", kPaperTransfer},
-          {"ram",
-           {{"accuracy", kRamAccuracy},
-            {"glimpses", kRamGlimpses},
-            {"side", kRamSide},
-            {"revealed_fraction", std::min(1.0, kRamGlimpses * kRamSide * kRamSide / 784.0)}}}};
+          {"glimpse_models", glimpse_models}};
 }
 
 json compared_rows(const std::vector<Compared>& compared) {
@@ -597,11 +640,52 @@ void add_sweep(const ReportOptions& opt, const ReportInputs& in, json& data) {
   for (const json& p : data["sweep"]["points"])
     if (p["patch_px"] == 6 && p["episodes"] == 4 && p["steps"] == 5)
       data["paper"]["revealed_fraction"] = p["revealed_fraction"];
+  // Other models' budget curves (E x T at their m), drawn beside this model's.
+  data["sweep"]["compared"] = json::array();
+  for (const auto& [label, checkpoint] : in.sweep_compared)
+    data["sweep"]["compared"].push_back(
+        {{"label", label},
+         {"points", budget_sweep(opt, checkpoint, in.images, in.labels, in.seed, /*moves_only=*/true,
+                                 fmt::format("{}: budget point", label))["points"]}});
   const worlds::World& world = in.opened.info().config.world;
   if (data["model"]["revealed_fraction"].is_null())
     for (const json& p : data["sweep"]["points"])
       if (p["patch_px"] == world.camera.patch_px && p["episodes"] == world.task.episodes)
         data["model"]["revealed_fraction"] = p["revealed_fraction"];
+}
+
+// Each scenario agent in the world it was trained for, beside this model in that world: accuracy
+// and the moves per rollout that did not arrive (blocked by an obstacle or a teammate), on the
+// robustness table's digits and runs.
+json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
+  json out;
+  out["digits"] = std::min(opt.scenario_digits, in.test_images.count);
+  out["runs"] = opt.scenario_runs;
+  out["seed"] = in.seed;
+  out["rows"] = json::array();
+  int row = 0;
+  const std::size_t rows = in.scenario_agents.size();
+  for (const ReportInputs::ScenarioAgent& a : in.scenario_agents) {
+    ++row;
+    const AgentEval task{a.world, in.images, in.labels, opt.scenario_runs, opt.scenario_digits, in.seed};
+    const learn::EvalReport agent =
+        evaluate_agent(opt, a.opened, task, fmt::format("scenario agent {} of {}", row, rows));
+    const learn::EvalReport model =
+        evaluate_agent(opt, in.opened, task, fmt::format("this model in scenario {} of {}", row, rows));
+    out["rows"].push_back({{"world", a.world.file.stem().string()},
+                           {"agent", a.model},
+                           {"accuracy", agent.accuracy.mean},
+                           {"ci95", agent.accuracy.ci95},
+                           {"stalled_moves", agent.stalled_moves_per_rollout},
+                           {"model_accuracy", model.accuracy.mean},
+                           {"model_ci95", model.accuracy.ci95},
+                           {"model_stalled_moves", model.stalled_moves_per_rollout}});
+    fmt::print("  scenario agent {} in {}: accuracy {:.4f}, {:.2f} stalled moves per rollout (this model {:.4f}, {:.2f})\n",
+               a.model, a.world.file.stem().string(), agent.accuracy.mean, agent.stalled_moves_per_rollout,
+               model.accuracy.mean, model.stalled_moves_per_rollout);
+    std::fflush(stdout);
+  }
+  return out;
 }
 
 // What report-data.json holds: the paper's figures, this model's evaluation and history, the
@@ -631,6 +715,7 @@ json report_data(const ReportOptions& opt, const ReportInputs& in, const json& e
     data["robustness"] = robustness(opt, in.opened, in.scenarios, in.images, in.labels, in.seed);
     data["robustness"]["digits"] = std::min(opt.scenario_digits, in.test_images.count);
   }
+  if (!in.scenario_agents.empty()) data["scenario_agents"] = scenario_agents(opt, in);
   data["episode_seed"] = in.seed;
   data["episodes"] =
       opt.episodes > 0 ? test_episodes(opt, in.opened, in.test_images, in.test_labels, in.seed) : json::array();
@@ -705,6 +790,8 @@ void add_report_command(CLI::App& app, const Context& context) {
       ->check(decimal_in(1, 1000));
   cmd->add_option("--compare", opt->compare,
                   "Another model's row in the table: LABEL=EVAL.json (scout eval --json; repeatable)");
+  cmd->add_option("--sweep-compare", opt->sweep_compare,
+                  "Another model's budget curve (E x T at its m) beside this model's: LABEL=MODEL (repeatable)");
   cmd->add_option("--sweep-digits", opt->sweep_digits, "Test digits per point of the budget sweep (0: no sweep)")
       ->capture_default_str()
       ->check(decimal_in(0, 1000000));
@@ -714,6 +801,9 @@ void add_report_command(CLI::App& app, const Context& context) {
   cmd->add_option("--scenarios", opt->scenarios,
                   "World files of the robustness table: the model in each, beside its own world (e.g. "
                   "worlds/scenarios/*.yaml; docs/SCENARIOS.md)");
+  cmd->add_option("--scenario-agent", opt->scenario_agents,
+                  "An agent trained for a scenario world, in a table beside this model there, with the moves that "
+                  "did not arrive: WORLD.yaml=MODEL (repeatable)");
   cmd->add_option("--scenario-digits", opt->scenario_digits, "Test digits per world of the robustness table")
       ->capture_default_str()
       ->check(decimal_in(1, 1000000));

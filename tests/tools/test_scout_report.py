@@ -56,13 +56,20 @@ def report_data():
         "command": "scout report models/x.pt --out r", "cpu": "a test CPU", "seconds": 12.0,
         "paper": {"accuracy": 94.61, "ci95": 0.17, "top2": 98.30, "full_image": 94.92, "transfer": 95.19,
                   "revealed_fraction": 0.41,
-                  "ram": {"accuracy": 98.88, "glimpses": 6, "side": 8, "revealed_fraction": 384 / 784}},
+                  "glimpse_models": [
+                      {"source": "RAM (Mnih et al. 2014)", "accuracy": 98.46, "glimpses": 4, "side": 8,
+                       "revealed_fraction": 256 / 784},
+                      {"source": "RAM (Mnih et al. 2014)", "accuracy": 98.88, "glimpses": 6, "side": 8,
+                       "revealed_fraction": 384 / 784}]},
         "model": {"label": "Scout: x.pt", "path": "models/x.pt", "eval": ev, "eval_source": "x-test-eval.json",
                   "eval_command": "scout eval --checkpoint models/x.pt", "train_commands": ["scout train w.yaml"],
                   "history": history, "revealed_fraction": 0.42},
         "compare": [{"label": "Paper-faithful run", "eval": dict(ev, accuracy={"mean": 0.93, "ci95": 0.003}),
                      "eval_source": "f.json", "eval_command": "", "train_commands": []}],
-        "sweep": {"digits": 500, "runs": 2, "seed": 1, "points": points},
+        "sweep": {"digits": 500, "runs": 2, "seed": 1, "points": points, "compared": [
+            {"label": "the paper's agent", "points": [
+                {"kind": "moves", "patch_px": 6, "episodes": e, "steps": 5, "accuracy": acc, "ci95": 0.01,
+                 "revealed_fraction": frac} for e, frac, acc in ((2, 0.24, 0.85), (4, 0.4, 0.95))]}]},
         "episode_seed": 1, "episodes": episodes,
     }
 
@@ -94,6 +101,10 @@ def test_the_figures_and_report_are_written(tmp_path):
         assert f"]({figure})" in text
     # Per-class accuracy from the confusion matrix's diagonal (class 3 is 92.0).
     assert "| accuracy | 97.0 | 97.0 | 97.0 | 92.0 |" in text
+    # The compared budget curve and the glimpse models' published points, as another task's.
+    assert "the paper's agent at the same budgets: 2 × 5: 85.00 %, 4 × 5: 95.00 %." in text
+    assert "RAM (Mnih et al. 2014), 4 glimpses of 8 × 8: 98.46 % (at most 33 % of the pixels)" in text
+    assert "another task" in text
 
 
 def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
@@ -102,6 +113,9 @@ def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
         {"world": "the model's world", "file": "", "accuracy": 0.9602, "ci95": 0.0045, "revealed_fraction": 0.285},
         {"world": "odometry-strong", "file": "worlds/scenarios/odometry-strong.yaml", "accuracy": 0.7142,
          "ci95": 0.012, "revealed_fraction": 0.27}]}
+    data["scenario_agents"] = {"digits": 1000, "runs": 5, "seed": 7, "rows": [
+        {"world": "obstacles-random", "agent": "models/obstacles-random.pt", "accuracy": 0.95, "ci95": 0.004,
+         "stalled_moves": 2.25, "model_accuracy": 0.93, "model_ci95": 0.006, "model_stalled_moves": 8.5}]}
     result, out = run(tmp_path, data)
     assert result.returncode == 0, result.stderr
     text = (out / "REPORT.md").read_text()
@@ -109,6 +123,7 @@ def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
     assert "first 1000 test digits, 5 stochastic run(s), seed 7" in text
     assert "| the model's world | 96.02 ± 0.45 % |  | 28.5 % |" in text
     assert "| odometry-strong | 71.42 ± 1.20 % | -24.60 points | 27.0 % |" in text
+    assert "| obstacles-random | `models/obstacles-random.pt` | 95.00 ± 0.40 % | 2.25 | 93.00 ± 0.60 % | 8.50 |" in text
     assert "Robustness" not in run(tmp_path, report_data())[1].joinpath("REPORT.md").read_text()
 
 

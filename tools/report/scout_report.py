@@ -240,11 +240,19 @@ def plot_budget(sweep, paper, model_point, out_dir):
     if paper_fraction is not None:
         ax.plot([paper_fraction], [paper["accuracy"] / 100], "D", color="#9467bd", ms=7,
                 label=f"the paper: {paper['accuracy']:.2f} % (m = 6, 4 × 5; at Scout's coverage of that task)")
-    ram = paper.get("ram")
-    if ram:
-        ax.plot([ram["revealed_fraction"]], [ram["accuracy"] / 100], "P", color="#8c564b", ms=9,
-                label=f"RAM: {ram['accuracy']:.2f} % ({ram['glimpses']} glimpses of {ram['side']}×{ram['side']}, "
-                      "at most this share)")
+    # Other models' curves (E × T at their m), e.g. the paper's agent beside the shipped one.
+    for k, other in enumerate(sweep.get("compared", [])):
+        pts = sorted(need(other, "points", "sweep.compared"), key=lambda p: p["revealed_fraction"])
+        if not pts:
+            continue
+        colour = ("#2ca02c", "#ff7f0e", "#7f7f7f")[k % 3]
+        ax.plot([p["revealed_fraction"] for p in pts], [p["accuracy"] for p in pts], "^--", color=colour, ms=4,
+                label=f"{other['label']}: episodes E × moves T")
+    # The glimpse models: another task (glimpses jump anywhere), at the most their glimpses reveal.
+    for k, g in enumerate(paper.get("glimpse_models", [])):
+        ax.plot([g["revealed_fraction"]], [g["accuracy"] / 100], "P", color="#8c564b", ms=9, alpha=1 - 0.25 * k,
+                label=f"{g['source']}: {g['accuracy']:.2f} % with {g['glimpses']} glimpses of "
+                      f"{g['side']}×{g['side']} (another task; at most this share)")
     ax.set_xlabel("fraction of the floor's pixels revealed by the end (mean over episodes)")
     ax.set_ylabel("test accuracy")
     ax.set_xlim(0, 1)
@@ -379,11 +387,17 @@ def write_report(data, figures, out_dir):
             add(f"| {p['patch_px']} | {p['episodes']} × {p['steps']} | {100 * p['revealed_fraction']:.1f} % | "
                 f"{100 * p['accuracy']:.2f} % |")
         add("")
-        ram = data["paper"].get("ram")
-        if ram:
-            add(f"RAM (Mnih et al., 2014) reaches {ram['accuracy']:.2f} % on MNIST with {ram['glimpses']} glimpses "
-                f"of {ram['side']} × {ram['side']} pixels, at most {100 * ram['revealed_fraction']:.0f} % of the "
-                "digit, choosing each glimpse anywhere; Scout's robot must drive between its views.")
+        for other in sweep.get("compared", []):
+            add(f"{other['label']} at the same budgets: " + ", ".join(
+                f"{p['episodes']} × {p['steps']}: {100 * p['accuracy']:.2f} %"
+                for p in sorted(other["points"], key=lambda p: p["episodes"])) + ".")
+            add("")
+        glimpses = data["paper"].get("glimpse_models", [])
+        if glimpses:
+            add("The glimpse models, drawn for scale, solve another task: each glimpse may jump anywhere on the "
+                "digit, where Scout's robot drives between its views. Their published points: " + "; ".join(
+                    f"{g['source']}, {g['glimpses']} glimpses of {g['side']} × {g['side']}: {g['accuracy']:.2f} % "
+                    f"(at most {100 * g['revealed_fraction']:.0f} % of the pixels)" for g in glimpses) + ".")
             add("")
     robustness = data.get("robustness")
     if robustness:
@@ -395,12 +409,32 @@ def write_report(data, figures, out_dir):
             f"{robustness['digits']} test digits, {robustness['runs']} stochastic run(s), seed {robustness['seed']}; "
             "the first row is its own world.")
         add("")
-        add("| world | accuracy | change | revealed |")
-        add("|---|---|---|---|")
+        stalled = all("stalled_moves" in r for r in rows)
+        add("| world | accuracy | change | revealed |" + (" stalled moves |" if stalled else ""))
+        add("|---|---|---|---|" + ("---|" if stalled else ""))
         for i, r in enumerate(rows):
             change = "" if i == 0 else f"{100 * (r['accuracy'] - base):+.2f} points"
             add(f"| {r['world']} | {100 * r['accuracy']:.2f} ± {100 * r['ci95']:.2f} % | {change} | "
-                f"{100 * r['revealed_fraction']:.1f} % |")
+                f"{100 * r['revealed_fraction']:.1f} % |" + (f" {r['stalled_moves']:.2f} |" if stalled else ""))
+        add("")
+        if stalled:
+            add("Stalled moves: per rollout, the moves that did not arrive (blocked by an obstacle or a teammate, "
+                "or out of ticks).")
+            add("")
+    agents = data.get("scenario_agents")
+    if agents:
+        add("## Agents trained for a scenario world")
+        add("")
+        add(f"Each in the world it was trained for, beside this model there; the first {agents['digits']} test "
+            f"digits, {agents['runs']} stochastic run(s), seed {agents['seed']}. Stalled moves: per rollout, the "
+            "moves that did not arrive (blocked by an obstacle or a teammate, or out of ticks).")
+        add("")
+        add("| world | agent | accuracy | stalled moves | this model | its stalled moves |")
+        add("|---|---|---|---|---|---|")
+        for r in need(agents, "rows", "scenario_agents"):
+            add(f"| {r['world']} | `{r['agent']}` | {100 * r['accuracy']:.2f} ± {100 * r['ci95']:.2f} % | "
+                f"{r['stalled_moves']:.2f} | {100 * r['model_accuracy']:.2f} ± {100 * r['model_ci95']:.2f} % | "
+                f"{r['model_stalled_moves']:.2f} |")
         add("")
     add("## Files")
     add("")
