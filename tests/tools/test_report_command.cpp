@@ -161,7 +161,9 @@ TEST_F(EvalRun, ReportComparesAnotherModelsRowAndCurve) {
 }
 
 // --scenarios: the robustness table, the model in its own world and in each scenario world; a row
-// is what scout eval gives in that world on the same digits, runs and seed.
+// is what scout eval gives in that world on the same digits, runs and seed, stalled moves included.
+// --scenario-agent: another agent in its scenario world beside the model there, the same way.
+// --sweep-compare: another model's E x T curve beside the model's.
 TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   const std::string world_text = "floor: {dataset: " + path("data") +
                                  ", split: test, index: random}\ncamera: {patch_px: 3}\ntask: {episodes: 2, "
@@ -169,9 +171,10 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   temp_->write("odometry.yaml", world_text + "motion: {scale_sd: 0.25, heading_sd_deg: 15, pose: odometry}\n");
   temp_->write("boxes.yaml", world_text + "obstacles: {random_boxes: 2, random_box_min_px: 2, random_box_max_px: 3}\n");
   const Result r = scout("report " + path("run") + " --out " + path("robust") + test_data() +
-                         " --runs 1 --sweep-digits 0 --episodes 0 --seed 6 --scenario-digits 9 --scenario-runs 2 "
-                         "--scenarios " +
-                         path("odometry.yaml") + " " + path("boxes.yaml"));
+                         " --runs 1 --sweep-digits 3 --sweep-runs 1 --episodes 0 --seed 6 --scenario-digits 9 "
+                         "--scenario-runs 2 --sweep-compare \"mode i=" + checkpoint("run_i") + "\" --scenario-agent " +
+                         path("boxes.yaml") + "=" + checkpoint("run_i") + " --scenarios " + path("odometry.yaml") + " " +
+                         path("boxes.yaml"));
   ASSERT_EQ(r.status, 0) << r.output;
   const json data = read_json(path("robust") + "/report-data.json");
   const json& rows = data["robustness"]["rows"];
@@ -188,10 +191,34 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   const Result direct = scout("eval --checkpoint " + path("run") + test_data() + " --world " + path("boxes.yaml") +
                               " --limit 9 --runs 2 --seed 6 --json " + path("boxes-eval.json"));
   ASSERT_EQ(direct.status, 0) << direct.output;
-  EXPECT_EQ(rows[2]["accuracy"], read_json(path("boxes-eval.json"))["accuracy"]["mean"]);
+  const json boxes = read_json(path("boxes-eval.json"));
+  EXPECT_EQ(rows[2]["accuracy"], boxes["accuracy"]["mean"]);
+  EXPECT_EQ(rows[2]["stalled_moves"], boxes["stalled_moves_per_rollout"]);
+  const Result agent_direct = scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --world " +
+                                    path("boxes.yaml") + " --limit 9 --runs 2 --seed 6 --json " + path("agent-eval.json"));
+  ASSERT_EQ(agent_direct.status, 0) << agent_direct.output;
+  const json agent = read_json(path("agent-eval.json"));
+  ASSERT_EQ(data["scenario_agents"]["rows"].size(), 1u) << data.dump();
+  const json& agent_row = data["scenario_agents"]["rows"][0];
+  EXPECT_EQ(agent_row["world"], "boxes");
+  EXPECT_EQ(agent_row["accuracy"], agent["accuracy"]["mean"]);
+  EXPECT_EQ(agent_row["stalled_moves"], agent["stalled_moves_per_rollout"]);
+  EXPECT_EQ(agent_row["model_accuracy"], boxes["accuracy"]["mean"]);
+  EXPECT_EQ(agent_row["model_stalled_moves"], boxes["stalled_moves_per_rollout"]);
+  const json& compared = data["sweep"]["compared"];
+  ASSERT_EQ(compared.size(), 1u);
+  EXPECT_EQ(compared[0]["label"], "mode i");
+  ASSERT_EQ(compared[0]["points"].size(), 5u) << compared.dump();  // E = 1, 2, 4, 6, 8
+  for (const json& p : compared[0]["points"]) EXPECT_EQ(p["kind"], "moves");
   const std::string report = read_text(path("robust") + "/REPORT.md");
   EXPECT_NE(report.find("## Robustness in the scenario worlds"), std::string::npos) << report;
   EXPECT_NE(report.find("| odometry | "), std::string::npos) << report;
+  EXPECT_NE(report.find("## Agents trained for a scenario world"), std::string::npos) << report;
+  // An agent given without its world is refused before any work, naming the option.
+  const Result no_world = scout("report " + path("run") + " --out " + path("robust-bad") + test_data() +
+                                " --scenario-agent " + checkpoint("run_i"));
+  EXPECT_EQ(no_world.status, 1) << no_world.output;
+  EXPECT_NE(no_world.output.find("--scenario-agent: expected WORLD.yaml=MODEL"), std::string::npos) << no_world.output;
   // A world file that does not load is refused before any work, naming it.
   temp_->write("bad.yaml", world_text + "motion: {scale_sd: 2}\n");
   const Result bad = scout("report " + path("run") + " --out " + path("robust-bad") + test_data() + " --scenarios " +
