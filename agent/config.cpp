@@ -212,7 +212,8 @@ std::int64_t planner(const NetworkConfig& c, std::int64_t head_channels) {
   n += conv(in + std::int64_t{c.planner_depth} * c.planner_width, head_channels, 1, true);
   if (head_channels == 1 && c.goal_context > 0) {  // the goal planner's context branch and its head inputs
     const std::int64_t k = c.goal_context;
-    n += conv(in, k, 3, true) + conv(k, k, 3, true) + kGoalContextBlocks * conv(k, k, 3, true) + conv(2 * k, 1, 1, true);
+    n +=
+        conv(in, k, 3, true) + conv(k, k, 3, true) + kGoalContextBlocks * conv(k, k, 3, true) + conv(2 * k, 1, 1, true);
   }
   return n;
 }

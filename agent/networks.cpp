@@ -289,8 +289,8 @@ torch::Tensor PlannerImpl::forward(torch::Tensor u) {
     const torch::Tensor coarse = context_->forward(u);
     const torch::Tensor whole = coarse.mean({2, 3}, /*keepdim=*/true).expand_as(coarse);
     const torch::Tensor scores = context_head_->forward(torch::cat({coarse, whole}, 1));
-    maps = maps + torch::upsample_bilinear2d(scores, {u.size(2), u.size(3)}, /*align_corners=*/false)
-                      .to(maps.scalar_type());
+    maps = maps +
+           torch::upsample_bilinear2d(scores, {u.size(2), u.size(3)}, /*align_corners=*/false).to(maps.scalar_type());
   }
   // Goals: [B, 1, H, W] -> [B, H * W], pixel (x, y) is logit y * W + x, the floor's row-major order.
   return kind_ == Head::GoalPixels ? maps.flatten(1) : global_average(maps);
@@ -365,8 +365,7 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
   const bool drops_actions = wants.goals_only && !has.goals_only;
   if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions && !adds_team) ||
       (has.occupancy && !wants.occupancy) || (has.goals_only && !wants.goals_only) ||
-      (has.team_channels && !wants.team_channels) ||
-      (has.goal_context != wants.goal_context && !adds_context))
+      (has.team_channels && !wants.team_channels) || (has.goal_context != wants.goal_context && !adds_context))
     throw std::invalid_argument(
         "copy_into_grown: the target must be the source's networks with the occupancy channel, the "
         "teammates' channels or a goal context branch added, or the action planner removed");

@@ -22,8 +22,8 @@ void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, 
   for (std::size_t i = 0; i < n; ++i) dst[i] = view.seen[i] != 0 ? pixel_value(view.revealed[i]) : 0.0f;
 }
 
-void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst,
-                         bool occupancy, bool team) {
+void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst, bool occupancy,
+                         bool team) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   float* y = dst;
   float* l = dst + n;

@@ -120,12 +120,11 @@ PrecisionMeasurement measure_precisions() {
     }
     {
       const ComputePrecision guard(precision);
-      const torch::Tensor loss = networks->goal->forward(network_input(u, precision)).to(torch::kFloat).mean() +
-                                 (networks->action ? networks->action->forward(network_input(u, precision))
-                                                         .to(torch::kFloat)
-                                                         .mean()
-                                                   : torch::zeros({})) +
-                                 classifier_log_probs(*networks, y, precision).mean();
+      const torch::Tensor loss =
+          networks->goal->forward(network_input(u, precision)).to(torch::kFloat).mean() +
+          (networks->action ? networks->action->forward(network_input(u, precision)).to(torch::kFloat).mean()
+                            : torch::zeros({})) +
+          classifier_log_probs(*networks, y, precision).mean();
       loss.backward();
     }
     networks->zero_grad();

@@ -156,7 +156,6 @@ class Evaluator {
   int batch_ = 1;
 };
 
-
 }  // namespace
 
 double student_t_975(int dof) {
@@ -235,7 +234,7 @@ struct EvalTally {
   std::span<double> probability_sums;  // per image: pi_c summed over the runs (D values)
   double* full_image_correct = nullptr;
   double* greedy_correct = nullptr;
-  std::span<double> axes;  // the agent's runs' AxisTally: decisions, differing, chose_more, gap_px
+  std::span<double> axes;           // the agent's runs' AxisTally: decisions, differing, chose_more, gap_px
   double* stalled_moves = nullptr;  // the agent's runs' moves that did not arrive
 };
 
@@ -432,8 +431,11 @@ std::string report_json(const EvalReport& report) {
   j["accuracy"] = {{"mean", report.accuracy.mean}, {"ci95", report.accuracy.ci95}};
   j["top2"] = {{"mean", report.top2.mean}, {"ci95", report.top2.ci95}};
   j["confusion"] = report.confusion;
-  j["baselines"] = {{"iid", report.iid_accuracy}, {"goals_only", nullptr}, {"iid_ci95", report.iid_ci95},
-                    {"goals_only_ci95", nullptr}, {"runs", report.baseline_runs}};
+  j["baselines"] = {{"iid", report.iid_accuracy},
+                    {"goals_only", nullptr},
+                    {"iid_ci95", report.iid_ci95},
+                    {"goals_only_ci95", nullptr},
+                    {"runs", report.baseline_runs}};
   if (!std::isnan(report.goals_only_accuracy)) {
     j["baselines"]["goals_only"] = report.goals_only_accuracy;
     j["baselines"]["goals_only_ci95"] = report.goals_only_ci95;

@@ -25,11 +25,11 @@ struct EvalProgress {
 };
 
 struct EvalConfig {
-  std::filesystem::path checkpoint;                     ///< RUN/checkpoint.pt or a model file
-  std::optional<Checkpoint> opened;                     ///< `checkpoint` already opened: not read again
-  std::filesystem::path images, labels;                 ///< any IDX image and label files
-  std::optional<std::filesystem::path> world_file;      ///< default: the checkpoint's world
-  int runs = 20;                                        ///< R
+  std::filesystem::path checkpoint;                 ///< RUN/checkpoint.pt or a model file
+  std::optional<Checkpoint> opened;                 ///< `checkpoint` already opened: not read again
+  std::filesystem::path images, labels;             ///< any IDX image and label files
+  std::optional<std::filesystem::path> world_file;  ///< default: the checkpoint's world
+  int runs = 20;                                    ///< R
   /// The baselines (i.i.d. moves, goals only) drive the first min(baseline_runs, R) runs' digits
   /// too: they are context for the agent's figure, and 5 runs give them an interval at a quarter
   /// of the cost of 20.

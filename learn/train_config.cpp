@@ -541,9 +541,10 @@ void TrainConfig::validate(SettingName name) const {
     throw InputError("network." + what);
   }
   if (network.goals_only && epochs[2] > 0)
-    throw InputError(fmt::format("{}: a goals-only agent ({}) has no action layer to train in mode iii: expected 0 "
-                                 "epochs of mode iii, got {} (give them to mode ii)",
-                                 name(train_setting("epochs")), name(train_setting("network.goals_only")), epochs[2]));
+    throw InputError(
+        fmt::format("{}: a goals-only agent ({}) has no action layer to train in mode iii: expected 0 "
+                    "epochs of mode iii, got {} (give them to mode ii)",
+                    name(train_setting("epochs")), name(train_setting("network.goals_only")), epochs[2]));
   const TrainSetting& batch = train_setting("batch_images");
   const TrainSetting& n = train_setting("rollouts");
   const int team = world.team.robots;  // a rollout is a team of K robots

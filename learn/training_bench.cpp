@@ -83,12 +83,11 @@ struct ModeState {
 StepTimes time_step(const TrainConfig& c, const BenchSetup& b, const RolloutBatch& batch, Stage mode,
                     const Sampling& sampling, RolloutEngine& engine, ModeState& m, ProcessGroup* group,
                     TrainBenchReport& report) {
-  const EstimatorOptions estimator{
-      .rollouts_per_image = c.rollouts,
-      .leave_one_out = c.leave_one_out,
-      .entropy_bonus = c.entropy_bonus,
-      .distillation = c.distillation,
-      .stalled_move_cost = c.stalled_move_cost};
+  const EstimatorOptions estimator{.rollouts_per_image = c.rollouts,
+                                   .leave_one_out = c.leave_one_out,
+                                   .entropy_bonus = c.entropy_bonus,
+                                   .distillation = c.distillation,
+                                   .stalled_move_cost = c.stalled_move_cost};
   agent::AgentImpl& agent = *m.agent;
   engine.reset_timing();
   m.policy->reset_timing();

@@ -326,8 +326,9 @@ learn::TrainBenchConfig bench_train_config(const TrainBenchOptions& opt) {
     c.epochs[2] = 0;
     for (const learn::Stage mode : config.modes)
       if (mode == learn::Stage::ModeIII)
-        throw InputError("--modes: a goals-only agent (--goals-only) has no mode iii (its actions are i.i.d.: time mode "
-                         "ii)");
+        throw InputError(
+            "--modes: a goals-only agent (--goals-only) has no mode iii (its actions are i.i.d.: time mode "
+            "ii)");
   }
   c.validate(setting_option);
   config.batches = opt.batches;
@@ -371,8 +372,8 @@ void print_train_bench(const TrainBenchOptions& opt, const learn::TrainConfig& c
           m.sum.total_s > 0 ? 100 * m.sum.all_reduce_s / m.sum.total_s : 0.0);
   // The project's targets (issue: fast training), for the paper preset at width 16, depth 3.
   constexpr double kTargetModeIII = 30, kMaxSimulationShare = 0.05;
-  const bool preset = c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3 &&
-                      !n.goals_only;
+  const bool preset =
+      c.rollouts == 4 && c.batch_images == 60 && n.planner_width == 16 && n.planner_depth == 3 && !n.goals_only;
   for (const learn::ModeBench& m : report.modes) {
     if (!preset || m.mode != learn::Stage::ModeIII) continue;
     fmt::print(

@@ -73,10 +73,11 @@ void print_table(const learn::EvalReport& r) {
                baseline_runs);
   fmt::print("  {:<26}{:.4f}\n", "full images", r.full_image_accuracy);
   fmt::print("  {:<26}{:.4f}\n", "greedy", r.greedy_accuracy);
-  fmt::print("  {:<26}{:.2f} per rollout; {:.1f} % with candidates revealing different pixels (by {:.1f} px), "
-             "the more revealing chosen in {:.1f} %\n",
-             "axis decisions (chi = 1)", r.axis_decisions_per_rollout, 100 * r.axis_differing_share, r.axis_gap_px,
-             100 * r.axis_chose_more_share);
+  fmt::print(
+      "  {:<26}{:.2f} per rollout; {:.1f} % with candidates revealing different pixels (by {:.1f} px), "
+      "the more revealing chosen in {:.1f} %\n",
+      "axis decisions (chi = 1)", r.axis_decisions_per_rollout, 100 * r.axis_differing_share, r.axis_gap_px,
+      100 * r.axis_chose_more_share);
   fmt::print("  {:<26}{:.2f} per rollout (blocked by an obstacle or a teammate, or out of ticks)\n", "stalled moves",
              r.stalled_moves_per_rollout);
   fmt::print("  {:<26}{}\n", "precision", agent::to_string(r.precision));
@@ -99,9 +100,10 @@ void eval_command(const EvalOptions& opt, const Context& context) {
   if (!opt.world.empty()) config.world_file = opt.world;
   config.runs = opt.runs;
   if (opt.baseline_runs_given && opt.baseline_runs > opt.runs)
-    throw InputError(fmt::format("--baseline-runs: expected at most --runs = {} (the baselines drive the first runs' "
-                                 "digits), got {}",
-                                 opt.runs, opt.baseline_runs));
+    throw InputError(
+        fmt::format("--baseline-runs: expected at most --runs = {} (the baselines drive the first runs' "
+                    "digits), got {}",
+                    opt.runs, opt.baseline_runs));
   config.baseline_runs = opt.baseline_runs;
   config.image_limit = opt.limit;
   config.seed = opt.seed.empty() ? 1 : parse_seed(opt.seed);

@@ -62,8 +62,8 @@ struct ReportOptions {
   std::string eval_file;
   std::string images, labels;  // default: the official test digits of data set mnist
   std::string data_root;
-  std::vector<std::string> compare;        // LABEL=EVAL.json
-  std::vector<std::string> sweep_compare;  // LABEL=MODEL: its budget curve beside this model's
+  std::vector<std::string> compare;          // LABEL=EVAL.json
+  std::vector<std::string> sweep_compare;    // LABEL=MODEL: its budget curve beside this model's
   std::vector<std::string> scenario_agents;  // WORLD.yaml=MODEL: an agent trained for that world
   int runs = 20;
   int sweep_digits = 1000;
@@ -600,12 +600,8 @@ json paper_figures() {
                               {"glimpses", g.glimpses},
                               {"side", g.side},
                               {"revealed_fraction", std::min(1.0, g.glimpses * g.side * g.side / 784.0)}});
-  return {{"accuracy", kPaperAccuracy},
-          {"ci95", kPaperCi95},
-          {"top2", kPaperTop2},
-          {"full_image", kPaperFullImage},
-          {"transfer", kPaperTransfer},
-          {"glimpse_models", glimpse_models}};
+  return {{"accuracy", kPaperAccuracy},    {"ci95", kPaperCi95},         {"top2", kPaperTop2},
+          {"full_image", kPaperFullImage}, {"transfer", kPaperTransfer}, {"glimpse_models", glimpse_models}};
 }
 
 json compared_rows(const std::vector<Compared>& compared) {
@@ -680,9 +676,10 @@ json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
                            {"model_accuracy", model.accuracy.mean},
                            {"model_ci95", model.accuracy.ci95},
                            {"model_stalled_moves", model.stalled_moves_per_rollout}});
-    fmt::print("  scenario agent {} in {}: accuracy {:.4f}, {:.2f} stalled moves per rollout (this model {:.4f}, {:.2f})\n",
-               a.model, a.world.file.stem().string(), agent.accuracy.mean, agent.stalled_moves_per_rollout,
-               model.accuracy.mean, model.stalled_moves_per_rollout);
+    fmt::print(
+        "  scenario agent {} in {}: accuracy {:.4f}, {:.2f} stalled moves per rollout (this model {:.4f}, {:.2f})\n",
+        a.model, a.world.file.stem().string(), agent.accuracy.mean, agent.stalled_moves_per_rollout,
+        model.accuracy.mean, model.stalled_moves_per_rollout);
     std::fflush(stdout);
   }
   return out;

@@ -62,8 +62,8 @@ class AgentPolicy final : public Policy {
   void sample_goals(const BatchState& state, std::span<const std::int64_t> rows, std::span<grid::Cell> goals);
   /// Robot i's view for the planners; with the teammates' channels, its teammates' poses and the
   /// goals they hold (`team_goals`, where `has_goal`), gathered into teammate_scratch_.
-  agent::RobotView view_of(const BatchState& state, int i, const grid::Cell* goal, std::span<const grid::Cell> team_goals,
-                           std::span<const std::uint8_t> has_goal);
+  agent::RobotView view_of(const BatchState& state, int i, const grid::Cell* goal,
+                           std::span<const grid::Cell> team_goals, std::span<const std::uint8_t> has_goal);
 
   agent::AgentImpl& agent_;
   grid::FloorFrame frame_;
@@ -75,9 +75,9 @@ class AgentPolicy final : public Policy {
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
   std::vector<std::int64_t> rows_;
-  std::vector<grid::Cell> goals_now_;                     // the goals the robots hold during a choice
-  std::vector<std::uint8_t> has_goal_;                    // ... where they hold one
-  std::vector<std::uint8_t> all_goals_;                   // all ones: while moving, every robot holds a goal
+  std::vector<grid::Cell> goals_now_;                        // the goals the robots hold during a choice
+  std::vector<std::uint8_t> has_goal_;                       // ... where they hold one
+  std::vector<std::uint8_t> all_goals_;                      // all ones: while moving, every robot holds a goal
   std::vector<grid::Cell> teammate_poses_, teammate_goals_;  // one robot's teammates (scratch)
   long action_decisions_ = 0;
   PolicyTiming timing_;

@@ -194,16 +194,20 @@ TEST(AgentState, TheTeammatesChannelsMarkTheirWindowsAndGoals) {
   std::vector<float> u(7 * kN, std::numeric_limits<float>::quiet_NaN());
   RobotView view{kObserved.data(), kSeen.data(), {2, 2}, &goal, nullptr, poses, goals};
   write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true, /*team=*/true);
-  expect_channel(u, 5, plane("001111"
-                             "001000"
-                             "111000"
-                             "111000"
-                             "111111"), "t_p");
-  expect_channel(u, 6, plane("111111"
-                             "111111"
-                             "100011"
-                             "100011"
-                             "100011"), "t_g");
+  expect_channel(u, 5,
+                 plane("001111"
+                       "001000"
+                       "111000"
+                       "111000"
+                       "111111"),
+                 "t_p");
+  expect_channel(u, 6,
+                 plane("111111"
+                       "111111"
+                       "100011"
+                       "100011"
+                       "100011"),
+                 "t_g");
   std::vector<float> without_o(6 * kN, std::numeric_limits<float>::quiet_NaN());
   write_planner_input(kFloor, 3, view, without_o.data(), /*occupancy=*/false, /*team=*/true);
   for (int i = 0; i < 2 * kN; ++i) EXPECT_FLOAT_EQ(without_o[4 * kN + i], u[5 * kN + i]);

@@ -522,8 +522,7 @@ TEST_F(Resume, TheFullImageTeacherTeachesTheClassifierOnly) {
     torch::NoGradGuard no_grad;
     teacher = torch::softmax(agent->classifier->forward(full_images(batch.floors, batch.count, frame)), 1);
   }
-  EXPECT_NEAR(taught.objective - plain.objective, 0.5 * (teacher * plain.log_probs).sum(1).mean().item<double>(),
-              1e-5);
+  EXPECT_NEAR(taught.objective - plain.objective, 0.5 * (teacher * plain.log_probs).sum(1).mean().item<double>(), 1e-5);
   int index = 0, classifier_changed = 0;
   for (const auto& item : agent->named_parameters()) {
     const bool classifier = item.key().rfind("classifier.", 0) == 0;

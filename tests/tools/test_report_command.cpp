@@ -172,9 +172,9 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   temp_->write("boxes.yaml", world_text + "obstacles: {random_boxes: 2, random_box_min_px: 2, random_box_max_px: 3}\n");
   const Result r = scout("report " + path("run") + " --out " + path("robust") + test_data() +
                          " --runs 1 --sweep-digits 3 --sweep-runs 1 --episodes 0 --seed 6 --scenario-digits 9 "
-                         "--scenario-runs 2 --sweep-compare \"mode i=" + checkpoint("run_i") + "\" --scenario-agent " +
-                         path("boxes.yaml") + "=" + checkpoint("run_i") + " --scenarios " + path("odometry.yaml") + " " +
-                         path("boxes.yaml"));
+                         "--scenario-runs 2 --sweep-compare \"mode i=" +
+                         checkpoint("run_i") + "\" --scenario-agent " + path("boxes.yaml") + "=" + checkpoint("run_i") +
+                         " --scenarios " + path("odometry.yaml") + " " + path("boxes.yaml"));
   ASSERT_EQ(r.status, 0) << r.output;
   const json data = read_json(path("robust") + "/report-data.json");
   const json& rows = data["robustness"]["rows"];
@@ -194,8 +194,9 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   const json boxes = read_json(path("boxes-eval.json"));
   EXPECT_EQ(rows[2]["accuracy"], boxes["accuracy"]["mean"]);
   EXPECT_EQ(rows[2]["stalled_moves"], boxes["stalled_moves_per_rollout"]);
-  const Result agent_direct = scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --world " +
-                                    path("boxes.yaml") + " --limit 9 --runs 2 --seed 6 --json " + path("agent-eval.json"));
+  const Result agent_direct =
+      scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --world " + path("boxes.yaml") +
+            " --limit 9 --runs 2 --seed 6 --json " + path("agent-eval.json"));
   ASSERT_EQ(agent_direct.status, 0) << agent_direct.output;
   const json agent = read_json(path("agent-eval.json"));
   ASSERT_EQ(data["scenario_agents"]["rows"].size(), 1u) << data.dump();
