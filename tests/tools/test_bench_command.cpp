@@ -87,7 +87,7 @@ TEST_F(TrainCli, BenchTrainReportsEachModeAndWhereTheTimeGoes) {
                        "--planner-depth 1 --classifier strided --classifier-width 8 --classifier-depth 2 --json " +
                        report);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  EXPECT_NE(r.out.find("planners 4 x 1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("planners 4x1 (width x depth)"), std::string::npos) << r.out;
   const json j = json::parse(read_text(report));
   EXPECT_EQ(j["robots"], 8);
   EXPECT_EQ(j["precision"], scout::agent::to_string(scout::learn::resolve_precision(scout::agent::Precision::Auto)));
