@@ -622,8 +622,6 @@ const char* to_string(Stage stage) {
   return "?";
 }
 
-constexpr int kGoalContextBlocksForMemory = agent::kGoalContextBlocks;
-
 std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, int height_px, int world_size) {
   const agent::NetworkConfig& n = config.network;
   const double area = static_cast<double>(width_px) * height_px;
@@ -635,7 +633,7 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
   planner += n.planner_depth * double(n.planner_width);
   // The goal context branch: its convolutions' inputs and outputs at 1/4 resolution (1/16 of the
   // area), its upsampled scores at full resolution.
-  planner += 2.0 * (kGoalContextBlocksForMemory + 3) * n.goal_context / 16 + 2;
+  planner += 2.0 * (agent::kGoalContextBlocks + 3) * n.goal_context / 16 + 2;
   planner *= area * element;
   double classifier = 0;  // activations kept for one image
   const double w = n.classifier_width;
