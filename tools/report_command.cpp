@@ -177,7 +177,19 @@ std::string shell_line(const json& argv) {
   return line;
 }
 
-// The training commands in a manifest (the first, then each resumption), as shell lines.
+// One run's commands in its manifest: the first, then each resumption, as shell lines.
+void append_run_commands(const json& m, std::vector<std::string>& out) {
+  if (!m.is_object()) return;
+  if (m.contains("command_line") && m["command_line"].is_array()) out.push_back(shell_line(m["command_line"]));
+  if (m.contains("resumed") && m["resumed"].is_array())
+    for (const json& r : m["resumed"])
+      if (r.is_object() && r.contains("command_line") && r["command_line"].is_array())
+        out.push_back(shell_line(r["command_line"]));
+}
+
+// The training commands in a manifest, as shell lines. A model trained in several runs, each
+// started (--init-from) from the one before, lists the earlier runs' manifests under "lineage",
+// earliest first (models/mnist-manifest.json): their commands come first.
 std::vector<std::string> training_commands(const fs::path& manifest) {
   std::vector<std::string> out;
   std::error_code ec;
@@ -185,11 +197,9 @@ std::vector<std::string> training_commands(const fs::path& manifest) {
   std::ifstream in(manifest, std::ios::binary);
   const json m = json::parse(in, nullptr, false);
   if (m.is_discarded() || !m.is_object()) return out;
-  if (m.contains("command_line") && m["command_line"].is_array()) out.push_back(shell_line(m["command_line"]));
-  if (m.contains("resumed") && m["resumed"].is_array())
-    for (const json& r : m["resumed"])
-      if (r.is_object() && r.contains("command_line") && r["command_line"].is_array())
-        out.push_back(shell_line(r["command_line"]));
+  if (m.contains("lineage") && m["lineage"].is_array())
+    for (const json& run : m["lineage"]) append_run_commands(run, out);
+  append_run_commands(m, out);
   return out;
 }
 

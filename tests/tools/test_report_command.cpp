@@ -119,8 +119,18 @@ TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
   const Result e =
       scout("eval --checkpoint " + path("run") + test_data() + " --runs 2 --json " + path("run") + "/test-eval.json");
   ASSERT_EQ(e.status, 0) << e.output;
+  // A model trained in several runs lists the earlier runs' manifests under "lineage" (as
+  // models/mnist-manifest.json does): their commands come before the run's own.
+  const std::string manifest_file = path("run") + "/manifest.json";
+  const std::string manifest_text = read_text(manifest_file);
+  json manifest = json::parse(manifest_text);
+  manifest["lineage"] =
+      json::array({{{"command_line", {"scout", "train", "first.yaml", "--out", "runs/first"}},
+                    {"resumed", {{{"command_line", {"scout", "train", "--resume", "runs/first"}}}}}}});
+  std::ofstream(manifest_file, std::ios::binary | std::ios::trunc) << manifest.dump();
   const Result r =
       scout("report " + path("run") + " --out " + path("beside") + test_data() + " --sweep-digits 0 --episodes 0");
+  std::ofstream(manifest_file, std::ios::binary | std::ios::trunc) << manifest_text;
   fs::remove(path("run") + "/test-eval.json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(r.output.find("evaluating"), std::string::npos) << r.output;
@@ -128,6 +138,11 @@ TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
   EXPECT_FALSE(fs::exists(path("beside") + "/budget.png"));
   const std::string report = read_text(path("beside") + "/REPORT.md");
   EXPECT_NE(report.find("scout eval --checkpoint " + path("run")), std::string::npos) << report;
+  const std::size_t first = report.find("scout train first.yaml --out runs/first\nscout train --resume runs/first\n");
+  const std::size_t own = report.find("scout train " + world());
+  ASSERT_NE(first, std::string::npos) << report;
+  ASSERT_NE(own, std::string::npos) << report;
+  EXPECT_LT(first, own) << "the earlier run's commands come first";
 }
 
 // A compared model's row carries its own evaluation's figures, and its history (read from the

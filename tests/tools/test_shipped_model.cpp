@@ -76,11 +76,12 @@ TEST_F(ShippedModel, DrivesTheDefaultWorldAndClassifiesTheTestDigits) {
   ASSERT_EQ(eval.status, 0) << eval.output;
   const json report = read_json(path("eval.json"));
   EXPECT_EQ(report["learned"]["goals"], true);
-  EXPECT_EQ(report["learned"]["actions"], true);
+  // The shipped agent has no action planner (models/README.md: it added nothing over i.i.d. axes).
+  EXPECT_EQ(report["learned"]["actions"], false);
   EXPECT_EQ(report["images"], 1000);
-  // The model's 20-run figure is in models/README.md; one run of it is well above 0.9, and the
-  // same classifier with i.i.d. goals and actions is well below it.
-  EXPECT_GT(report["accuracy"]["mean"].get<double>(), 0.90) << report.dump(2).substr(0, 600);
+  // The model's 20-run figure is in models/README.md (98.4 %); one run of it is well above 0.95,
+  // and the same classifier with i.i.d. goals and actions is well below it.
+  EXPECT_GT(report["accuracy"]["mean"].get<double>(), 0.95) << report.dump(2).substr(0, 600);
   EXPECT_GT(report["accuracy"]["mean"].get<double>(), report["baselines"]["iid"].get<double>() + 0.03);
 }
 
