@@ -223,6 +223,10 @@ json eval_summary(const json& e) {
   s["images"] = e.contains("images") ? e["images"] : json(nullptr);
   s["precision"] = e.contains("precision") ? e["precision"] : json(nullptr);
   s["revealed_fraction"] = e.contains("revealed_fraction") ? e["revealed_fraction"] : json(nullptr);
+  // Which layers were learned (an agent without an action planner is its own goals-only baseline).
+  if (e.contains("learned") && e["learned"].is_object() && e["learned"].contains("actions") &&
+      e["learned"]["actions"].is_boolean())
+    s["learned"] = {{"actions", e["learned"]["actions"]}};
   return s;
 }
 

@@ -107,6 +107,18 @@ def test_the_figures_and_report_are_written(tmp_path):
     assert "another task" in text
 
 
+def test_an_agent_without_an_action_planner_is_credited_with_its_goals_only(tmp_path):
+    data = report_data()
+    data["model"]["eval"]["learned"] = {"goals": True, "actions": False}
+    data["model"]["eval"]["accuracy"] = {"mean": 0.94, "ci95": 0.002}  # its own goals-only baseline
+    result, out = run(tmp_path, data)
+    assert result.returncode == 0, result.stderr
+    text = (out / "REPORT.md").read_text()
+    # i.i.d. errors 12 %, the agent 6 %: its goals remove 50 %, and no action share is claimed.
+    assert "12.00 % errors; learned goals remove 50 % of them. This agent has no action planner" in text
+    assert "learned actions another" not in text
+
+
 def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
     data = report_data()
     data["robustness"] = {"digits": 1000, "runs": 5, "seed": 7, "rows": [
