@@ -280,7 +280,8 @@ if gymnasium is not None:
 
 class Agent:
     """Scout's trained agent (a model file or RUN/checkpoint.pt): its goal planner, action planner
-    and classifier, driven from observations. With make_vec's arrays it chooses exactly what
+    (where it has one: models/mnist.pt draws its axes i.i.d.) and classifier, driven from
+    observations. With make_vec's arrays it chooses exactly what
     `scout run --checkpoint` chooses for the same seed:
 
         agent = scout.Agent("models/mnist.pt")
