@@ -197,8 +197,12 @@ std::vector<std::string> training_commands(const fs::path& manifest) {
   std::ifstream in(manifest, std::ios::binary);
   const json m = json::parse(in, nullptr, false);
   if (m.is_discarded() || !m.is_object()) return out;
-  if (m.contains("lineage") && m["lineage"].is_array())
+  if (m.contains("lineage") && m["lineage"].is_array()) {
+    // How the runs connect (file names that have changed since, the exports between them).
+    if (m.contains("lineage_note") && m["lineage_note"].is_string())
+      out.push_back("# " + m["lineage_note"].get<std::string>());
     for (const json& run : m["lineage"]) append_run_commands(run, out);
+  }
   append_run_commands(m, out);
   return out;
 }

@@ -107,7 +107,7 @@ def test_the_figures_and_report_are_written(tmp_path):
     assert "another task" in text
 
 
-def test_an_agent_without_an_action_planner_is_credited_with_its_goals_only(tmp_path):
+def test_an_agent_without_learned_actions_is_credited_with_its_goals_only(tmp_path):
     data = report_data()
     data["model"]["eval"]["learned"] = {"goals": True, "actions": False}
     data["model"]["eval"]["accuracy"] = {"mean": 0.94, "ci95": 0.002}  # its own goals-only baseline
@@ -115,7 +115,7 @@ def test_an_agent_without_an_action_planner_is_credited_with_its_goals_only(tmp_
     assert result.returncode == 0, result.stderr
     text = (out / "REPORT.md").read_text()
     # i.i.d. errors 12 %, the agent 6 %: its goals remove 50 %, and no action share is claimed.
-    assert "12.00 % errors; learned goals remove 50 % of them. This agent has no action planner" in text
+    assert "12.00 % errors; learned goals remove 50 % of them. This agent's axes are drawn i.i.d." in text
     assert "learned actions another" not in text
 
 

@@ -347,13 +347,13 @@ def write_report(data, figures, out_dir):
         add("The model carries no training history.")
     add("")
     if removal and not ev.get("learned", {}).get("actions", True):
-        # An agent without an action planner draws its axes i.i.d.: it is its own goals-only
-        # baseline, so all it removes is the goals'.
+        # An agent whose action layer was not learned (none, or never trained) draws its axes
+        # i.i.d.: it is its own goals-only baseline, so all it removes is the goals'.
         base = ev["baselines"]
         e0 = 1 - base["iid"]
         add(f"On the test digits, i.i.d. goals and actions leave {pct(e0)} errors; learned goals remove "
-            f"{100 * (e0 - (1 - ev['accuracy']['mean'])) / e0:.0f} % of them. This agent has no action planner "
-            f"(its axes are drawn i.i.d.; the paper: about a third of the errors each for goals and actions). "
+            f"{100 * (e0 - (1 - ev['accuracy']['mean'])) / e0:.0f} % of them. This agent's axes are drawn i.i.d. "
+            f"(no action layer was learned; the paper: about a third of the errors each for goals and actions). "
             f"Greedy decoding (argmax goals, one run): {pct(ev.get('greedy'))}.")
         add("")
     elif removal:
