@@ -12,6 +12,7 @@ namespace scout::streams {
 inline constexpr std::uint64_t kRunStart = 2;   ///< run k's start cell
 inline constexpr std::uint64_t kRunPolicy = 3;  ///< run k's goal and axis choices
 inline constexpr std::uint64_t kRunMotion = 4;  ///< run k's motion errors and pushes (worlds that have them)
+inline constexpr std::uint64_t kRunFloor = 5;   ///< run k's floor: where its digits and clutter go (floor.layout)
 /// Below the command seed itself: the permutation of the split that `index: random` walks.
 inline constexpr std::uint64_t kRunDigitOrder = ~std::uint64_t{0};
 
@@ -36,6 +37,10 @@ inline constexpr std::uint64_t kTrainValidation = 13;  ///< validation passes (t
 /// The per-epoch baselines' validation passes (the same every epoch).
 inline constexpr std::uint64_t kTrainValidationIid = 14;        ///< i.i.d. goals and actions
 inline constexpr std::uint64_t kTrainValidationGoalsOnly = 15;  ///< learned goals, i.i.d. actions
+/// Composed floors (floor.layout): the training floors of (stage, epoch), drawn anew each epoch,
+/// and the validation floors, the same every epoch.
+inline constexpr std::uint64_t kTrainFloors = 16;
+inline constexpr std::uint64_t kTrainValidationFloors = 17;
 
 // An evaluation: stochastic run k's seed is derive_seed(eval seed, k), and image i of a pass
 // drives with derive_seed(pass seed, i). The baselines' passes take these streams below run k's
@@ -44,5 +49,7 @@ inline constexpr std::uint64_t kTrainValidationGoalsOnly = 15;  ///< learned goa
 inline constexpr std::uint64_t kEvalIid = std::uint64_t{1} << 40;  ///< i.i.d. goals and actions
 inline constexpr std::uint64_t kEvalGoalsOnly = kEvalIid + 1;      ///< learned goals, i.i.d. actions
 inline constexpr std::uint64_t kEvalGreedy = kEvalIid + 2;         ///< the greedy run (below the eval seed)
+/// The evaluated floors (floor.layout), below the eval seed: the same in every run and baseline.
+inline constexpr std::uint64_t kEvalFloors = kEvalIid + 3;
 
 }  // namespace scout::streams

@@ -155,6 +155,7 @@ PlannedRun RunSequence::run(std::uint64_t k) const {
   r.index = world_.floor.index ? *world_.floor.index : digit_order_[k % digit_order_.size()];
   r.policy_seed = core::derive_seed(r.seed, streams::kRunPolicy);
   r.motion_seed = core::derive_seed(r.seed, streams::kRunMotion);
+  r.floor_key = core::derive_seed(r.seed, streams::kRunFloor);
   r.obstacles = run_obstacles(world_, frame_, r.motion_seed);
   core::Rng start_rng(core::derive_seed(r.seed, streams::kRunStart));
   r.starts = draw_team_starts(world_, frame_, r.motion_seed, start_rng);

@@ -60,6 +60,7 @@ struct PlannedRun {
   worlds::ObstacleSpec obstacles;  ///< the run's obstacles (run_obstacles of its motion seed)
   std::uint64_t policy_seed = 0;   ///< derive_seed(seed, kRunPolicy): the run's goal and axis choices
   std::uint64_t motion_seed = 0;   ///< derive_seed(seed, kRunMotion): the run's motion errors and pushes
+  std::uint64_t floor_key = 0;     ///< derive_seed(seed, kRunFloor): its floor's composition (FloorSet::floor)
   // A team's robot k draws from member_seed(policy_seed, k) and member_seed(motion_seed, k).
 };
 

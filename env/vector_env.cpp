@@ -30,7 +30,9 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   floors_ = worlds::load_floors(world_, data_root);
   frame_ = {
       .width_px = floors_.width_px(), .height_px = floors_.height_px(), .pixel_size_m = world_.floor.pixel_size_m};
+  // D: the images' classes, or the sums of a floor of several digits (FloorComposer::classes).
   for (int label : floors_.labels) classes_ = std::max(classes_, label + 1);
+  if (classes_ > 0) classes_ = floors_.composer.classes(classes_);
   team_ = world_.team.robots;
   if (static_cast<std::int64_t>(num_envs_) * team_ > kMaxEnvs)
     throw InputError(fmt::format("num_envs: expected at most {} teams of {} robots (the camera's batch of {}), got {}",
@@ -68,6 +70,12 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
 
 VectorEnv::~VectorEnv() = default;
 
+std::vector<std::uint8_t> VectorEnv::floor_image(int env_index) const {
+  std::vector<std::uint8_t> floor(static_cast<std::size_t>(frame_.area_px()));
+  floors_.floor(planned_[env_index].index, planned_[env_index].floor_key, floor);
+  return floor;
+}
+
 // Plans envs[k]'s run run_[envs[k]]: the floor, start and motion seed of its robot m (of K) into
 // row k * K + m of floor_bytes_, starts_ and motion_seeds_, and the batch's robot numbers into
 // robots_.
@@ -79,7 +87,7 @@ void VectorEnv::plan(std::span<const int> envs) {
     planned_[i] = sequence_[i]->run(run_[i]);
     for (int m = 0; m < team_; ++m) {
       const std::size_t row = k * team_ + m;
-      std::copy_n(floors_.images.image(planned_[i].index), area, floor_bytes_.data() + area * row);
+      floors_.floor(planned_[i].index, planned_[i].floor_key, std::span(floor_bytes_.data() + area * row, area));
       starts_[row] = planned_[i].starts[m];
       motion_seeds_[row] = member_seed(planned_[i].motion_seed, m);
       robots_.push_back(i * team_ + m);
@@ -247,7 +255,7 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
     if (!reset_now) ++time_step_[i];
     const bool last = !reset_now && time_step_[i] >= moves_;
     float r = 0.0f;
-    const int label = floors_.labels[planned_[i].index];
+    const int label = floors_.label(planned_[i].index, planned_[i].floor_key);
     if (!reset_now && !prediction_.empty() && label >= 0 && (reward_ == Reward::Dense || last)) {
       // log softmax(logits)[label], in double for a stable log-sum-exp.
       const float* logits = prediction_.data() + D * i;
@@ -294,7 +302,7 @@ void VectorEnv::write(const VectorOutputs& out) const {
       std::copy_n(occupied.begin() + static_cast<std::ptrdiff_t>(area * first), area, out.occupied + area * i);
     if (out.seen) std::copy_n(env_->seen()[first].data().data(), area, out.seen + area * i);
     if (out.time_step) out.time_step[i] = time_step_[i];
-    if (out.label) out.label[i] = floors_.labels[planned_[i].index];
+    if (out.label) out.label[i] = floors_.label(planned_[i].index, planned_[i].floor_key);
     if (out.index) out.index[i] = planned_[i].index;
     if (out.policy_seed) out.policy_seed[i] = planned_[i].policy_seed;
   }

@@ -125,6 +125,9 @@ class VectorEnv {
   std::span<const std::uint8_t> ended() const { return done_; }
   /// The digit robot i's current run drives over (its index in the split).
   int floor_index(int robot) const { return planned_[robot].index; }
+  /// The floor env `env_index` drives over in its current run (H * W bytes; composed by the
+  /// world's floor layout).
+  std::vector<std::uint8_t> floor_image(int env_index) const;
 
  private:
   void take(const VectorAction& action);

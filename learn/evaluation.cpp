@@ -38,10 +38,15 @@ namespace {
 
 struct Data {
   worlds::LabeledImages set;
+  worlds::FloorComposer composer{0, 0};  // the world's layout over the images
+  std::uint64_t floor_key = 0;           // the evaluated floors' key: the same in every pass
+  std::vector<int> labels;               // each floor's label (a digit's, or the sum of a floor's digits)
   grid::FloorFrame frame;
+
+  worlds::FloorSource floors() const { return {&set, composer, floor_key}; }
 };
 
-Data read_data(const EvalConfig& config, const worlds::World& world, int classes) {
+Data read_data(const EvalConfig& config, const worlds::World& world, int classes, std::uint64_t seed) {
   Data d;
   if (config.image_limit < 0)
     throw InputError(fmt::format("image_limit: expected 0 (all) or a positive count, got {}", config.image_limit));
@@ -52,19 +57,27 @@ Data read_data(const EvalConfig& config, const worlds::World& world, int classes
     d.set.images.pixels.resize(static_cast<std::size_t>(config.image_limit) * d.set.images.rows * d.set.images.cols);
     d.set.labels.resize(static_cast<std::size_t>(config.image_limit));
   }
-  for (std::size_t i = 0; i < d.set.labels.size(); ++i)
-    if (d.set.labels[i] >= classes)
-      throw InputError(
-          fmt::format("{}: label {} at index {}: expected a class in 0..{} (the checkpoint's network has "
-                      "{} classes)",
-                      labels, static_cast<int>(d.set.labels[i]), i, classes - 1, classes));
   // The networks are fully convolutional, so any floor size works that the camera can hold and
   // the world's patch and start fit.
   if (d.set.images.cols > worlds::kMaxFloorPx || d.set.images.rows > worlds::kMaxFloorPx)
     throw InputError(fmt::format("{}: expected images of at most {} x {} pixels, got {} x {}", images,
                                  worlds::kMaxFloorPx, worlds::kMaxFloorPx, d.set.images.cols, d.set.images.rows));
-  worlds::check_against_floor(world, d.set.images.cols, d.set.images.rows);
-  d.frame = {.width_px = d.set.images.cols, .height_px = d.set.images.rows, .pixel_size_m = world.floor.pixel_size_m};
+  d.composer = worlds::FloorComposer(world, d.set.images.cols, d.set.images.rows);
+  d.floor_key = core::derive_seed(seed, streams::kEvalFloors);
+  worlds::check_against_floor(world, d.composer.width_px(), d.composer.height_px());
+  d.labels.resize(d.set.labels.size());
+  for (std::size_t i = 0; i < d.set.labels.size(); ++i) {
+    d.labels[i] = d.composer.label(d.set.labels, static_cast<int>(i), d.floor_key);
+    if (d.labels[i] >= classes)
+      throw InputError(fmt::format("{}: label {} at index {}: expected a class in 0..{} (the checkpoint's network has "
+                                   "{} classes)",
+                                   labels, d.labels[i], i, classes - 1, classes) +
+                       (d.composer.digits() > 1
+                            ? fmt::format(" (a floor of {} digits is labelled by their sum)", d.composer.digits())
+                            : std::string()));
+  }
+  d.frame = {
+      .width_px = d.composer.width_px(), .height_px = d.composer.height_px(), .pixel_size_m = world.floor.pixel_size_m};
   return d;
 }
 
@@ -114,7 +127,7 @@ class Evaluator {
       const int k = std::min(batch_, end - first);
       RolloutBatch batch;
       for (int image = first; image < first + k; ++image)
-        batch.append(make_batch(data_.set, std::span(&image, 1), 1, world_, data_.frame,
+        batch.append(make_batch(floors_, std::span(&image, 1), 1, world_, data_.frame,
                                 core::derive_seed(stream_seed, static_cast<std::uint64_t>(image))));
       const BatchOutcome out = run_batch(agent_, *engine_, *policy_, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});
@@ -137,8 +150,10 @@ class Evaluator {
     for (int first = begin; first < end; first += batch_) {
       stop_.throw_if_requested();
       const int k = std::min(batch_, end - first);
-      torch::Tensor x = full_images(std::span(data_.set.images.image(first), area * k), k, data_.frame);
-      const std::vector<std::int64_t> labels(data_.set.labels.begin() + first, data_.set.labels.begin() + first + k);
+      floor_buffer_.resize(area * k);
+      floors_.floors(first, k, floor_buffer_);
+      torch::Tensor x = full_images(floor_buffer_, k, data_.frame);
+      const std::vector<std::int64_t> labels(data_.labels.begin() + first, data_.labels.begin() + first + k);
       correct += count_correct(classifier_log_probs(agent_, x, precision_), labels, 1);
     }
     return correct;
@@ -148,6 +163,8 @@ class Evaluator {
   agent::AgentImpl& agent_;
   const worlds::World& world_;
   const Data& data_;
+  worlds::FloorSource floors_ = data_.floors();
+  std::vector<std::uint8_t> floor_buffer_;  // full floors for the classifier
   agent::Precision precision_;
   core::StopToken stop_;
   std::function<void(int)> on_batch_;  // after each rollout batch: its robots
@@ -264,7 +281,7 @@ EvalSetup prepare(const EvalConfig& config) {
   s.world = config.world        ? *config.world
             : config.world_file ? worlds::load_world(*config.world_file)
                                 : s.state.config.world;
-  s.data = read_data(config, s.world, network.classes);
+  s.data = read_data(config, s.world, network.classes, config.seed);
   s.learned = learned_layers(s.state.history);
   s.precision = resolve_precision(config.precision);
   s.sampling.learned_goals = s.learned.goals;
@@ -308,7 +325,7 @@ void count_passes(const EvalConfig& config, EvalSetup& s, int begin, int end, co
     const torch::Tensor predicted = pass.log_probs.argmax(1).contiguous();
     const std::int64_t* p = predicted.data_ptr<std::int64_t>();
     const std::span<double> confusion = tally.confusion_of_run(k);
-    for (int i = begin; i < end; ++i) confusion[s.data.set.labels[i] * classes + p[i - begin]] += 1;
+    for (int i = begin; i < end; ++i) confusion[s.data.labels[i] * classes + p[i - begin]] += 1;
     if (k >= baseline_runs) continue;
     tally.iid_correct[k] = evaluator.run(s.iid, core::derive_seed(seed_k, streams::kEvalIid), begin, end).correct;
     // Without a learned goal layer the baseline would only measure an untrained planner.
@@ -396,7 +413,7 @@ EvalReport report_header(const EvalConfig& config, const EvalSetup& s) {
   report.learned_actions = s.learned.actions;
   report.precision = s.precision;
   report.trained_precision = s.state.config.precision;
-  report.labels.assign(s.data.set.labels.begin(), s.data.set.labels.end());
+  report.labels.assign(s.data.labels.begin(), s.data.labels.end());
   report.confusion.assign(classes, std::vector<double>(classes, 0.0));
   return report;
 }

@@ -22,7 +22,7 @@ void RolloutBatch::append(const RolloutBatch& other) {
   motion_seeds.insert(motion_seeds.end(), other.motion_seeds.begin(), other.motion_seeds.end());
 }
 
-RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
+RolloutBatch make_batch(const worlds::FloorSource& floors, std::span<const int> indices, int rollouts,
                         const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
                         std::uint64_t first_robot) {
   if (rollouts <= 0) throw std::invalid_argument("make_batch: rollouts must be positive");
@@ -32,6 +32,8 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
   const int teams = static_cast<int>(indices.size()) * rollouts;
   batch.count = teams * K;
   const auto area = static_cast<std::size_t>(frame.area_px());
+  if (floors.width_px() != frame.width_px || floors.height_px() != frame.height_px)
+    throw std::invalid_argument("make_batch: the floors' size differs from the frame's");
   batch.floors.resize(area * batch.count);
   batch.labels.resize(teams);
   batch.starts.resize(batch.count);
@@ -39,10 +41,13 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
   batch.motion_seeds.resize(batch.count);
   for (std::size_t i = 0; i < indices.size(); ++i) {
     const int image = indices[i];
-    if (image < 0 || image >= data.images.count) throw std::out_of_range("make_batch: image index out of range");
+    if (image < 0 || image >= floors.count()) throw std::out_of_range("make_batch: image index out of range");
+    // The image's floor, composed once; its N rollouts and a team's K robots drive over copies.
+    const std::size_t first_row = i * rollouts * K;
+    const int label = floors.floor(image, std::span(batch.floors.data() + area * first_row, area));
     for (int k = 0; k < rollouts; ++k) {
       const std::size_t t = i * rollouts + k;
-      batch.labels[t] = data.labels[image];
+      batch.labels[t] = label;
       const std::uint64_t robot_seed = core::derive_seed(stream, first_robot + t);
       const std::uint64_t policy_seed = core::derive_seed(robot_seed, streams::kRobotPolicy);
       const std::uint64_t motion_seed = core::derive_seed(robot_seed, streams::kRobotMotion);
@@ -50,7 +55,7 @@ RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> 
       const std::vector<grid::Cell> starts = env::draw_team_starts(world, frame, motion_seed, start_rng);
       for (int m = 0; m < K; ++m) {
         const std::size_t r = t * K + m;
-        std::copy_n(data.images.image(image), area, batch.floors.data() + area * r);
+        if (r != first_row) std::copy_n(batch.floors.data() + area * first_row, area, batch.floors.data() + area * r);
         batch.seeds[r] = env::member_seed(policy_seed, m);
         batch.motion_seeds[r] = env::member_seed(motion_seed, m);
         batch.starts[r] = starts[m];

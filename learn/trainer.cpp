@@ -28,6 +28,7 @@
 #include "learn/internal/objective.hpp"
 #include "learn/internal/precision.hpp"
 #include "worlds/dataset.hpp"
+#include "worlds/floor_layout.hpp"
 
 namespace scout::learn {
 
@@ -95,6 +96,7 @@ struct Trainer::Impl {
   int threads = 1;
   bool force_memory = false;  // a new run's memory estimate is not checked
   worlds::LabeledImages train, validation;
+  worlds::FloorComposer composer{0, 0};  // the world's floor layout over the images
   grid::FloorFrame frame;
   agent::Agent agent{nullptr};
   std::unique_ptr<torch::optim::Adam> optimizer;
@@ -122,8 +124,11 @@ struct Trainer::Impl {
   void setup(int thread_request, bool new_run) {
     threads = set_torch_threads(thread_request);
     train = worlds::load_split(config.data_folder, worlds::Split::Train);
+    composer = worlds::FloorComposer(config.world, train.images.cols, train.images.rows);
+    // D: the digits' classes, or the sums of a floor of several (FloorComposer::classes).
     if (new_run && !train.labels.empty())
-      config.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
+      config.network.classes =
+          std::max(2, composer.classes(*std::max_element(train.labels.begin(), train.labels.end()) + 1));
     if (new_run) {  // c from the floor images; an auto precision is resolved for this CPU and stored so
       config.network.image_channels = train.images.channels;
       config.precision = resolve_precision(config.precision);
@@ -151,9 +156,10 @@ struct Trainer::Impl {
         throw InputError(
             fmt::format("{}: a validation label is {}, the network has {} classes (from the training labels)", origin,
                         label, config.network.classes));
-    worlds::check_against_floor(config.world, train.images.cols, train.images.rows);
-    frame = {
-        .width_px = train.images.cols, .height_px = train.images.rows, .pixel_size_m = config.world.floor.pixel_size_m};
+    worlds::check_against_floor(config.world, composer.width_px(), composer.height_px());
+    frame = {.width_px = composer.width_px(),
+             .height_px = composer.height_px(),
+             .pixel_size_m = config.world.floor.pixel_size_m};
     if (new_run)  // before the networks and the robots take it
       core::check_memory(estimate_training_bytes(config, frame.width_px, frame.height_px),
                          fmt::format("training B x N = {} x {} robots on {} x {} floors with these networks",
@@ -186,6 +192,15 @@ struct Trainer::Impl {
     engine.reset();
     engine = std::make_unique<RolloutEngine>(config.world, frame, robots);
     policy = std::make_unique<AgentPolicy>(*agent, frame, config.world.camera.patch_px, robots);
+  }
+
+  // The floors of this epoch: composed anew every epoch where the world has a floor layout (a
+  // digit lands elsewhere each time), and the validation floors, the same every epoch.
+  worlds::FloorSource training_floors() const {
+    return {&train, composer, stage_epoch_seed(config.seed, streams::kTrainFloors, cursor.stage, cursor.epoch)};
+  }
+  worlds::FloorSource validation_floors() const {
+    return {&validation, composer, core::derive_seed(config.seed, streams::kTrainValidationFloors)};
   }
 
   Stage stage() const { return cursor.stage; }
@@ -257,12 +272,12 @@ struct Trainer::Impl {
     if (mine.empty()) {
       // More ranks than images in the last batch: nothing to roll out; zeros join the sums.
     } else if (s == Stage::Pretrain) {
-      std::vector<std::uint8_t> floors(static_cast<std::size_t>(frame.area_px()) * mine.size());
+      const auto area = static_cast<std::size_t>(frame.area_px());
+      std::vector<std::uint8_t> floors(area * mine.size());
       std::vector<std::int64_t> labels(mine.size());
-      for (std::size_t i = 0; i < mine.size(); ++i) {
-        std::copy_n(train.images.image(mine[i]), frame.area_px(), floors.data() + i * frame.area_px());
-        labels[i] = train.labels[mine[i]];
-      }
+      const worlds::FloorSource source = training_floors();
+      for (std::size_t i = 0; i < mine.size(); ++i)
+        labels[i] = source.floor(mine[i], std::span(floors.data() + i * area, area));
       torch::Tensor x = full_images(floors, static_cast<int>(mine.size()), frame);
       torch::Tensor log_probs = classifier_log_probs(*agent, x, config.precision);
       torch::Tensor target = torch::from_blob(labels.data(), {static_cast<long>(labels.size())}, torch::kLong).clone();
@@ -273,7 +288,7 @@ struct Trainer::Impl {
     } else {
       const std::uint64_t stream = core::derive_seed(
           stage_epoch_seed(config.seed, streams::kTrainBatch, cursor.stage, cursor.epoch), batch_index);
-      const RolloutBatch batch = make_batch(train, mine, config.rollouts, config.world, frame, stream,
+      const RolloutBatch batch = make_batch(training_floors(), mine, config.rollouts, config.world, frame, stream,
                                             static_cast<std::uint64_t>(first) * config.rollouts);
       const EstimatorOptions est{.rollouts_per_image = config.rollouts,
                                  .leave_one_out = config.leave_one_out,
@@ -344,8 +359,11 @@ struct Trainer::Impl {
     std::array<double, 1> correct{};
     for (int first = begin; first < end; first += chunk) {
       const int k = std::min(chunk, end - first);
-      torch::Tensor x = full_images(std::span(validation.images.image(first), area * k), k, frame);
-      std::vector<std::int64_t> labels(validation.labels.begin() + first, validation.labels.begin() + first + k);
+      std::vector<std::uint8_t> floors(area * k);
+      std::vector<std::int64_t> labels(k);
+      const worlds::FloorSource source = validation_floors();
+      for (int i = 0; i < k; ++i) labels[i] = source.floor(first + i, std::span(floors.data() + area * i, area));
+      torch::Tensor x = full_images(floors, k, frame);
       correct[0] += count_correct(classifier_log_probs(*agent, x, config.precision), labels);
     }
     sum_over_ranks(correct);
@@ -369,7 +387,7 @@ struct Trainer::Impl {
       const int k = std::min(chunk, end - first);
       std::vector<int> indices(k);
       for (int i = 0; i < k; ++i) indices[i] = first + i;
-      const RolloutBatch batch = make_batch(validation, indices, 1, config.world, frame,
+      const RolloutBatch batch = make_batch(validation_floors(), indices, 1, config.world, frame,
                                             core::derive_seed(config.seed, stream), static_cast<std::uint64_t>(first));
       const BatchOutcome out = run_batch(*agent, *engine, *policy, batch, sampling,
                                          {.rollouts_per_image = 1, .leave_one_out = false, .entropy_bonus = 0});

@@ -29,6 +29,7 @@ using core::seconds_since;
 // arithmetic, and this rank's share of every batch.
 struct BenchSetup {
   worlds::LabeledImages train;
+  worlds::FloorComposer composer{0, 0};  // the world's floor layout over the training images
   grid::FloorFrame frame{.width_px = 0, .height_px = 0, .pixel_size_m = 0};
   agent::NetworkConfig network;
   agent::Precision precision = agent::Precision::Float32;
@@ -41,10 +42,13 @@ BenchSetup gather_bench(const TrainBenchConfig& config, ProcessGroup* group, Tra
   b.train = worlds::load_split(c.data_folder, worlds::Split::Train);
   const worlds::LabeledImages& train = b.train;
   if (train.images.count == 0) throw InputError(c.data_folder.string() + ": no training images");
-  worlds::check_against_floor(c.world, train.images.cols, train.images.rows);
-  b.frame = {.width_px = train.images.cols, .height_px = train.images.rows, .pixel_size_m = c.world.floor.pixel_size_m};
+  b.composer = worlds::FloorComposer(c.world, train.images.cols, train.images.rows);
+  worlds::check_against_floor(c.world, b.composer.width_px(), b.composer.height_px());
+  b.frame = {.width_px = b.composer.width_px(),
+             .height_px = b.composer.height_px(),
+             .pixel_size_m = c.world.floor.pixel_size_m};
   b.network = c.network;
-  b.network.classes = std::max(2, *std::max_element(train.labels.begin(), train.labels.end()) + 1);
+  b.network.classes = std::max(2, b.composer.classes(*std::max_element(train.labels.begin(), train.labels.end()) + 1));
   b.network.image_channels = train.images.channels;
   b.precision = resolve_precision(c.precision);
   b.ranks = group ? group->size() : 1;
@@ -160,9 +164,9 @@ ModeBench bench_mode(const TrainBenchConfig& config, const BenchSetup& b, Stage 
     std::vector<int> indices(c.batch_images);
     for (int& i : indices)
       i = static_cast<int>(core::uniform_below(order, static_cast<std::uint64_t>(b.train.images.count)));
-    const RolloutBatch batch =
-        make_batch(b.train, std::span<const int>(indices).subspan(b.first, b.share), c.rollouts, c.world, b.frame,
-                   core::derive_seed(c.seed, k), static_cast<std::uint64_t>(b.first) * c.rollouts);
+    const RolloutBatch batch = make_batch(
+        worlds::FloorSource{&b.train, b.composer, c.seed}, std::span<const int>(indices).subspan(b.first, b.share),
+        c.rollouts, c.world, b.frame, core::derive_seed(c.seed, k), static_cast<std::uint64_t>(b.first) * c.rollouts);
     const StepTimes t = time_step(c, b, batch, mode, sampling, engine, m, group, report);
     if (k < config.warmup) continue;
     steps.push_back(t.total_s);

@@ -347,10 +347,12 @@ class VectorEnvCore {
       const env::VectorEnv& e = *env_;
       const auto area = static_cast<std::size_t>(e.width()) * e.height();
       render::Snapshot s;
-      s.floor = e.floors().images.image(e.floor_index(env_index));
+      const std::vector<std::uint8_t> floor = e.floor_image(env_index);
+      s.floor = floor.data();
       s.width_px = e.width();
       s.height_px = e.height();
       s.revealed = e.batch().revealed().data() + area * robot;
+      s.faint_unseen_floor = e.world().floor.composed();
       s.patch_px = e.patch_px();
       s.robot = (*paths_)[robot].back();
       s.goal = goals_[robot];

@@ -41,7 +41,13 @@ constexpr int kMaxSidePx = kMaxPictureSidePx;
 
 // Unseen pixels are one flat blue-grey: the picture shows what the robot knows and nothing
 // more. Blue exceeds red, so an unseen pixel never looks like a seen (gray) one, black included.
-cv::Vec3b unseen_colour(std::uint8_t /*gray*/) { return {70, 52, 45}; }
+// With `faint`, a quarter of the floor's grey shows through (floors larger than the digit, where
+// the reader wants to see where the digit was): blue still exceeds red by 25.
+cv::Vec3b unseen_colour(std::uint8_t gray, bool faint) {
+  const auto add = static_cast<std::uint8_t>(faint ? gray / 4 : 0);
+  return {static_cast<std::uint8_t>(70 + add), static_cast<std::uint8_t>(52 + add),
+          static_cast<std::uint8_t>(45 + add)};
+}
 
 // Draws the outline of a floor window (columns x - floor(m/2) .. + m - 1, same rows), clipped to
 // the floor, as bands `thickness` output pixels wide lying inside the window, so that the
@@ -243,7 +249,7 @@ void draw_floor(cv::Mat& map, const Snapshot& snapshot, const cv::Mat& colours,
       const std::size_t index = static_cast<std::size_t>(y) * snapshot.width_px + x;
       const std::uint8_t gray = snapshot.floor[index];
       const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
-      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray);
+      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray, snapshot.faint_unseen_floor);
       if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
       if (snapshot.slip != nullptr && snapshot.slip[index] != 0)
         for (int c = 0; c < 3; ++c) colour[c] = static_cast<std::uint8_t>((2 * colour[c] + kSlipTint[c]) / 3);

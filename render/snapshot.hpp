@@ -20,10 +20,13 @@ struct Snapshot {
   int width_px = 0;
   int height_px = 0;
   const std::uint8_t* revealed = nullptr;  ///< width * height, non-zero where seen so far
-  int patch_px = 6;                        ///< m: size of the robot's and the goal's squares
-  PixelPose robot;                         ///< current grid pose (blue square: the camera window)
-  std::optional<PixelPose> goal;           ///< current goal (green square), if any
-  std::vector<PixelPose> path;             ///< grid poses visited so far, in order (drawn as a line)
+  /// Unseen pixels show a quarter of the floor's grey through their shade (floors larger than the
+  /// digit, where the picture should show where the digits and the clutter lie); off: flat shade.
+  bool faint_unseen_floor = false;
+  int patch_px = 6;               ///< m: size of the robot's and the goal's squares
+  PixelPose robot;                ///< current grid pose (blue square: the camera window)
+  std::optional<PixelPose> goal;  ///< current goal (green square), if any
+  std::vector<PixelPose> path;    ///< grid poses visited so far, in order (drawn as a line)
   /// Where the robot's centre really went (continuous floor pixels, e.g. every physics tick), in
   /// worlds where it differs from `path`: imperfect motion, pushes. Drawn as a thin cyan line
   /// under the path; empty: none.

@@ -104,7 +104,8 @@ SimBatch gather_sim_batch(const BenchOptions& opt) {
     const int index = b.world.floor.index
                           ? *b.world.floor.index
                           : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(b.floors.size())));
-    std::copy_n(b.floors.images.image(index), b.area, b.floor_pixels.data() + b.area * i);
+    b.floors.floor(index, core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)),
+                   std::span(b.floor_pixels.data() + b.area * i, b.area));
     // Derived, not drawn from `rng`: the floors and starts stay those of every earlier bench.
     b.motion_seeds[i] =
         core::derive_seed(core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)), streams::kRobotMotion);

@@ -101,7 +101,27 @@ std::string run_json(const env::PlannedRun& run, std::span<const learn::RolloutR
   j["dataset"] = floors.source;
   j["split"] = floors.split ? json(worlds::to_string(*floors.split)) : json(nullptr);
   j["index"] = run.index;
-  const int label = floors.labels[run.index];
+  // A composed floor (floor.layout): its size and where its digits and clutter went, so that the
+  // floor can be rebuilt and the robot's search judged (only then: other worlds' files are as before).
+  const worlds::FloorPlan plan = floors.composer.plan(run.index, floors.size(), run.floor_key);
+  int label = floors.labels[run.index];
+  if (!floors.composer.copies_images()) {
+    label = 0;
+    j["floor_px"] = json::array({floors.width_px(), floors.height_px()});
+    json digits = json::array();
+    for (int d = 0; d < plan.digit_count; ++d) {
+      digits.push_back({{"index", plan.digits[d].image},
+                        {"label", floors.labels[plan.digits[d].image]},
+                        {"at", json::array({plan.digits[d].x, plan.digits[d].y})}});
+      label += floors.labels[plan.digits[d].image];
+    }
+    j["digits"] = digits;
+    json clutter = json::array();
+    for (const worlds::FloorPlan::Piece& c : plan.clutter)
+      clutter.push_back(
+          {{"index", c.image}, {"from", json::array({c.from_x, c.from_y})}, {"at", json::array({c.x, c.y})}});
+    if (!plan.clutter.empty()) j["clutter"] = clutter;
+  }
   j["label"] = label >= 0 ? json(label) : json(nullptr);
   j["start"] = cell_json(record.start);
   if (!probabilities.empty()) {
@@ -134,6 +154,7 @@ struct ScenarioMarks {
   bool true_path = false;                   ///< imperfect motion or pushes: where the robot really went
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask; null: none
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask; null: none
+  bool faint_floor = false;                 ///< a composed floor: its unseen part shows faintly
 };
 
 // The poses robot `record` had visited by snapshot `snap`, and, where motion is imperfect, its
@@ -163,6 +184,7 @@ void write_images(const fs::path& folder, int run_number, std::span<const learn:
     s.width_px = frame.width_px;
     s.height_px = frame.height_px;
     s.revealed = snap.seen.data();
+    s.faint_unseen_floor = marks.faint_floor;
     s.patch_px = patch_px;
     s.robot = {.x = snap.robot.x(), .y = snap.robot.y()};
     if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
@@ -287,7 +309,8 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
   const std::vector<std::uint8_t>& mask = own_mask.empty() ? setup.obstacle_mask : own_mask;
   const ScenarioMarks marks{.true_path = !world.ideal_motion(),
                             .obstacles = mask.empty() ? nullptr : mask.data(),
-                            .slip = setup.slip_mask.empty() ? nullptr : setup.slip_mask.data()};
+                            .slip = setup.slip_mask.empty() ? nullptr : setup.slip_mask.data(),
+                            .faint_floor = world.floor.composed()};
   if (out.video) {
     interrupt_token().throw_if_requested();
     append_run_frames(*out.video, {.records = team,
@@ -300,7 +323,8 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                                    .fps = opt.fps,
                                    .exact_motion = world.ideal_motion(),
                                    .obstacles = marks.obstacles,
-                                   .slip = marks.slip});
+                                   .slip = marks.slip,
+                                   .faint_floor = marks.faint_floor});
   }
   if (!opt.no_images) {
     interrupt_token().throw_if_requested();
@@ -324,7 +348,7 @@ void drive_batch(const RunOptions& opt, const RunSetup& setup, std::span<const e
   for (int i = 0; i < n; ++i)
     for (int k = 0; k < K; ++k) {
       const int r = i * K + k;
-      std::copy_n(setup.floors.images.image(runs[i].index), area, batch_floors.data() + area * r);
+      setup.floors.floor(runs[i].index, runs[i].floor_key, std::span(batch_floors.data() + area * r, area));
       starts[r] = runs[i].starts[k];
       policy_seeds[r] = env::member_seed(runs[i].policy_seed, k);
       motion_seeds[r] = env::member_seed(runs[i].motion_seed, k);

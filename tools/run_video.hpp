@@ -23,6 +23,7 @@ struct RunAnimation {
   bool exact_motion = true;                 ///< false: imperfect motion or pushes, and the true path is drawn too
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask, drawn on every frame; null: none
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask, tinted on every frame; null: none
+  bool faint_floor = false;                 ///< the unseen floor shows faintly (a composed floor)
 };
 
 /// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame

@@ -214,7 +214,12 @@ FloorSet load_dataset(const World& world, const fs::path& data_root) {
 FloorSet load_floors(const World& world, const std::filesystem::path& data_root) {
   const bool png = !world.floor.image.empty();
   FloorSet set = png ? load_png(world) : load_dataset(world, data_root);
-  check_floor_size(world, png ? "floor.image" : "floor.dataset", set.width_px(), set.height_px());
+  set.composer = FloorComposer(world, set.images.cols, set.images.rows);
+  check_floor_size(world,
+                   png                   ? "floor.image"
+                   : world.floor.size_px ? "floor.size_px"
+                                         : "floor.dataset",
+                   set.width_px(), set.height_px());
   check_against_floor(world, set.width_px(), set.height_px());
   return set;
 }

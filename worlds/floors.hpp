@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "worlds/floor_layout.hpp"
 #include "worlds/idx.hpp"
 #include "worlds/world.hpp"
 
@@ -16,17 +17,26 @@ namespace scout::worlds {
 /// load_floors refuses larger floors with a world-file message instead.
 inline constexpr int kMaxFloorPx = 512;
 
-/// Candidate floor images, all the same size.
+/// A world's floors: the images of its data set split (or its PNG), and how a floor is made from
+/// them (the world's floor layout; today's floors are the images themselves).
 struct FloorSet {
-  ImageSet images;                           ///< the floors, row 0 = top of the floor
+  ImageSet images;                           ///< the images, row 0 = top
   std::vector<int> labels;                   ///< class per image; -1 where unknown (a PNG)
   std::string source;                        ///< data set name or folder, or the PNG path
   std::optional<Split> split;                ///< the split, for a data set
   std::vector<std::filesystem::path> files;  ///< files read (for the manifest's hashes)
+  FloorComposer composer{0, 0};              ///< the world's layout over these images
 
-  int width_px() const { return images.cols; }
-  int height_px() const { return images.rows; }
+  int width_px() const { return composer.width_px(); }
+  int height_px() const { return composer.height_px(); }
+  /// Floors to choose from: one per image (its digit; other digits and clutter come with it).
   int size() const { return images.count; }
+  /// Floor `index` under `key` (a run's floor key) into `out` (width * height bytes); its label.
+  int floor(int index, std::uint64_t key, std::span<std::uint8_t> out) const {
+    return composer.compose(images, labels, index, key, out);
+  }
+  /// Its label alone.
+  int label(int index, std::uint64_t key) const { return composer.label(labels, index, key); }
 };
 
 /// Loads the world's floors: its data set's split (from `data_root` for "mnist"), or its PNG

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "worlds/dataset.hpp"
+#include "worlds/floor_layout.hpp"
 
 namespace scout::worlds {
 
@@ -40,6 +41,18 @@ const char* to_string(PoseSource source) {
       return "localised";
     case PoseSource::Odometry:
       return "odometry";
+  }
+  return "?";
+}
+
+const char* to_string(FloorLayout layout) {
+  switch (layout) {
+    case FloorLayout::Centred:
+      return "centred";
+    case FloorLayout::Translated:
+      return "translated";
+    case FloorLayout::Cluttered:
+      return "cluttered";
   }
   return "?";
 }
@@ -170,6 +183,8 @@ enum class Type {
   BoxList,        // obstacles.boxes: [[x, y, w, h], ...]
   DiscList,       // obstacles.discs: [[x, y, r], ...]
   SlipZoneList,   // motion.slip_zones: [[x, y, w, h, slip], ...]
+  SizeOrImage,    // floor.size_px: [w, h], or image (the image's own size)
+  LayoutName,     // floor.layout
 };
 
 /// The member a row reads and writes: its alternative is the one at the row's Type's position.
@@ -177,7 +192,7 @@ template <class Spec>
 using Member = std::variant<int Spec::*, double Spec::*, std::uint64_t Spec::*, std::string Spec::*, Split Spec::*,
                             std::optional<int> Spec::*, fs::path Spec::*, std::optional<std::pair<int, int>> Spec::*,
                             PoseSource Spec::*, std::vector<BoxObstacle> Spec::*, std::vector<DiscObstacle> Spec::*,
-                            std::vector<SlipZone> Spec::*>;
+                            std::vector<SlipZone> Spec::*, std::optional<FloorSize> Spec::*, FloorLayout Spec::*>;
 
 /// The interval a value must lie in; integers take closed ones only.
 struct Bounds {
@@ -222,6 +237,19 @@ constexpr Row<FloorSpec> kFloorRows[] = {
      "a grayscale PNG used as the floor instead of a data set (relative to the world file)"},
     {"pixel_size_m", Type::Number, &FloorSpec::pixel_size_m, left_open(0, 10), "", "m per pixel",
      "floor scale"},
+    // Floors larger than the digit (worlds/floor_layout.hpp); written only when one of them is set.
+    {"size_px", Type::SizeOrImage, &FloorSpec::size_px, {}, "each side in [1, 512], at least the image's", "pixels",
+     "`[w, h]`: the floor's size, with the digits composed on it by `layout`; `image`: the image's own size"},
+    {"layout", Type::LayoutName, &FloorSpec::layout, {}, "needs `dataset`", "",
+     "`centred` (the digit at the centre), `translated` (at a random place) or `cluttered` (translated, plus "
+     "`clutter` pieces of other digits); drawn from the seed"},
+    {"clutter", Type::Integer, &FloorSpec::clutter, closed(0, 1000), "at least 1 with `cluttered`, else 0", "",
+     "pieces of other digits of the same split pasted at random places (the brighter pixel wins)"},
+    {"clutter_px", Type::Integer, &FloorSpec::clutter_px, closed(1, 512), "at most the image's smaller side",
+     "pixels", "the side of a clutter piece, cut at a random place of its digit"},
+    {"digits", Type::Integer, &FloorSpec::digits, closed(1, kMaxFloorDigits),
+     "and at most the floor's cells of the image's size", "",
+     "digits on one floor, each in its own cell of the floor; the label is their sum"},
 };
 
 constexpr Row<RobotSpec> kRobotRows[] = {
@@ -416,6 +444,8 @@ std::string interval_text(Type type, const Bounds& b) {
     case Type::BoxList:
     case Type::DiscList:
     case Type::SlipZoneList:
+    case Type::SizeOrImage:
+    case Type::LayoutName:
       break;
   }
   return {};
@@ -447,6 +477,10 @@ std::string_view type_text(Type type) {
       return "list of `[x, y, r]` numbers";
     case Type::SlipZoneList:
       return "list of `[x, y, w, h, slip]` numbers";
+    case Type::SizeOrImage:
+      return "`[w, h]` or `image`";
+    case Type::LayoutName:
+      return "`centred`, `translated` or `cluttered`";
   }
   return {};
 }
@@ -490,6 +524,13 @@ std::string value_text(const Row<Spec>& row, const Spec& spec) {
     case Type::DiscList:
     case Type::SlipZoneList:
       return "[]";  // the docs' default: none
+    case Type::SizeOrImage: {
+      const auto& size = spec.*std::get<std::optional<FloorSize> Spec::*>(row.member);
+      return size ? "[" + std::to_string(size->width_px) + ", " + std::to_string(size->height_px) + "]"
+                  : std::string("image");
+    }
+    case Type::LayoutName:
+      return to_string(spec.*std::get<FloorLayout Spec::*>(row.member));
   }
   return {};
 }
@@ -539,6 +580,8 @@ class Loader {
   std::vector<BoxObstacle> read_boxes(const Field& f) const;
   std::vector<DiscObstacle> read_discs(const Field& f) const;
   std::vector<SlipZone> read_slip_zones(const Field& f) const;
+  std::optional<FloorSize> read_floor_size(const Field& f) const;
+  FloorLayout read_layout(const Field& f) const;
 
   /// Reads one field into its member, as its row says.
   template <class Spec>
@@ -826,6 +869,29 @@ std::optional<std::pair<int, int>> Loader::read_start(const Field& f) const {
   return std::make_pair(xy[0], xy[1]);
 }
 
+std::optional<FloorSize> Loader::read_floor_size(const Field& f) const {
+  const std::string expected = "[w, h] (two integers in [1, 512], pixels) or image";
+  if (f.value.IsScalar() && f.value.Scalar() == "image") return std::nullopt;
+  if (!f.value.IsSequence() || f.value.size() != 2) fail_field(f.line, f.dotted, expected, describe(f.value));
+  std::array<int, 2> wh{};
+  for (std::size_t i = 0; i < 2; ++i) {
+    const YAML::Node element = f.value[i];
+    const auto t = integer_text(element);
+    if (!t || t->too_large || t->negative || t->magnitude < 1 || t->magnitude > 512)
+      fail_field(f.line, f.dotted, expected, std::string(i == 0 ? "w = " : "h = ") + describe(element));
+    wh[i] = static_cast<int>(t->magnitude);
+  }
+  return FloorSize{wh[0], wh[1]};
+}
+
+FloorLayout Loader::read_layout(const Field& f) const {
+  const std::string s = f.value.IsScalar() ? f.value.Scalar() : std::string();
+  for (const FloorLayout layout : {FloorLayout::Centred, FloorLayout::Translated, FloorLayout::Cluttered}) {
+    if (s == to_string(layout)) return layout;
+  }
+  fail_field(f.line, f.dotted, "centred, translated or cluttered", describe(f.value));
+}
+
 PoseSource Loader::read_pose(const Field& f) const {
   const std::string s = f.value.IsScalar() ? f.value.Scalar() : std::string();
   for (const PoseSource source : {PoseSource::Localised, PoseSource::Odometry}) {
@@ -949,6 +1015,12 @@ void Loader::read_field(const Row<Spec>& row, const Field& f, Spec& spec) const 
       return;
     case Type::SlipZoneList:
       spec.*std::get<std::vector<SlipZone> Spec::*>(row.member) = read_slip_zones(f);
+      return;
+    case Type::SizeOrImage:
+      spec.*std::get<std::optional<FloorSize> Spec::*>(row.member) = read_floor_size(f);
+      return;
+    case Type::LayoutName:
+      spec.*std::get<FloorLayout Spec::*>(row.member) = read_layout(f);
       return;
   }
 }
@@ -1077,6 +1149,7 @@ int Loader::first_line(std::initializer_list<const char*> fields) const {
 }
 
 void Loader::check_across_fields() const {
+  check_layout(world_);  // the floor's layout: its rules in worlds/floor_layout.cpp
   // The robot's size in pixels: Box2D runs in tenths of a pixel and is tuned for bodies of 0.1 to
   // 10 of its units, so a radius of 0.5 to 100 pixels.
   const double radius_px = world_.robot.radius_m / world_.floor.pixel_size_m;
@@ -1157,13 +1230,17 @@ int field_line(const World& world, const std::string& field, const std::string& 
   return 1;
 }
 
-/// A floor is written with either its image or its data-set fields, whichever it uses.
+/// A floor is written with either its image or its data-set fields, whichever it uses, and with
+/// its layout's fields only when it is composed (so that every earlier world's text is unchanged).
 template <class Spec>
 bool written(const Row<Spec>& row, const Spec& spec) {
   if constexpr (std::is_same_v<Spec, FloorSpec>) {
     const bool png = !spec.image.empty();
     if (row.type == Type::PngPath) return png;
     if (row.type == Type::Dataset || row.type == Type::SplitName || row.type == Type::IndexOrRandom) return !png;
+    if (row.type == Type::SizeOrImage || row.type == Type::LayoutName || row.name == "clutter" ||
+        row.name == "clutter_px" || row.name == "digits")
+      return spec.composed();
   }
   return true;
 }
@@ -1233,6 +1310,16 @@ void emit_value(YAML::Emitter& out, const Row<Spec>& row, const Spec& spec) {
       for (const SlipZone& z : spec.*std::get<std::vector<SlipZone> Spec::*>(row.member))
         out << YAML::Flow << YAML::BeginSeq << z.x << z.y << z.w << z.h << format_double(z.slip) << YAML::EndSeq;
       out << YAML::EndSeq;
+      return;
+    case Type::SizeOrImage:
+      if (const auto& size = spec.*std::get<std::optional<FloorSize> Spec::*>(row.member)) {
+        out << YAML::Flow << YAML::BeginSeq << size->width_px << size->height_px << YAML::EndSeq;
+      } else {
+        out << "image";
+      }
+      return;
+    case Type::LayoutName:
+      out << to_string(spec.*std::get<FloorLayout Spec::*>(row.member));
       return;
   }
 }

@@ -19,13 +19,39 @@ namespace scout::worlds {
 enum class Split { Train, Validation, Test };
 const char* to_string(Split split);
 
+/// How a floor is made from a data set's images (worlds/floor_layout.hpp, worlds/README.md § Floors
+/// larger than the digit): the image itself (today's floors), or composed on a larger black floor.
+enum class FloorLayout {
+  Centred,     ///< the digit at the floor's centre (the image itself when the floor has the image's size)
+  Translated,  ///< the digit at a random place on the floor
+  Cluttered,   ///< translated, plus pieces of other digits of the same split at random places
+};
+const char* to_string(FloorLayout layout);
+
+/// A floor's size, pixels.
+struct FloorSize {
+  int width_px = 0;
+  int height_px = 0;
+  bool operator==(const FloorSize&) const = default;
+};
+
+/// The most digits one floor holds.
+inline constexpr int kMaxFloorDigits = 16;
+
 /// The floor: a data set image or a PNG file, and its physical scale.
 struct FloorSpec {
   std::string dataset;  ///< "mnist", "fashion-mnist" or a folder path (absolute once loaded); empty when `image` is set
-  Split split = Split::Train;   ///< split of `dataset`
-  std::optional<int> index;     ///< image index within the split; nullopt means "random"
-  std::filesystem::path image;  ///< PNG file read as grayscale (absolute once loaded); empty when `dataset` is set
-  double pixel_size_m = 0.1;    ///< metres per floor pixel
+  Split split = Split::Train;        ///< split of `dataset`
+  std::optional<int> index;          ///< image index within the split; nullopt means "random"
+  std::filesystem::path image;       ///< PNG file read as grayscale (absolute once loaded); empty when `dataset` is set
+  double pixel_size_m = 0.1;         ///< metres per floor pixel
+  std::optional<FloorSize> size_px;  ///< the floor's size; nullopt: the image's own (today's floors)
+  FloorLayout layout = FloorLayout::Centred;  ///< where the digits go on a floor of size_px
+  int clutter = 0;                            ///< Cluttered: pieces of other digits pasted on each floor
+  int clutter_px = 8;                         ///< the side of a clutter piece, pixels
+  int digits = 1;  ///< digits on one floor; with several the label is their sum (worlds/floor_layout.hpp)
+  /// True when floors are composed from the images rather than being them (any field above set).
+  bool composed() const { return size_px.has_value() || layout != FloorLayout::Centred || digits != 1; }
 };
 
 /// The robot body.

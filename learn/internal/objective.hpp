@@ -14,6 +14,7 @@
 #include "learn/rollout.hpp"
 #include "learn/trainer.hpp"
 #include "worlds/dataset.hpp"
+#include "worlds/floor_layout.hpp"
 
 namespace scout::learn {
 
@@ -41,9 +42,16 @@ struct RolloutBatch {
 /// so a rollout draws the same whichever process drives it. A team's robot m draws from
 /// env::member_seed(.., m) of the rollout's seeds, and the team's starts are apart
 /// (env::draw_team_starts).
-RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
+/// Floor i is `floors`' floor i (composed by the world's layout; its label the floor's).
+RolloutBatch make_batch(const worlds::FloorSource& floors, std::span<const int> indices, int rollouts,
                         const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
                         std::uint64_t first_robot = 0);
+/// The same over the images themselves (today's floors).
+inline RolloutBatch make_batch(const worlds::LabeledImages& data, std::span<const int> indices, int rollouts,
+                               const worlds::World& world, const grid::FloorFrame& frame, std::uint64_t stream,
+                               std::uint64_t first_robot = 0) {
+  return make_batch(worlds::FloorSource::of_images(data), indices, rollouts, world, frame, stream, first_robot);
+}
 
 /// What one batch gave.
 struct BatchOutcome {

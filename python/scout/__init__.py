@@ -37,8 +37,12 @@ except ImportError:  # Gymnasium is optional: the package works the same without
 __all__ = ["make_vec", "VectorEnv", "Env", "Agent", "Box", "Dict", "Discrete", "MultiDiscrete", "WORLDS",
            "__version__"]
 
-#: The registered ids (scout/<name>) and their world files in the source tree's worlds/.
-WORLDS = {"MNIST-v0": "mnist.yaml", "FashionMNIST-v0": "fashion.yaml"}
+#: The registered ids (scout/<name>) and their world files in the source tree's worlds/. The
+#: translated and cluttered ones put the digit at a random place on a larger floor (worlds/README.md
+#: § Floors larger than the digit), as the recurrent attention model's benchmarks do.
+WORLDS = {"MNIST-v0": "mnist.yaml", "FashionMNIST-v0": "fashion.yaml",
+          "TranslatedMNIST60-v0": "translated-60.yaml", "ClutteredMNIST60-v0": "cluttered-60.yaml",
+          "ClutteredMNIST100-v0": "cluttered-100.yaml"}
 _DEFAULT_WORLD = os.path.join(_scout.source_dir, "worlds", WORLDS["MNIST-v0"])
 _MODES = ("NextStep", "SameStep", "Disabled")
 _METADATA = {"render_modes": ["rgb_array"], "render_fps": 30}

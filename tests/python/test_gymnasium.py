@@ -295,3 +295,36 @@ def test_without_gymnasium_the_package_works_as_before():
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["ok", "[1,", "1]"]
+
+
+@pytest.mark.parametrize("env_id,side", [("scout/TranslatedMNIST60-v0", 60), ("scout/ClutteredMNIST60-v0", 60),
+                                         ("scout/ClutteredMNIST100-v0", 100)])
+def test_the_large_floor_ids_make_searching_tasks_that_gymnasium_accepts(env_id, side):
+    # make_vec with the standard wrappers: the floor's size reaches the spaces, the digit lands
+    # somewhere new in every run, and the runs' returns are recorded.
+    envs = gymnasium.make_vec(env_id, num_envs=3, split="validation")
+    assert envs.single_observation_space["revealed"].shape == (side, side)
+    assert envs.single_observation_space["patch"].shape == (8, 8)
+    envs = gymnasium.wrappers.vector.RecordEpisodeStatistics(envs)
+    envs = gymnasium.wrappers.vector.FlattenObservation(envs)
+    obs, info = envs.reset(seed=3)
+    assert obs.shape == (3, 8 * 8 + 2 + 2 * side * side + 1)
+    moves = 16  # 4 x 4 in these worlds
+    rng = np.random.default_rng(1)
+    episodes = 0
+    for _ in range(moves):
+        obs, reward, terminated, truncated, info = envs.step({"move": rng.integers(0, 4, 3),
+                                                              "prediction": logits_for(info["label"])})
+        episodes += int(terminated.sum())
+    assert episodes == 3 and np.all(info["episode"]["l"][info["_episode"]] == moves)
+    envs.close()
+    # One robot passes Gymnasium's checker, and its picture shows the whole large floor.
+    env = gymnasium.make(env_id, split="validation", render_mode="rgb_array").unwrapped
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env)
+    assert all("Box action space" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    env.reset(seed=2)
+    picture = env.render()
+    assert picture.shape[0] == side * 10 and picture.shape[2] == 3
+    env.close()

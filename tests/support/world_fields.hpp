@@ -21,7 +21,8 @@ namespace scout::testing {
 [[maybe_unused]] inline void world_members_are_listed(const worlds::World& w) {
   [[maybe_unused]] const auto& [file, floor, robot, controller, camera, task, physics, motion, pushes, obstacles, team,
                                 seed, lines] = w;
-  [[maybe_unused]] const auto& [dataset, split, index, image, pixel_size_m] = w.floor;
+  [[maybe_unused]] const auto& [dataset, split, index, image, pixel_size_m, size_px, layout, clutter, clutter_px,
+                                digits] = w.floor;
   [[maybe_unused]] const auto& [radius_m, mass_kg, max_speed_mps, start] = w.robot;
   [[maybe_unused]] const auto& [kp_per_s, tolerance_px] = w.controller;
   [[maybe_unused]] const auto& [patch_px] = w.camera;
@@ -42,6 +43,11 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("floor.index", a.floor.index, b.floor.index);
   f("floor.image", a.floor.image, b.floor.image);
   f("floor.pixel_size_m", a.floor.pixel_size_m, b.floor.pixel_size_m);
+  f("floor.size_px", a.floor.size_px, b.floor.size_px);
+  f("floor.layout", a.floor.layout, b.floor.layout);
+  f("floor.clutter", a.floor.clutter, b.floor.clutter);
+  f("floor.clutter_px", a.floor.clutter_px, b.floor.clutter_px);
+  f("floor.digits", a.floor.digits, b.floor.digits);
   f("robot.radius_m", a.robot.radius_m, b.robot.radius_m);
   f("robot.mass_kg", a.robot.mass_kg, b.robot.mass_kg);
   f("robot.max_speed_mps", a.robot.max_speed_mps, b.robot.max_speed_mps);

@@ -187,6 +187,44 @@ TEST_F(Cli, APngFloorWorks) {
   EXPECT_FALSE(fs::exists(path("big")));
 }
 
+// Floors bigger than the view: the robot drives the real Box2D world over a 60 x 60 cluttered
+// floor through the real camera; trajectory.json says where the digit and the clutter went, and
+// what the camera saw there agrees with the floor rebuilt from the split.
+TEST_F(Cli, ACompositeFloorRunsAndTellsWhereItsDigitLay) {
+  std::ofstream(path("c.yaml"))
+      << "floor: {dataset: mnist-10k, split: validation, size_px: [60, 50], layout: cluttered,"
+         " clutter: 5}\ncamera: {patch_px: 8}\ntask: {episodes: 3, steps: 4, step_px: 4}\n";
+  const Result r = scout("run " + path("c.yaml") + " --out " + path("out") + " --count 6");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json t = read_json(path("out") + "/trajectory.json");
+  ASSERT_EQ(t["runs"].size(), 6u);
+  std::set<std::pair<int, int>> places;
+  for (const json& run : t["runs"]) {
+    EXPECT_EQ(run["floor_px"], json::array({60, 50}));
+    ASSERT_EQ(run["digits"].size(), 1u);
+    const json& digit = run["digits"][0];
+    EXPECT_EQ(digit["index"], run["index"]);
+    EXPECT_EQ(digit["label"], run["label"]);
+    const int x = digit["at"][0], y = digit["at"][1];
+    EXPECT_TRUE(x >= 0 && x <= 32 && y >= 0 && y <= 22) << x << "," << y;
+    places.insert({x, y});
+    ASSERT_EQ(run["clutter"].size(), 5u);
+    for (const json& piece : run["clutter"]) EXPECT_NE(piece["index"], run["index"]);
+    ASSERT_EQ(run["steps"].size(), 12u);
+    for (const json& s : run["steps"]) {
+      const int gx = s["grid_pose"][0], gy = s["grid_pose"][1];
+      EXPECT_TRUE(gx >= 0 && gx < 60 && gy >= 0 && gy < 50) << gx << "," << gy;
+      EXPECT_LE(std::abs(s["command"][0].get<int>()) + std::abs(s["command"][1].get<int>()), 4);
+    }
+    EXPECT_GE(run["steps"].back()["revealed_px"].get<int>(), 64);
+  }
+  EXPECT_GE(places.size(), 5u) << "each run places its digit anew";
+  // The pictures show the whole 60 x 50 floor.
+  const cv::Mat png = cv::imread(path("out") + "/images/run000_final.png");
+  EXPECT_EQ(png.rows, 500);
+  EXPECT_GE(png.cols, 600);
+}
+
 TEST_F(Cli, AnInterruptedRunLeavesNothingBehind) {
   // A run far too long to finish, interrupted once it is writing: exit 130, no --out folder, no
   // staging folder.

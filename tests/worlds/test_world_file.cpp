@@ -985,12 +985,14 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   expect_error("no_such_key: 1\n", "w.yaml:1: no_such_key: expected a section among " + sections + ", got");
 
   // to_yaml writes the fields in the schema's order (a default world has no image; the scenario
-  // sections are written when they differ from their defaults, as here).
+  // sections are written when they differ from their defaults, and the floor's layout when the
+  // floor is composed, as here).
   std::string order;
   for (const FieldInfo& f : world_schema()) {
     if (f.name != "image") order += std::string(f.section.empty() ? "" : "  ") + std::string(f.name) + ":";
   }
   World scenario;
+  scenario.floor.size_px = FloorSize{40, 40};
   scenario.motion.pose = PoseSource::Odometry;
   scenario.pushes.probability = 0.5;
   scenario.obstacles.shade = 7;

@@ -109,6 +109,10 @@ std::set<std::string> written_keys(const World& w) {
     keys.insert(section);
     if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
       continue;
+    // The layout's fields are written only for a composed floor (every earlier world's text stays).
+    const bool layout_field =
+        name == "size_px" || name == "layout" || name == "clutter" || name == "clutter_px" || name == "digits";
+    if (section == "floor" && layout_field && !w.floor.composed()) continue;
     keys.insert(section + "." + name);
   }
   return keys;
@@ -550,6 +554,8 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
            tally));
   // A team needs random starts and a divisor of the episodes: beside the file above.
   ASSERT_TRUE(feed("task: {episodes: 6}\nteam: {robots: 3}\n", tally));
+  // A composed floor writes its layout's fields.
+  ASSERT_TRUE(feed("floor: {size_px: [100, 61], layout: cluttered, clutter: 7, clutter_px: 5, digits: 3}\n", tally));
   ASSERT_TRUE(
       feed("floor: {image: a.png, pixel_size_m: 0.30000000000000004}\nphysics: {dt_s: 0.1}\n"
            "controller: {kp_per_s: 0.3333333333333333}\n",
