@@ -686,7 +686,8 @@ std::uint64_t estimate_training_bytes(const TrainConfig& config, int width_px, i
   // planner calls between them, and the classifier decides once.
   const double rollouts = std::ceil(double(config.batch_images) / world_size) * config.rollouts;
   const double team = config.world.team.robots;
-  const double calls = config.world.task.episodes * (1.0 + config.world.task.steps);  // goals, then each move
+  // The goal planner once an episode, then (with an action planner) once a move: mode iii's graph.
+  const double calls = config.world.task.episodes * (1.0 + (n.goals_only ? 0.0 : config.world.task.steps));
   const double state = area * (n.image_channels + 4) * 4 * 2;  // observations, masks, the camera's floor
   // + Box2D's body and contacts per robot
   const double per_rollout = calls * planner + classifier + team * (state + 16 * 1024);

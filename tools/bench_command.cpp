@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <optional>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -45,6 +46,7 @@ struct BenchOptions {
   std::string json_out;
   int robots = 240;
   int repeats = 21;
+  std::vector<int> floor_sizes;  // --floor-sizes: the same world on floors of these sides, one after the other
 };
 
 struct TrainBenchOptions {
@@ -83,9 +85,11 @@ struct SimBatch {
   std::vector<std::uint64_t> motion_seeds;  // each robot's motion errors and pushes (worlds that have them)
 };
 
-SimBatch gather_sim_batch(const BenchOptions& opt) {
+// `floor_side`: the world on a floor of that side (floor.size_px), its task and layout unchanged.
+SimBatch gather_sim_batch(const BenchOptions& opt, std::optional<int> floor_side = std::nullopt) {
   SimBatch b;
   b.world = worlds::load_world(opt.world);
+  if (floor_side) b.world.floor.size_px = worlds::FloorSize{*floor_side, *floor_side};
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   b.floors = worlds::load_floors(b.world, data_root);
   b.frame = {
@@ -280,10 +284,37 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
   write_file_atomic(opt.json_out, j.dump(2) + "\n");
 }
 
+// --floor-sizes: the world's task on floors of each side in turn, in one process, and each
+// figure beside the first size's (the speed a larger floor keeps).
+void bench_sim_floor_sizes(const BenchOptions& opt) {
+  std::vector<SimBatch> batches;
+  for (const int side : opt.floor_sizes) batches.push_back(gather_sim_batch(opt, side));  // every size checked first
+  fmt::print("scout bench sim: {} robots, {} repeats, the world {} on floors of each size\n", opt.robots, opt.repeats,
+             opt.world);
+  fmt::print("  {:<10} {:>18} {:>8} {:>18} {:>18}\n", "floor", "physics + camera", "ratio", "physics alone",
+             "camera alone");
+  double first = 0;
+  for (const SimBatch& b : batches) {
+    const SimFigures f = time_sim(opt, b);
+    const double steps = double(b.n) * b.moves_per_rollout, together = steps / f.together;
+    if (first == 0) first = together;
+    fmt::print("  {:<10} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}\n",
+               fmt::format("{} x {}", b.frame.width_px, b.frame.height_px), together, 100 * together / first,
+               steps / f.physics, steps / f.camera);
+  }
+  fmt::print("  (agent-steps/s, medians; ratio: physics + camera against the first floor)\n");
+  fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));
+}
+
 void bench_sim(const BenchOptions& opt, const Context& context) {
   if (opt.robots < 1) throw InputError("--robots: expected a positive integer");
   if (opt.repeats < 1) throw InputError("--repeats: expected a positive integer");
   check_output_file("--json", opt.json_out);
+  if (!opt.floor_sizes.empty()) {
+    if (!opt.json_out.empty()) throw InputError("--json: expected no --floor-sizes with it (one world's figures)");
+    bench_sim_floor_sizes(opt);
+    return;
+  }
   const SimBatch batch = gather_sim_batch(opt);
   const SimFigures figures = time_sim(opt, batch);
   print_sim(opt, batch, figures);
@@ -465,6 +496,12 @@ void add_bench_command(CLI::App& app, const Context& context) {
       ->capture_default_str()
       ->check(decimal_in(1, 10000));
   sim_cmd->add_option("--json", opt->json_out, "Also write the figures to this JSON file");
+  sim_cmd
+      ->add_option("--floor-sizes", opt->floor_sizes,
+                   "Time the world's task on square floors of these sides in turn (floor.size_px; each at least the "
+                   "images' size), e.g. 28,60,100, each beside the first")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 512));
   sim_cmd->callback([opt, &context] {
     install_interrupt_handler();
     bench_sim(*opt, context);

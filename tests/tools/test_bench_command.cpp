@@ -73,6 +73,21 @@ TEST_F(Cli, BenchReportsItsFiguresAsJson) {
   EXPECT_LT(b["peak_resident_bytes"].get<double>(), 1e9);
 }
 
+// --floor-sizes: the same task on larger floors in one process, a row each beside the first; a
+// floor smaller than the images is one line naming the field before anything is timed.
+TEST_F(Cli, BenchSimComparesFloorSizesInOneRun) {
+  const Result r = scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 2 --floor-sizes 28,45");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\n  28 x 28 "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\n  45 x 45 "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" 100% "), std::string::npos) << r.output;
+  const Result small = scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --floor-sizes 28,20");
+  EXPECT_EQ(small.status, 1);
+  EXPECT_NE(small.output.find("floor.size_px: expected a floor at least the images' 28 x 28 pixels, got [20, 20]"),
+            std::string::npos)
+      << small.output;
+}
+
 }  // namespace scout::testing::bench_command_cli_tests
 
 namespace scout::testing::bench_command_train_cli_tests {
