@@ -59,6 +59,7 @@ VectorEnv::VectorEnv(const VectorEnvConfig& config)
   stride_.assign(num_envs_, static_cast<std::uint64_t>(num_envs_));
   run_.resize(num_envs_);
   planned_.resize(num_envs_);
+  label_.assign(num_envs_, -1);
   done_.assign(num_envs_, 0);
   reset_now_.assign(num_envs_, 0);
   time_step_.assign(num_envs_, 0);
@@ -87,7 +88,8 @@ void VectorEnv::plan(std::span<const int> envs) {
     planned_[i] = sequence_[i]->run(run_[i]);
     for (int m = 0; m < team_; ++m) {
       const std::size_t row = k * team_ + m;
-      floors_.floor(planned_[i].index, planned_[i].floor_key, std::span(floor_bytes_.data() + area * row, area));
+      label_[i] =
+          floors_.floor(planned_[i].index, planned_[i].floor_key, std::span(floor_bytes_.data() + area * row, area));
       starts_[row] = planned_[i].starts[m];
       motion_seeds_[row] = member_seed(planned_[i].motion_seed, m);
       robots_.push_back(i * team_ + m);
@@ -255,7 +257,7 @@ void VectorEnv::step(const VectorAction& action, const VectorOutputs& out) {
     if (!reset_now) ++time_step_[i];
     const bool last = !reset_now && time_step_[i] >= moves_;
     float r = 0.0f;
-    const int label = floors_.label(planned_[i].index, planned_[i].floor_key);
+    const int label = label_[i];
     if (!reset_now && !prediction_.empty() && label >= 0 && (reward_ == Reward::Dense || last)) {
       // log softmax(logits)[label], in double for a stable log-sum-exp.
       const float* logits = prediction_.data() + D * i;
@@ -302,7 +304,7 @@ void VectorEnv::write(const VectorOutputs& out) const {
       std::copy_n(occupied.begin() + static_cast<std::ptrdiff_t>(area * first), area, out.occupied + area * i);
     if (out.seen) std::copy_n(env_->seen()[first].data().data(), area, out.seen + area * i);
     if (out.time_step) out.time_step[i] = time_step_[i];
-    if (out.label) out.label[i] = floors_.label(planned_[i].index, planned_[i].floor_key);
+    if (out.label) out.label[i] = label_[i];
     if (out.index) out.index[i] = planned_[i].index;
     if (out.policy_seed) out.policy_seed[i] = planned_[i].policy_seed;
   }

@@ -152,6 +152,7 @@ class VectorEnv {
   std::vector<std::uint64_t> stride_;         // and how far its next run is: num_envs, or 1 (own seed)
   std::vector<std::uint64_t> run_;            // each robot's current run k
   std::vector<PlannedRun> planned_;           // and what it is
+  std::vector<int> label_;                    // its floor's label (composed once, when planned)
   std::vector<std::uint8_t> done_;            // its episode ended on the last step
   std::vector<int> time_step_;                // moves made in its episode
   std::vector<std::uint8_t> reset_now_;       // started its next run on this step

@@ -4,12 +4,12 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <optional>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -108,8 +108,9 @@ SimBatch gather_sim_batch(const BenchOptions& opt, std::optional<int> floor_side
     const int index = b.world.floor.index
                           ? *b.world.floor.index
                           : static_cast<int>(core::uniform_below(rng, static_cast<std::uint64_t>(b.floors.size())));
-    b.floors.floor(index, core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)),
-                   std::span(b.floor_pixels.data() + b.area * i, b.area));
+    b.floors.floor(
+        index, core::derive_seed(core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)), streams::kRunFloor),
+        std::span(b.floor_pixels.data() + b.area * i, b.area));
     // Derived, not drawn from `rng`: the floors and starts stay those of every earlier bench.
     b.motion_seeds[i] =
         core::derive_seed(core::derive_seed(b.world.seed, static_cast<std::uint64_t>(i)), streams::kRobotMotion);
@@ -288,7 +289,13 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
 // figure beside the first size's (the speed a larger floor keeps).
 void bench_sim_floor_sizes(const BenchOptions& opt) {
   std::vector<SimBatch> batches;
-  for (const int side : opt.floor_sizes) batches.push_back(gather_sim_batch(opt, side));  // every size checked first
+  for (const int side : opt.floor_sizes) {  // every size checked before anything is timed
+    try {
+      batches.push_back(gather_sim_batch(opt, side));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("--floor-sizes: {}: {}", side, e.what()));
+    }
+  }
   fmt::print("scout bench sim: {} robots, {} repeats, the world {} on floors of each size\n", opt.robots, opt.repeats,
              opt.world);
   fmt::print("  {:<10} {:>18} {:>8} {:>18} {:>18}\n", "floor", "physics + camera", "ratio", "physics alone",

@@ -30,6 +30,7 @@
 #include "tools/output.hpp"
 #include "tools/progress.hpp"
 #include "worlds/dataset.hpp"
+#include "worlds/floor_layout.hpp"
 #include "worlds/idx.hpp"
 #include "worlds/world.hpp"
 
@@ -365,13 +366,19 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
   // team's figures are the evaluation's).
   worlds::World world = agent->config().world;
   world.team = {};
-  worlds::check_against_floor(world, images.cols, images.rows);
+  // The floors of the model's world (composed where it has a floor layout), keyed as the
+  // evaluation keys its floors: the same floors and labels as the figures beside them.
+  const worlds::FloorComposer composer(world, images.cols, images.rows);
+  worlds::check_against_floor(world, composer.width_px(), composer.height_px());
   const grid::FloorFrame frame{
-      .width_px = images.cols, .height_px = images.rows, .pixel_size_m = world.floor.pixel_size_m};
+      .width_px = composer.width_px(), .height_px = composer.height_px(), .pixel_size_m = world.floor.pixel_size_m};
   const int n = std::min(images.count, 240);
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
-  std::vector<std::uint8_t> floors(images.pixels.begin(),
-                                   images.pixels.begin() + static_cast<std::ptrdiff_t>(area * n));
+  const std::uint64_t floor_key = core::derive_seed(seed, streams::kEvalFloors);
+  std::vector<std::uint8_t> floors(area * n);
+  std::vector<int> floor_labels(n);
+  for (int i = 0; i < n; ++i)
+    floor_labels[i] = composer.compose(images, labels, i, floor_key, std::span(floors.data() + area * i, area));
   std::vector<grid::Cell> starts(n);
   std::vector<std::uint64_t> policy_seeds(n);
   std::vector<std::uint64_t> motion_seeds(n);
@@ -392,7 +399,7 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
   for (int i = 0; i < n; ++i) {
     const float* p = probabilities.data() + static_cast<std::size_t>(i) * classes;
     const int predicted = static_cast<int>(std::max_element(p, p + classes) - p);
-    (predicted == labels[i] ? right : wrong).push_back(i);
+    (predicted == floor_labels[i] ? right : wrong).push_back(i);
   }
   const int want_wrong = std::min<int>(opt.episodes / 2, static_cast<int>(wrong.size()));
   const int want_right = std::min<int>(opt.episodes - want_wrong, static_cast<int>(right.size()));
@@ -406,7 +413,7 @@ json test_episodes(const ReportOptions& opt, const learn::Checkpoint& checkpoint
     const float* p = probabilities.data() + static_cast<std::size_t>(i) * classes;
     json e;
     e["index"] = i;
-    e["label"] = labels[i];
+    e["label"] = floor_labels[i];
     e["prediction"] = static_cast<int>(std::max_element(p, p + classes) - p);
     e["probabilities"] = std::vector<float>(p, p + classes);
     e["width"] = frame.width_px;

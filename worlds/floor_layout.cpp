@@ -46,11 +46,14 @@ int uniform_int(core::Rng& rng, int n) {
 
 void check_layout(const World& world) {
   const FloorSpec& floor = world.floor;
-  if (!floor.composed() && floor.clutter == 0) return;
+  const bool clutter_px_given = world.lines.count("floor.clutter_px") != 0;
+  if (!floor.composed() && floor.clutter == 0 && !clutter_px_given) return;  // a piece size alone: unused
   if (!floor.image.empty()) {
     const std::string field = floor.size_px                          ? "floor.size_px"
                               : floor.layout != FloorLayout::Centred ? "floor.layout"
-                                                                     : "floor.digits";
+                              : floor.digits != 1                    ? "floor.digits"
+                              : floor.clutter != 0                   ? "floor.clutter"
+                                                                     : "floor.clutter_px";
     fail(world, field, "floor.dataset (floors are composed from a data set's digits)", "floor.image");
   }
   if (floor.layout != FloorLayout::Centred && !floor.size_px)

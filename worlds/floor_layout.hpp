@@ -4,9 +4,11 @@
 /// random place (translated), among pieces of other digits (cluttered), or several digits, each in
 /// its own cell of the floor, labelled by their sum.
 ///
-/// Composition is a pure function of (image index, key): the same data, world and key give the
-/// same floor on every machine. Callers choose the key: a training epoch's, a run's, an
-/// evaluation's (learn/ and env/ say which), so that a digit lands elsewhere on every draw.
+/// Composition is a pure function of (image index, key, the split's image count): the same data,
+/// world and key give the same floor on every machine. (Clutter and partner digits are drawn from
+/// the whole set given, so a set cut short, `--limit`, composes other floors than the whole one.) Callers choose the
+/// key: a training epoch's, a run's, an evaluation's (learn/ and env/ say which), so that a digit lands elsewhere on
+/// every draw.
 #include <array>
 #include <cstdint>
 #include <span>

@@ -1230,17 +1230,19 @@ int field_line(const World& world, const std::string& field, const std::string& 
   return 1;
 }
 
-/// A floor is written with either its image or its data-set fields, whichever it uses, and with
-/// its layout's fields only when it is composed (so that every earlier world's text is unchanged).
+/// A floor is written with either its image or its data-set fields, whichever it uses, with its
+/// layout's fields only when it is composed (so that every earlier world's text is unchanged), and
+/// with the clutter's when it is cluttered (or a piece size was set all the same).
 template <class Spec>
 bool written(const Row<Spec>& row, const Spec& spec) {
   if constexpr (std::is_same_v<Spec, FloorSpec>) {
     const bool png = !spec.image.empty();
     if (row.type == Type::PngPath) return png;
     if (row.type == Type::Dataset || row.type == Type::SplitName || row.type == Type::IndexOrRandom) return !png;
-    if (row.type == Type::SizeOrImage || row.type == Type::LayoutName || row.name == "clutter" ||
-        row.name == "clutter_px" || row.name == "digits")
-      return spec.composed();
+    if (row.name == "clutter") return spec.layout == FloorLayout::Cluttered;
+    if (row.name == "clutter_px")
+      return spec.layout == FloorLayout::Cluttered || spec.clutter_px != FloorSpec{}.clutter_px;
+    if (row.type == Type::SizeOrImage || row.type == Type::LayoutName || row.name == "digits") return spec.composed();
   }
   return true;
 }

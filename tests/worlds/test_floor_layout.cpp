@@ -189,6 +189,8 @@ TEST(FloorLayout, ImpossibleLayoutsAreRefusedWithOneLine) {
   expect_refused("  size_px: [600, 60]\n", 28, 28,
                  "w.yaml:2: floor.size_px: expected [w, h] (two integers in [1, 512]");
   expect_refused("  layout: diagonal\n", 28, 28, "w.yaml:2: floor.layout: expected centred, translated or cluttered");
+  expect_refused("  image: a.png\n  clutter: 2\n", 28, 28, "w.yaml:3: floor.clutter: expected floor.dataset");
+  expect_refused("  image: a.png\n  clutter_px: 4\n", 28, 28, "w.yaml:3: floor.clutter_px: expected floor.dataset");
 }
 
 TEST(FloorLayout, ADataSetFloorSetComposesWithTheWorldsLayout) {

@@ -993,6 +993,8 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   }
   World scenario;
   scenario.floor.size_px = FloorSize{40, 40};
+  scenario.floor.layout = FloorLayout::Cluttered;
+  scenario.floor.clutter = 3;
   scenario.motion.pose = PoseSource::Odometry;
   scenario.pushes.probability = 0.5;
   scenario.obstacles.shade = 7;

@@ -110,9 +110,12 @@ std::set<std::string> written_keys(const World& w) {
     if (section == "floor" && (png ? name == "dataset" || name == "split" || name == "index" : name == "image"))
       continue;
     // The layout's fields are written only for a composed floor (every earlier world's text stays).
-    const bool layout_field =
-        name == "size_px" || name == "layout" || name == "clutter" || name == "clutter_px" || name == "digits";
+    const bool layout_field = name == "size_px" || name == "layout" || name == "digits";
     if (section == "floor" && layout_field && !w.floor.composed()) continue;
+    const bool cluttered = w.floor.layout == FloorLayout::Cluttered;
+    if (section == "floor" && name == "clutter" && !cluttered) continue;
+    if (section == "floor" && name == "clutter_px" && !cluttered && w.floor.clutter_px == FloorSpec{}.clutter_px)
+      continue;
     keys.insert(section + "." + name);
   }
   return keys;
