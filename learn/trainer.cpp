@@ -149,17 +149,17 @@ struct Trainer::Impl {
     if (train.images.count == 0) throw InputError(origin + ": no training images");
     // A floor of n digits is labelled by their sum: each label times n must stay a class.
     const int n = composer.digits();
-    const std::string sums =
+    const std::string sum_note =
         n > 1 ? fmt::format(" (floors of {} digits, labelled by their sum up to {} x the label)", n, n) : std::string();
     for (std::uint8_t label : train.labels)
       if (label * n >= config.network.classes)
         throw InputError(fmt::format("{}: a training label is {}, the network has {} classes{}", origin, label,
-                                     config.network.classes, sums));
+                                     config.network.classes, sum_note));
     for (std::uint8_t label : validation.labels)
       if (label * n >= config.network.classes)
         throw InputError(
             fmt::format("{}: a validation label is {}, the network has {} classes (from the training labels){}", origin,
-                        label, config.network.classes, sums));
+                        label, config.network.classes, sum_note));
     worlds::check_against_floor(config.world, composer.width_px(), composer.height_px());
     frame = {.width_px = composer.width_px(),
              .height_px = composer.height_px(),

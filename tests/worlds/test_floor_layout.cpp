@@ -122,7 +122,9 @@ TEST(FloorLayout, ClutterComesFromOtherDigitsAndTheDigitStaysWhole) {
       ASSERT_TRUE(p.from_x >= 0 && p.from_x <= 3 && p.from_y >= 0 && p.from_y <= 2);
       ASSERT_TRUE(p.x >= 0 && p.x <= 21 && p.y >= 0 && p.y <= 21);
       // A piece cut below the image's black first row shows its level somewhere on the floor.
-      if (p.from_y > 0) EXPECT_EQ(levels.count(10 + 20 * p.image), 1u);
+      if (p.from_y > 0) {
+        EXPECT_EQ(levels.count(10 + 20 * p.image), 1u);
+      }
     }
     long covered = std::count_if(floor.begin(), floor.end(), [](std::uint8_t v) { return v > 0; });
     EXPECT_GT(covered, 24) << "clutter adds pixels beside the digit's 24";
