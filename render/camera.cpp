@@ -198,6 +198,70 @@ void main() {
 }
 )";
 
+// The wider view: a second grid of wide_px tiles below the patches' (from framebuffer row
+// wide_top), drawn by its own program before the one read-back. Tile pixel (i, j) of robot r is
+// the mean of the wide_scale x wide_scale floor texels from window + (i, j) * wide_scale, where
+// the window starts floor(wide_px * wide_scale / 2) texels before the robot's cell on each axis;
+// texels off the floor count as 0. The sum is taken in integers and rounded half up,
+// (2 sum + n) / (2 n) with n = wide_scale^2, exactly what wide_patch computes on the CPU. With
+// FLOAT_CENTRES the point is a capture_at() centre, whose cell is its floor (clamped as there).
+constexpr const char* kWideVertexShader = R"(
+#if FLOAT_CENTRES
+layout(location = 0) in vec2 centre;
+#else
+layout(location = 0) in ivec2 pose;
+#endif
+uniform int tile_columns;
+uniform int wide_px;
+uniform int wide_scale;
+uniform int wide_top;
+uniform vec2 framebuffer_px;
+uniform ivec2 floor_px;
+flat out ivec2 window;
+flat out ivec2 tile_origin;
+flat out int robot;
+void main() {
+  int robot_index = gl_VertexID;
+#if FLOAT_CENTRES
+  ivec2 cell = ivec2(floor(clamp(centre, vec2(-1024.0), vec2(floor_px) + 1024.0)));
+#else
+  ivec2 cell = pose;
+#endif
+  tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * wide_px + ivec2(0, wide_top);
+  window = cell - ivec2((wide_px * wide_scale) / 2);
+  robot = robot_index;
+  vec2 centre_px = vec2(tile_origin) + 0.5 * float(wide_px);
+  gl_Position = vec4(centre_px / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
+  gl_PointSize = float(wide_px);
+}
+)";
+
+constexpr const char* kWideFragmentShader = R"(
+uniform sampler2DArray floors;
+uniform ivec2 floor_px;
+uniform int floors_per_layer;
+uniform int wide_scale;
+flat in ivec2 window;
+flat in ivec2 tile_origin;
+flat in int robot;
+layout(location = 0) out vec4 colour;
+void main() {
+  ivec2 base = window + (ivec2(gl_FragCoord.xy) - tile_origin) * wide_scale;
+  int layer = robot / floors_per_layer;
+  int row_offset = (robot % floors_per_layer) * floor_px.y;
+  int sum = 0;
+  for (int dy = 0; dy < wide_scale; ++dy) {
+    for (int dx = 0; dx < wide_scale; ++dx) {
+      ivec2 t = base + ivec2(dx, dy);
+      if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, floor_px)))
+        sum += int(texelFetch(floors, ivec3(t.x, t.y + row_offset, layer), 0).r * 255.0 + 0.5);
+    }
+  }
+  int n = wide_scale * wide_scale;
+  colour = vec4(float((2 * sum + n) / (2 * n)) / 255.0, 0.0, 0.0, 1.0);
+}
+)";
+
 std::string shader_log(GLuint shader) {
   GLint length = 0;
   glGetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
@@ -214,11 +278,12 @@ std::string program_log(GLuint program) {
   return log.c_str();
 }
 
-GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const char* name) {
+GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const char* name,
+                      const char* extra_define = "") {
   GLuint shader = glCreateShader(kind);
   const char* define = stacked_floors ? "#define STACKED_FLOORS 1\n" : "#define STACKED_FLOORS 0\n";
-  const char* sources[] = {kVersion, define, body};
-  glShaderSource(shader, 3, sources, nullptr);
+  const char* sources[] = {kVersion, define, extra_define, body};
+  glShaderSource(shader, 4, sources, nullptr);
   glCompileShader(shader);
   GLint ok = GL_FALSE;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -245,6 +310,8 @@ struct PatchCamera::Impl {
   int floor_height_px = 0;
   int patch_px = 0;
   int max_robots = 0;
+  WideView wide;     // px 0: no wider view
+  int wide_top = 0;  // framebuffer row where the wide tiles start (below the patches')
   // llvmpipe allows 2048 array layers; beyond that, several floors are stacked in one layer
   // (they are contiguous in the caller's buffer, so the upload stays one call).
   int floors_per_layer = 1;
@@ -267,6 +334,9 @@ struct PatchCamera::Impl {
   // capture_at(): its own program and vertex array (the centres are floats in pose_buffer).
   GLuint bilinear_program = 0;
   GLuint centre_vertex_array = 0;
+  // The wider view's programs: at grid poses (capture) and at the cells of centres (capture_at).
+  GLuint wide_program = 0;
+  GLuint wide_at_program = 0;
   bool bilinear_bound = false;          // which program and vertex array are bound now
   std::vector<std::uint8_t> read_back;  // the tile grid, framebuffer_width_px wide
   std::string description;
@@ -308,9 +378,9 @@ struct PatchCamera::Impl {
                   reinterpret_cast<const char*>(glGetString(GL_VERSION));
   }
 
-  GLuint link_program(const char* vertex_body, const char* fragment_body) {
+  GLuint link_program(const char* vertex_body, const char* fragment_body, const char* vertex_define = "") {
     const bool stacked = floors_per_layer > 1;
-    GLuint vertex = compile_shader(GL_VERTEX_SHADER, vertex_body, stacked, "vertex");
+    GLuint vertex = compile_shader(GL_VERTEX_SHADER, vertex_body, stacked, "vertex", vertex_define);
     GLuint fragment = 0;
     try {
       fragment = compile_shader(GL_FRAGMENT_SHADER, fragment_body, stacked, "fragment");
@@ -342,6 +412,9 @@ struct PatchCamera::Impl {
                 1.0f / static_cast<float>(floor_height_px));
     glUniform1i(glGetUniformLocation(linked, "floors_per_layer"), floors_per_layer);
     glUniform1i(glGetUniformLocation(linked, "floors"), 0);
+    glUniform1i(glGetUniformLocation(linked, "wide_px"), wide.px);
+    glUniform1i(glGetUniformLocation(linked, "wide_scale"), wide.scale);
+    glUniform1i(glGetUniformLocation(linked, "wide_top"), wide_top);
     return linked;
   }
 
@@ -349,7 +422,19 @@ struct PatchCamera::Impl {
   // its first use, so that a GL without that extension still runs exact worlds.
   void create_programs() {
     program = link_program(kVertexShader, kFragmentShader);
+    if (wide.px > 0) {
+      wide_program = link_program(kWideVertexShader, kWideFragmentShader, "#define FLOAT_CENTRES 0\n");
+      wide_at_program = link_program(kWideVertexShader, kWideFragmentShader, "#define FLOAT_CENTRES 1\n");
+    }
     bind_crop();
+  }
+
+  // The wider view's tiles, drawn after the patches' with the vertex array that is bound (the
+  // same points), then the patches' program again.
+  void draw_wide(int robots, bool at_centres) {
+    glUseProgram(at_centres ? wide_at_program : wide_program);
+    glDrawArrays(GL_POINTS, 0, robots);
+    glUseProgram(at_centres ? bilinear_program : program);
   }
 
   // capture() and capture_at() each bind their program and vertex array only when the other
@@ -450,12 +535,39 @@ struct PatchCamera::Impl {
            "), got " + std::to_string(patches_size));
   }
 
-  // Reads the drawn tiles back with one glReadPixels and copies them out, robot after robot.
-  void read_tiles(int robots, std::uint8_t* out) {
+  // The wider view's buffer: empty (not asked for), or one wide.px^2 window per robot of a camera
+  // that has the view.
+  void check_wide(const char* what, std::size_t count, std::size_t wide_size) const {
+    if (wide_size == 0) return;
+    const std::size_t bytes = static_cast<std::size_t>(wide.px) * static_cast<std::size_t>(wide.px);
+    if (wide.px == 0) fail(std::string(what) + ": wide_patches given, but this camera has no wider view");
+    if (!(wide_size == count * bytes))
+      fail(std::string(what) + ": wide_patches must hold " + std::to_string(count * bytes) + " bytes (" +
+           std::to_string(count) + " windows of " + std::to_string(wide.px) + " x " + std::to_string(wide.px) +
+           "), got " + std::to_string(wide_size));
+  }
+
+  // Reads the drawn tiles back with one glReadPixels and copies them out, robot after robot (and
+  // the wider view's into `wide_out`, where it was drawn).
+  void read_tiles(int robots, std::uint8_t* out, std::uint8_t* wide_out = nullptr) {
     // Only the tile rows that hold drawn tiles are read.
     const int used_tile_rows = (robots + tile_columns - 1) / tile_columns;
     const int width = framebuffer_width_px;
-    glReadPixels(0, 0, width, used_tile_rows * patch_px, GL_RED, GL_UNSIGNED_BYTE, read_back.data());
+    const int rows = wide_out ? wide_top + used_tile_rows * wide.px : used_tile_rows * patch_px;
+    glReadPixels(0, 0, width, rows, GL_RED, GL_UNSIGNED_BYTE, read_back.data());
+    if (wide_out) {
+      const std::size_t w = static_cast<std::size_t>(wide.px);
+      for (int robot = 0; robot < robots; ++robot) {
+        const std::size_t tile_x = static_cast<std::size_t>(robot % tile_columns) * w;
+        const std::size_t tile_y =
+            static_cast<std::size_t>(wide_top) + static_cast<std::size_t>(robot / tile_columns) * w;
+        const std::uint8_t* tile = read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
+        for (std::size_t row = 0; row < w; ++row) {
+          std::memcpy(wide_out, tile + row * static_cast<std::size_t>(width), w);
+          wide_out += w;
+        }
+      }
+    }
 
     const std::size_t m = static_cast<std::size_t>(patch_px);
     for (int robot = 0; robot < robots; ++robot) {
@@ -474,6 +586,8 @@ struct PatchCamera::Impl {
     if (OSMesaGetCurrentContext() == context ||
         OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
       if (program != 0) glDeleteProgram(program);
+      if (wide_program != 0) glDeleteProgram(wide_program);
+      if (wide_at_program != 0) glDeleteProgram(wide_at_program);
       if (bilinear_program != 0) glDeleteProgram(bilinear_program);
       if (framebuffer != 0) glDeleteFramebuffers(1, &framebuffer);
       if (colour_buffer != 0) glDeleteRenderbuffers(1, &colour_buffer);
@@ -487,7 +601,7 @@ struct PatchCamera::Impl {
   }
 };
 
-PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots)
+PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide)
     : impl_(std::make_unique<Impl>()) {
   require(floor_width_px > 0 && floor_width_px <= kMaxFloorPx,
           "floor width must be 1.." + std::to_string(kMaxFloorPx) + " px, got " + std::to_string(floor_width_px));
@@ -497,6 +611,10 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
           "patch size must be 1.." + std::to_string(kMaxPatchPx) + " px, got " + std::to_string(patch_px));
   require(max_robots > 0 && max_robots <= kMaxCameraRobots,
           "max_robots must be 1.." + std::to_string(kMaxCameraRobots) + ", got " + std::to_string(max_robots));
+  require(wide.px >= 0 && wide.px <= kMaxPatchPx,
+          "the wider view must be 0.." + std::to_string(kMaxPatchPx) + " px, got " + std::to_string(wide.px));
+  require(wide.scale >= 1 && wide.scale <= kMaxWideScale,
+          "the wider view's scale must be 1.." + std::to_string(kMaxWideScale) + ", got " + std::to_string(wide.scale));
   Impl& impl = *impl_;
   impl.floor_width_px = floor_width_px;
   impl.floor_height_px = floor_height_px;
@@ -505,8 +623,11 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
   // A near-square grid keeps both framebuffer sides small (at most 64 tiles of 64 px).
   impl.tile_columns = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(max_robots))));
   impl.tile_rows = (max_robots + impl.tile_columns - 1) / impl.tile_columns;
-  impl.framebuffer_width_px = impl.tile_columns * patch_px;
-  impl.framebuffer_height_px = impl.tile_rows * patch_px;
+  impl.wide = wide;
+  impl.wide_top = impl.tile_rows * patch_px;
+  // The wider view's grid (the same columns and rows of wide.px tiles) lies below the patches'.
+  impl.framebuffer_width_px = impl.tile_columns * std::max(patch_px, wide.px);
+  impl.framebuffer_height_px = impl.tile_rows * (patch_px + wide.px);
   try {
     impl.create_context();
     // Buffers first: they settle floors_per_layer, which the programs' uniforms need.
@@ -554,9 +675,11 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
   impl.floors_loaded = count;
 }
 
-void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches) {
+void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches,
+                          std::span<std::uint8_t> wide_patches) {
   Impl& impl = *impl_;
   impl.check_batch("capture", "poses", poses.size(), patches.size());
+  impl.check_wide("capture", poses.size(), wide_patches.size());
   if (poses.empty()) return;
   impl.make_current();
   if (impl.bilinear_bound) impl.bind_crop();
@@ -564,12 +687,16 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
   const int robots = static_cast<int>(poses.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
   glDrawArrays(GL_POINTS, 0, robots);
-  impl.read_tiles(robots, patches.data());
+  const bool wide = !wide_patches.empty();
+  if (wide) impl.draw_wide(robots, /*at_centres=*/false);
+  impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 
-void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std::uint8_t> patches) {
+void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std::uint8_t> patches,
+                             std::span<std::uint8_t> wide_patches) {
   Impl& impl = *impl_;
   impl.check_batch("capture_at", "centres", centres.size(), patches.size());
+  impl.check_wide("capture_at", centres.size(), wide_patches.size());
   for (std::size_t i = 0; i < centres.size(); ++i) {
     if (!(std::isfinite(centres[i].x) && std::isfinite(centres[i].y)))
       fail("capture_at: centre " + std::to_string(i) + " is not finite (" + std::to_string(centres[i].x) + ", " +
@@ -582,10 +709,14 @@ void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std:
   const int robots = static_cast<int>(centres.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(centres.size_bytes()), centres.data());
   glDrawArrays(GL_POINTS, 0, robots);
-  impl.read_tiles(robots, patches.data());
+  const bool wide = !wide_patches.empty();
+  if (wide) impl.draw_wide(robots, /*at_centres=*/true);
+  impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 
 int PatchCamera::patch_px() const { return impl_->patch_px; }
+
+WideView PatchCamera::wide_view() const { return impl_->wide; }
 
 int PatchCamera::max_robots() const { return impl_->max_robots; }
 
@@ -635,6 +766,27 @@ void sample_patch_bilinear(const std::uint8_t* floor, int floor_width_px, int fl
         value = static_cast<std::uint8_t>(std::floor(blend + 0.5));
       }
       patch_out[row * patch_px + column] = value;
+    }
+  }
+}
+
+void wide_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, WideView wide, PixelPose cell,
+                std::uint8_t* wide_out) {
+  const long long span = static_cast<long long>(wide.px) * wide.scale;
+  const long long left = static_cast<long long>(cell.x) - span / 2;
+  const long long top = static_cast<long long>(cell.y) - span / 2;
+  const long long n = static_cast<long long>(wide.scale) * wide.scale;
+  for (int row = 0; row < wide.px; ++row) {
+    for (int column = 0; column < wide.px; ++column) {
+      long long sum = 0;
+      for (int dy = 0; dy < wide.scale; ++dy) {
+        const long long y = top + static_cast<long long>(row) * wide.scale + dy;
+        for (int dx = 0; dx < wide.scale; ++dx) {
+          const long long x = left + static_cast<long long>(column) * wide.scale + dx;
+          if (x >= 0 && x < floor_width_px && y >= 0 && y < floor_height_px) sum += floor[y * floor_width_px + x];
+        }
+      }
+      wide_out[row * wide.px + column] = static_cast<std::uint8_t>((2 * sum + n) / (2 * n));  // the mean, halves up
     }
   }
 }

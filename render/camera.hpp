@@ -24,12 +24,25 @@ struct FloorPoint {
   float y = 0.5f;
 };
 
+/// The largest wider-view scale (floor pixels per wide pixel, per side).
+inline constexpr int kMaxWideScale = 16;
+
+/// The wider view (worlds' camera.wide_px, camera.wide_scale): a second, coarser window per
+/// robot of px x px pixels, each the mean of scale x scale floor pixels, centred on the robot's
+/// cell like the patch (it starts floor(px * scale / 2) pixels before the cell on each axis). It
+/// covers (px * scale)^2 floor pixels at px^2 pixels' cost. px 0: none.
+struct WideView {
+  int px = 0;
+  int scale = 1;
+};
+
 /// Renders the camera patches of up to `max_robots` robots, each over its own floor.
 class PatchCamera {
  public:
   /// Creates the GL context and buffers. Floors are width x height 8-bit images; the camera
-  /// sees patch_px x patch_px windows. Throws std::runtime_error if no GL context can be made.
-  PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots);
+  /// sees patch_px x patch_px windows, and with `wide` a wider view as well (px 0..64, scale
+  /// 1..kMaxWideScale). Throws std::runtime_error if no GL context can be made.
+  PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide = {});
   ~PatchCamera();
   PatchCamera(const PatchCamera&) = delete;
   PatchCamera& operator=(const PatchCamera&) = delete;
@@ -41,7 +54,10 @@ class PatchCamera {
   /// Renders the patches of robots 0 .. poses.size()-1 at their grid poses and reads them back
   /// into `patches` (poses.size() * patch_px * patch_px bytes, robot after robot, row-major).
   /// Pixels of a window that fall off the floor are 0. The result equals the CPU crop exactly.
-  void capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches);
+  /// With `wide_patches` (poses.size() * wide.px^2 bytes; a camera with a wider view), the wider
+  /// view of each robot too, drawn before the same one read-back: equal to wide_patch exactly.
+  void capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches,
+               std::span<std::uint8_t> wide_patches = {});
 
   /// Renders the patches of robots 0 .. centres.size()-1 at their continuous centres, sub-pixel,
   /// into `patches` (the same layout as capture()). What filtering: patch pixel (column i, row j)
@@ -50,9 +66,13 @@ class PatchCamera {
   /// see sample_patch_bilinear. At a cell centre (x + 0.5, y + 0.5) the result equals capture() at
   /// PixelPose{x, y} bit for bit. Centres may lie anywhere, on or off the floor, but must be finite
   /// (std::invalid_argument otherwise). One draw and one read-back for the batch, like capture().
-  void capture_at(std::span<const FloorPoint> centres, std::span<std::uint8_t> patches);
+  /// `wide_patches`: the wider view at the cell that holds each centre (its floor), as capture()
+  /// takes it there: its pixels are 4 or more floor pixels wide, so a sub-pixel offset is left out.
+  void capture_at(std::span<const FloorPoint> centres, std::span<std::uint8_t> patches,
+                  std::span<std::uint8_t> wide_patches = {});
 
   int patch_px() const;
+  WideView wide_view() const;
   int max_robots() const;
   /// The GL renderer and version strings, e.g. "llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6".
   std::string gl_description() const;
@@ -65,6 +85,12 @@ class PatchCamera {
 /// The CPU reference: the same window cropped from an image in memory (off-floor pixels 0).
 void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px, PixelPose pose,
                 std::uint8_t* patch_out);
+
+/// The CPU reference of the wider view at `cell`: pixel (i, j) is the mean of the floor pixels
+/// [x0 + i s, x0 + (i + 1) s) x [y0 + j s, y0 + (j + 1) s) with x0 = cell.x - floor(px s / 2) (the
+/// same for y), pixels off the floor 0, rounded to nearest (halves up). wide.px^2 bytes out.
+void wide_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, WideView wide, PixelPose cell,
+                std::uint8_t* wide_out);
 
 /// The CPU reference of PatchCamera::capture_at, in double precision: patch pixel (i, j) is
 /// round-half-up of the bilinear blend of the four texels around the point

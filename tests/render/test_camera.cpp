@@ -625,3 +625,98 @@ TEST(PatchCameraCaptureAt, RejectsInvalidCaptures) {
 
 }  // namespace
 }  // namespace scout::render
+
+namespace scout::render {
+namespace {
+
+// The wider view's reference windows, robot i over floor i at its cell.
+std::vector<std::uint8_t> cpu_wide(const Floors& floors, WideView wide, const std::vector<PixelPose>& cells) {
+  const std::size_t bytes = static_cast<std::size_t>(wide.px) * wide.px;
+  std::vector<std::uint8_t> out(cells.size() * bytes);
+  for (std::size_t i = 0; i < cells.size(); ++i)
+    wide_patch(floors.image(static_cast<int>(i)), floors.width, floors.height, wide, cells[i], out.data() + i * bytes);
+  return out;
+}
+
+TEST(WidePatch, IsTheMeanOfEachBlockWithTheFloorEdgeBlack) {
+  // A 6 x 4 floor of 10 x + y, seen 2 x 2 blocks of 3 x 3 from cell (1, 1): the window starts at
+  // 1 - floor(6 / 2) = -2 on each axis, so block (0, 0) covers x, y in [-2, 1).
+  std::vector<std::uint8_t> floor(24);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 6; ++x) floor[y * 6 + x] = static_cast<std::uint8_t>(10 * x + y);
+  std::uint8_t out[4] = {};
+  wide_patch(floor.data(), 6, 4, WideView{2, 3}, PixelPose{1, 1}, out);
+  // Block (0, 0): only texel (0, 0) = 0 is on the floor -> 0. Block (1, 0): x 1..3, y 0 only
+  // (y -2, -1 off) -> (10 + 20 + 30 + 0 * 3) / 9 = 6.67 -> 7. Block (0, 1): x 0 only, y 1..3 ->
+  // (1 + 2 + 3) / 9 = 0.67 -> 1. Block (1, 1): x 1..3, y 1..3 -> (3 * 60 + 3 * 6) / 9 = 22.
+  EXPECT_EQ(out[0], 0);
+  EXPECT_EQ(out[1], 7);
+  EXPECT_EQ(out[2], 1);
+  EXPECT_EQ(out[3], 22);
+}
+
+TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere) {
+  for (const WideView wide : {WideView{5, 4}, WideView{3, 3}, WideView{8, 1}, WideView{7, 2}}) {
+    const int width = 37, height = 29, m = 6, count = 60;
+    std::vector<PixelPose> poses = random_poses(count - 4, width, height, 77);
+    // Corners and a pose far off the floor: the window there is black or partly so.
+    for (const PixelPose p : {PixelPose{0, 0}, PixelPose{36, 28}, PixelPose{-40, 3}, PixelPose{18, 200}})
+      poses.push_back(p);
+    const Floors floors = random_floors(width, height, count, 78);
+    PatchCamera camera(width, height, m, count, wide);
+    EXPECT_EQ(camera.wide_view().px, wide.px);
+    camera.load_floors(floors.bytes, count);
+    std::vector<std::uint8_t> patches(count * m * m, 0xAB), far(count * wide.px * wide.px, 0xAB);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(far, cpu_wide(floors, wide, poses)) << "wide " << wide.px << " x " << wide.scale;
+    EXPECT_EQ(patches, cpu_patches(floors, m, poses));
+    // capture_at: the wider view at the cell holding each centre.
+    std::vector<FloorPoint> centres;
+    for (const PixelPose& p : poses) centres.push_back({p.x + 0.7f, p.y + 0.2f});
+    std::vector<std::uint8_t> at_patches(count * m * m), at_far(count * wide.px * wide.px, 0xAB);
+    camera.capture_at(centres, at_patches, at_far);
+    EXPECT_EQ(at_far, cpu_wide(floors, wide, poses)) << "capture_at, wide " << wide.px << " x " << wide.scale;
+    // Without the buffer, capture is the patches alone.
+    std::vector<std::uint8_t> alone(count * m * m, 0xAB);
+    camera.capture(poses, alone);
+    EXPECT_EQ(alone, patches);
+  }
+}
+
+TEST(PatchCamera, TheWiderViewOnStackedFloorsReadsNoNeighbouringFloor) {
+  // More robots than llvmpipe's 2048 array layers: two floors per layer; a block past a floor's
+  // bottom edge must count 0, not the next floor's top rows.
+  const int width = 9, height = 7, m = 3, count = 4096;
+  const WideView wide{4, 3};
+  const std::vector<PixelPose> poses = random_poses(count, width, height, 91);
+  const Floors floors = random_floors(width, height, count, 92);
+  PatchCamera camera(width, height, m, count, wide);
+  camera.load_floors(floors.bytes, count);
+  std::vector<std::uint8_t> patches(count * m * m), far(count * wide.px * wide.px, 0xAB);
+  camera.capture(poses, patches, far);
+  EXPECT_EQ(far, cpu_wide(floors, wide, poses));
+}
+
+TEST(PatchCamera, TheWiderViewsBadSizesAndBuffersAreRefused) {
+  EXPECT_THROW(PatchCamera(28, 28, 6, 4, WideView{65, 2}), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 6, 4, WideView{4, 0}), std::invalid_argument);
+  EXPECT_THROW(PatchCamera(28, 28, 6, 4, WideView{4, kMaxWideScale + 1}), std::invalid_argument);
+  const Floors floors = random_floors(28, 28, 2, 5);
+  PatchCamera plain(28, 28, 6, 2);
+  plain.load_floors(floors.bytes, 2);
+  std::vector<PixelPose> poses = {{3, 3}, {10, 10}};
+  std::vector<std::uint8_t> patches(2 * 36), far(2 * 16);
+  try {
+    plain.capture(poses, patches, far);
+    ADD_FAILURE() << "a wider view from a camera without one";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("this camera has no wider view"), std::string::npos) << e.what();
+  }
+  PatchCamera wide(28, 28, 6, 2, WideView{4, 4});
+  wide.load_floors(floors.bytes, 2);
+  std::vector<std::uint8_t> short_buffer(2 * 16 - 1);
+  EXPECT_THROW(wide.capture(poses, patches, short_buffer), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace scout::render
