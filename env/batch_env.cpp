@@ -26,8 +26,16 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
                                 std::to_string(team_size_) + " robots per team");
   robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
   exact_motion_ = robots_->params().exact();
-  camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots);
+  wide_px_ = world.camera.wide_px;
+  wide_scale_ = world.camera.wide_scale;
+  camera_ = std::make_unique<render::PatchCamera>(frame.width_px, frame.height_px, patch_px_, max_robots,
+                                                  render::WideView{wide_px_, wide_scale_});
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  if (wide_px_ > 0) {
+    wide_patches_.resize(static_cast<std::size_t>(max_robots) * wide_px_ * wide_px_);
+    wide_revealed_.resize(area * max_robots);
+    wide_seen_.resize(area * max_robots);
+  }
   poses_.resize(max_robots);
   seen_.assign(max_robots, grid::RevealMask(frame));
   revealed_.resize(area * max_robots);
@@ -59,6 +67,15 @@ std::span<const std::uint8_t> BatchEnv::patches() const {
 std::span<const grid::Cell> BatchEnv::poses() const { return {poses_.data(), static_cast<std::size_t>(count_)}; }
 std::span<const std::uint8_t> BatchEnv::revealed() const {
   return {revealed_.data(), static_cast<std::size_t>(count_) * frame_.area_px()};
+}
+std::span<const std::uint8_t> BatchEnv::wide_patches() const {
+  return {wide_patches_.data(), wide_patches_.empty() ? 0 : static_cast<std::size_t>(count_) * wide_px_ * wide_px_};
+}
+std::span<const std::uint8_t> BatchEnv::wide_revealed() const {
+  return {wide_revealed_.data(), wide_revealed_.empty() ? 0 : static_cast<std::size_t>(count_) * frame_.area_px()};
+}
+std::span<const std::uint8_t> BatchEnv::wide_seen() const {
+  return {wide_seen_.data(), wide_seen_.empty() ? 0 : static_cast<std::size_t>(count_) * frame_.area_px()};
 }
 std::span<const std::uint8_t> BatchEnv::occupied() const {
   if (occupied_.empty()) return {};
@@ -96,6 +113,10 @@ void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid:
               occupied_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   }
   std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  if (wide_px_ > 0) {
+    std::fill_n(wide_revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+    std::fill_n(wide_seen_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  }
   robots_->place(robot, start, motion_seed);
   poses_[robot] = robots_->agent_pose(robot);
   seen_[robot].clear();
@@ -204,16 +225,18 @@ void BatchEnv::observe() {
   auto t0 = Clock::now();
   const std::size_t patch_bytes = static_cast<std::size_t>(patch_px_) * patch_px_;
   const std::span<std::uint8_t> patches(patches_.data(), patch_bytes * count_);
+  const std::span<std::uint8_t> wide(
+      wide_patches_.data(), wide_patches_.empty() ? 0 : static_cast<std::size_t>(count_) * wide_px_ * wide_px_);
   if (exact_motion_) {
     static_assert(sizeof(render::PixelPose) == 2 * sizeof(int));
     for (int i = 0; i < count_; ++i) pixel_poses_[i] = {poses_[i].x(), poses_[i].y()};
-    camera_->capture(std::span(pixel_poses_.data(), count_), patches);
+    camera_->capture(std::span(pixel_poses_.data(), count_), patches, wide);
   } else {
     for (int i = 0; i < count_; ++i) {
       const Eigen::Vector2d p = robots_->position_px(i);
       centres_[i] = {static_cast<float>(p.x()), static_cast<float>(p.y())};
     }
-    camera_->capture_at(std::span(centres_.data(), count_), patches);
+    camera_->capture_at(std::span(centres_.data(), count_), patches, wide);
   }
   timing_.render_s += seconds_since(t0);
 
@@ -235,7 +258,31 @@ void BatchEnv::observe() {
           y[static_cast<std::size_t>(yy) * width + xx] = patch[(yy - py0) * m + (xx - px0)];
     }
   }
+  if (wide_px_ > 0) reveal_wide();
   timing_.observe_s += seconds_since(t0);
+}
+
+// The wider view into each team's coarse map: every floor pixel of a wide pixel's block takes its
+// mean (the latest look wins) and is marked seen coarsely, at the pose the agent reads, as the patch.
+void BatchEnv::reveal_wide() {
+  const int px = wide_px_, s = wide_scale_, width = frame_.width_px, height = frame_.height_px;
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  for (int i = 0; i < count_; ++i) {
+    const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
+    const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
+    const int team_first = i - i % team_size_;
+    for (int j = team_first; j < team_first + team_size_; ++j) {
+      std::uint8_t* coarse = wide_revealed_.data() + area * j;
+      std::uint8_t* seen = wide_seen_.data() + area * j;
+      for (int y = std::max(y0, 0); y < std::min(y0 + px * s, height); ++y) {
+        const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
+        for (int x = std::max(x0, 0); x < std::min(x0 + px * s, width); ++x) {
+          coarse[static_cast<std::size_t>(y) * width + x] = look_row[(x - x0) / s];
+          seen[static_cast<std::size_t>(y) * width + x] = 1;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace scout::env

@@ -110,6 +110,16 @@ class BatchEnv {
   /// elsewhere, count * H * W bytes (obstacles, in a world with them, in their shade: what the
   /// camera saw).
   std::span<const std::uint8_t> revealed() const;
+  /// The wider view (a world with camera.wide_px > 0; empty spans otherwise): each robot's last
+  /// coarse window, count * wide_px^2 bytes (render::PatchCamera::capture's wide_patches: at the
+  /// grid pose, or at the cell of the true centre with imperfect motion) ...
+  std::span<const std::uint8_t> wide_patches() const;
+  /// ... and the team's coarse map: each floor pixel a wide pixel has covered holds that pixel's
+  /// mean (the latest look wins), 0 elsewhere, count * H * W bytes, placed at the pose the agent
+  /// reads as y is ...
+  std::span<const std::uint8_t> wide_revealed() const;
+  /// ... and where it is set: 1, count * H * W bytes.
+  std::span<const std::uint8_t> wide_seen() const;
   /// o: 1 on each cell where the robot's disc would overlap one of its run's obstacles, 0
   /// elsewhere, count * H * W bytes (env::occupied_cells); empty in a world without obstacles.
   std::span<const std::uint8_t> occupied() const;
@@ -130,6 +140,7 @@ class BatchEnv {
   void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed,
              std::uint64_t layout_seed);
   void observe();
+  void reveal_wide();
 
   grid::FloorFrame frame_;
   int patch_px_;
@@ -151,6 +162,11 @@ class BatchEnv {
   std::vector<std::uint8_t> fixed_occupied_;  // o of the fixed obstacles (H * W), in a world without random boxes
   std::vector<std::uint8_t> occupied_;        // o per robot (max_robots * H * W), in a world with obstacles
   std::vector<std::uint8_t> patches_;
+  int wide_px_ = 0;                             // the world's wider view: window side (0: none) ...
+  int wide_scale_ = 1;                          // ... and floor pixels per wide pixel
+  std::vector<std::uint8_t> wide_patches_;      // each robot's last wide window
+  std::vector<std::uint8_t> wide_revealed_;     // the team's coarse map per robot (H * W)
+  std::vector<std::uint8_t> wide_seen_;         // where it is set
   bool exact_motion_ = true;                    // moves land on cells: the camera crops at grid poses
   std::vector<render::PixelPose> pixel_poses_;  // exact worlds: the grid poses the camera crops at
   std::vector<render::FloorPoint> centres_;     // otherwise: the true centres it samples at

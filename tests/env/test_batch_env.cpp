@@ -82,6 +82,53 @@ TEST(BatchEnv, ResetAndStepFillTheArraysWithWhatTheCameraSaw) {
   EXPECT_GT(env.timing().ticks, 0);
 }
 
+// The wider view, driven by the real physics: each robot's coarse window is the CPU reference's at
+// its pose, and the coarse map holds, on every block the latest look covered, that block's mean;
+// a block seen earlier keeps its value, and the map starts empty again on a reset.
+TEST(BatchEnv, TheWiderViewFillsTheCoarseMapWithTheBlocksMeans) {
+  worlds::World world = small_world(3);
+  world.camera.wide_px = 3;
+  world.camera.wide_scale = 2;
+  BatchEnv env(world, kFloor, 4);
+  const std::vector<std::uint8_t> f = floors(2);
+  const std::vector<grid::Cell> starts = {{2, 2}, {12, 9}};
+  env.reset(f, starts, no_motion(starts.size()));
+  const std::size_t area = static_cast<std::size_t>(kFloor.area_px());
+  const render::WideView wide{3, 2};
+  auto expect_look = [&](int robot, std::vector<std::uint8_t>& expected_map, std::vector<std::uint8_t>& expected_seen) {
+    std::uint8_t look[9];
+    const grid::Cell pose = env.poses()[robot];
+    render::wide_patch(f.data() + area * robot, kFloor.width_px, kFloor.height_px, wide, {pose.x(), pose.y()}, look);
+    for (int k = 0; k < 9; ++k) ASSERT_EQ(env.wide_patches()[robot * 9 + k], look[k]) << robot << ", " << k;
+    const int x0 = pose.x() - 3, y0 = pose.y() - 3;  // floor(3 * 2 / 2) before the cell
+    for (int y = std::max(0, y0); y < std::min(kFloor.height_px, y0 + 6); ++y)
+      for (int x = std::max(0, x0); x < std::min(kFloor.width_px, x0 + 6); ++x) {
+        expected_map[static_cast<std::size_t>(y) * kFloor.width_px + x] = look[(y - y0) / 2 * 3 + (x - x0) / 2];
+        expected_seen[static_cast<std::size_t>(y) * kFloor.width_px + x] = 1;
+      }
+    const std::uint8_t* map = env.wide_revealed().data() + area * robot;
+    const std::uint8_t* seen = env.wide_seen().data() + area * robot;
+    EXPECT_TRUE(std::equal(expected_map.begin(), expected_map.end(), map)) << "robot " << robot;
+    EXPECT_TRUE(std::equal(expected_seen.begin(), expected_seen.end(), seen)) << "robot " << robot;
+  };
+  std::vector<std::uint8_t> map0(area, 0), seen0(area, 0), map1(area, 0), seen1(area, 0);
+  expect_look(0, map0, seen0);
+  expect_look(1, map1, seen1);
+  env.step(std::vector<grid::Cell>{{2, 0}, {0, -2}});
+  expect_look(0, map0, seen0);  // the new look over the old one; the rest stays
+  expect_look(1, map1, seen1);
+  EXPECT_GT(std::count(seen0.begin(), seen0.end(), 1), 36 - 12) << "two looks cover more than one";
+  env.reset(f, starts, no_motion(starts.size()));
+  std::fill(map0.begin(), map0.end(), 0);
+  std::fill(seen0.begin(), seen0.end(), 0);
+  expect_look(0, map0, seen0);
+  // A world without the wider view has none.
+  BatchEnv plain(small_world(3), kFloor, 2);
+  plain.reset(std::vector<std::uint8_t>(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(area)), {{{1, 1}}},
+              no_motion(1));
+  EXPECT_TRUE(plain.wide_patches().empty() && plain.wide_revealed().empty() && plain.wide_seen().empty());
+}
+
 TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {
   BatchEnv env(small_world(3), kFloor, 4);
   std::vector<std::uint8_t> f = floors(3);

@@ -25,7 +25,7 @@ namespace scout::testing {
                                 digits] = w.floor;
   [[maybe_unused]] const auto& [radius_m, mass_kg, max_speed_mps, start] = w.robot;
   [[maybe_unused]] const auto& [kp_per_s, tolerance_px] = w.controller;
-  [[maybe_unused]] const auto& [patch_px] = w.camera;
+  [[maybe_unused]] const auto& [patch_px, wide_px, wide_scale] = w.camera;
   [[maybe_unused]] const auto& [episodes, steps, step_px] = w.task;
   [[maybe_unused]] const auto& [dt_s, velocity_iterations, position_iterations, max_ticks_per_move] = w.physics;
   [[maybe_unused]] const auto& [scale_sd, heading_sd_deg, pose, slip_zones] = w.motion;
@@ -55,6 +55,8 @@ void for_each_world_field(const worlds::World& a, const worlds::World& b, F&& f)
   f("controller.kp_per_s", a.controller.kp_per_s, b.controller.kp_per_s);
   f("controller.tolerance_px", a.controller.tolerance_px, b.controller.tolerance_px);
   f("camera.patch_px", a.camera.patch_px, b.camera.patch_px);
+  f("camera.wide_px", a.camera.wide_px, b.camera.wide_px);
+  f("camera.wide_scale", a.camera.wide_scale, b.camera.wide_scale);
   f("task.episodes", a.task.episodes, b.task.episodes);
   f("task.steps", a.task.steps, b.task.steps);
   f("task.step_px", a.task.step_px, b.task.step_px);

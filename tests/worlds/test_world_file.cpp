@@ -246,7 +246,8 @@ const BadCase kBadCases[] = {
      "w.yaml:3: robot.radius: expected a key among radius_m, mass_kg, max_speed_mps, start, got unknown key "
      "\"radius\""},
     {"UnknownKeyInFlowMap", "task: {episodes: 4, goals: 2}\n", "w.yaml:1: task.goals: expected a key among episodes"},
-    {"NonScalarKey", "camera:\n  [1, 2]: 3\n", "w.yaml:2: camera: expected keys among patch_px, got a sequence"},
+    {"NonScalarKey", "camera:\n  [1, 2]: 3\n",
+     "w.yaml:2: camera: expected keys among patch_px, wide_px, wide_scale, got a sequence"},
     {"DuplicateKey", "camera:\n  patch_px: 6\n  patch_px: 7\n",
      "w.yaml:3: camera.patch_px: expected each key once, got a second one (the first is on line 2)"},
     {"DuplicateSection", "seed: 1\ncamera: {}\nseed: 2\n", "w.yaml:3: seed: expected each section once"},
@@ -995,6 +996,7 @@ TEST(WorldFile, TheSchemaListsTheKeysTheLoaderTakesInFileOrder) {
   scenario.floor.size_px = FloorSize{40, 40};
   scenario.floor.layout = FloorLayout::Cluttered;
   scenario.floor.clutter = 3;
+  scenario.camera.wide_px = 5;
   scenario.motion.pose = PoseSource::Odometry;
   scenario.pushes.probability = 0.5;
   scenario.obstacles.shade = 7;

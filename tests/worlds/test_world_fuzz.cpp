@@ -114,6 +114,8 @@ std::set<std::string> written_keys(const World& w) {
     if (section == "floor" && layout_field && !w.floor.composed()) continue;
     const bool cluttered = w.floor.layout == FloorLayout::Cluttered;
     if (section == "floor" && name == "clutter" && !cluttered) continue;
+    const bool wide_written = w.camera.wide() || w.camera.wide_scale != CameraSpec{}.wide_scale;
+    if (section == "camera" && (name == "wide_px" || name == "wide_scale") && !wide_written) continue;
     if (section == "floor" && name == "clutter_px" && !cluttered && w.floor.clutter_px == FloorSpec{}.clutter_px)
       continue;
     keys.insert(section + "." + name);
@@ -558,7 +560,10 @@ TEST(WorldFuzz, EveryInputGivesAWorldOrAnInputError) {
   // A team needs random starts and a divisor of the episodes: beside the file above.
   ASSERT_TRUE(feed("task: {episodes: 6}\nteam: {robots: 3}\n", tally));
   // A composed floor writes its layout's fields.
-  ASSERT_TRUE(feed("floor: {size_px: [100, 61], layout: cluttered, clutter: 7, clutter_px: 5, digits: 3}\n", tally));
+  ASSERT_TRUE(
+      feed("floor: {size_px: [100, 61], layout: cluttered, clutter: 7, clutter_px: 5, digits: 3}\n"
+           "camera: {patch_px: 8, wide_px: 12, wide_scale: 3}\n",
+           tally));
   ASSERT_TRUE(
       feed("floor: {image: a.png, pixel_size_m: 0.30000000000000004}\nphysics: {dt_s: 0.1}\n"
            "controller: {kp_per_s: 0.3333333333333333}\n",
