@@ -149,6 +149,7 @@ std::string describe_planners(const NetworkConfig& config) {
   if (config.occupancy) add("the occupancy channel");
   if (config.goal_context > 0) add("a goal context branch of " + std::to_string(config.goal_context));
   if (config.team_channels) add("the teammates' channels");
+  if (config.wide_view) add("the wider view's channels");
   if (config.goals_only) add("no action planner (goals only)");
   return text + extras;
 }

@@ -128,6 +128,9 @@ struct NetworkConfig {
   /// and where their goals are (agent/state.hpp), and a team's robots choose their goals one after
   /// the other, each seeing the goals its teammates have just chosen (a joint proposal, factorised).
   bool team_channels = false;
+  /// The planners also read the wider view (beyond the paper; a world with camera.wide_px > 0):
+  /// y_w, the team's coarse map of it, and h_w, 0 where it has covered the floor, 1 elsewhere.
+  bool wide_view = false;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
@@ -135,9 +138,10 @@ struct NetworkConfig {
 };
 
 /// Input channels of both planners: y (c), l, h, g_l, o with `occupancy`, t_p and t_g with
-/// `team_channels`.
+/// `team_channels`, y_w and h_w with `wide_view`.
 inline int planner_channels(const NetworkConfig& config) {
-  return config.image_channels + 3 + (config.occupancy ? 1 : 0) + (config.team_channels ? 2 : 0);
+  return config.image_channels + 3 + (config.occupancy ? 1 : 0) + (config.team_channels ? 2 : 0) +
+         (config.wide_view ? 2 : 0);
 }
 
 /// The agent's trainable parameters (all three networks) for `config`, counted without building

@@ -359,21 +359,25 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
   grown.goal_context = wants.goal_context;
   grown.goals_only = wants.goals_only;
   grown.team_channels = wants.team_channels;
+  grown.wide_view = wants.wide_view;
   const bool adds_occupancy = wants.occupancy && !has.occupancy;
   const bool adds_team = wants.team_channels && !has.team_channels;
+  const bool adds_wide = wants.wide_view && !has.wide_view;
   const bool adds_context = wants.goal_context > 0 && has.goal_context == 0;
   const bool drops_actions = wants.goals_only && !has.goals_only;
-  if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions && !adds_team) ||
+  if (!(grown == wants) || (!adds_occupancy && !adds_context && !drops_actions && !adds_team && !adds_wide) ||
       (has.occupancy && !wants.occupancy) || (has.goals_only && !wants.goals_only) ||
-      (has.team_channels && !wants.team_channels) || (has.goal_context != wants.goal_context && !adds_context))
+      (has.team_channels && !wants.team_channels) || (has.wide_view && !wants.wide_view) ||
+      (has.goal_context != wants.goal_context && !adds_context))
     throw std::invalid_argument(
         "copy_into_grown: the target must be the source's networks with the occupancy channel, the "
-        "teammates' channels or a goal context branch added, or the action planner removed");
+        "teammates' channels, the wider view's channels or a goal context branch added, or the action planner "
+        "removed");
   // The planners' inputs are concatenated [y, l, h, g_l, (o), (t_p, t_g), block outputs...]: each
   // of the source's input channels goes to its place in the target's order, and the added ones
   // (read with zero weights) fill the gaps.
   struct Layout {
-    std::int64_t o = -1, team = -1, blocks = 0;  // first channel of each part (-1: absent)
+    std::int64_t o = -1, team = -1, wide = -1, blocks = 0;  // first channel of each part (-1: absent)
   };
   const std::int64_t base = has.image_channels + 3;  // y, l, h, g_l
   auto layout = [base](const NetworkConfig& c) {
@@ -382,6 +386,10 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
     if (c.occupancy) l.o = at++;
     if (c.team_channels) {
       l.team = at;
+      at += 2;
+    }
+    if (c.wide_view) {
+      l.wide = at;
       at += 2;
     }
     l.blocks = at;
@@ -414,6 +422,7 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
     dst.narrow(1, 0, base).copy_(src.narrow(1, 0, base));
     if (from_layout.o >= 0) dst.narrow(1, to_layout.o, 1).copy_(src.narrow(1, from_layout.o, 1));
     if (from_layout.team >= 0) dst.narrow(1, to_layout.team, 2).copy_(src.narrow(1, from_layout.team, 2));
+    if (from_layout.wide >= 0) dst.narrow(1, to_layout.wide, 2).copy_(src.narrow(1, from_layout.wide, 2));
     const std::int64_t blocks = src.size(1) - from_layout.blocks;
     dst.narrow(1, to_layout.blocks, blocks).copy_(src.narrow(1, from_layout.blocks, blocks));
   }

@@ -23,7 +23,7 @@ void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, 
 }
 
 void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst, bool occupancy,
-                         bool team) {
+                         bool team, bool wide) {
   const std::size_t n = static_cast<std::size_t>(frame.area_px());
   float* y = dst;
   float* l = dst + n;
@@ -50,14 +50,28 @@ void write_planner_input(const grid::FloorFrame& frame, int patch_px, const Robo
       for (std::size_t i = 0; i < n; ++i) o[i] = view.occupied[i] != 0 ? 1.0f : 0.0f;
     }
   }
-  if (!team) return;
-  float* tp = dst + (occupancy ? 5 : 4) * n;
-  float* tg = tp + n;
-  std::fill(tp, tp + 2 * n, 1.0f);
-  for (const grid::Cell& pose : view.teammate_poses)
-    fill_window(grid::camera_window(pose, patch_px, frame), frame.width_px, 0.0f, tp);
-  for (const grid::Cell& goal : view.teammate_goals)
-    fill_window(grid::camera_window(goal, patch_px, frame), frame.width_px, 0.0f, tg);
+  if (team) {
+    float* tp = dst + (occupancy ? 5 : 4) * n;
+    float* tg = tp + n;
+    std::fill(tp, tp + 2 * n, 1.0f);
+    for (const grid::Cell& pose : view.teammate_poses)
+      fill_window(grid::camera_window(pose, patch_px, frame), frame.width_px, 0.0f, tp);
+    for (const grid::Cell& goal : view.teammate_goals)
+      fill_window(grid::camera_window(goal, patch_px, frame), frame.width_px, 0.0f, tg);
+  }
+  if (!wide) return;
+  float* yw = dst + (4 + (occupancy ? 1 : 0) + (team ? 2 : 0)) * n;
+  float* hw = yw + n;
+  if (view.wide_seen == nullptr) {
+    std::fill(yw, yw + n, 0.0f);
+    std::fill(hw, hw + n, 1.0f);
+    return;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool seen = view.wide_seen[i] != 0;
+    yw[i] = seen ? pixel_value(view.wide_revealed[i]) : 0.0f;
+    hw[i] = seen ? 0.0f : 1.0f;
+  }
 }
 
 }  // namespace scout::agent

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "agent/state.hpp"
+#include "core/error.hpp"
 #include "core/timing.hpp"
 #include "learn/internal/precision.hpp"
 #include "worlds/idx.hpp"
@@ -104,6 +105,13 @@ agent::RobotView AgentPolicy::view_of(const BatchState& state, int i, const grid
                                       std::span<const grid::Cell> team_goals, std::span<const std::uint8_t> has_goal) {
   agent::RobotView view{state.revealed_image(i), state.seen[i].data().data(), state.pose[i], goal,
                         state.occupied_cells(i)};
+  if (agent_.config().wide_view) {
+    if (state.wide_seen.empty())
+      throw InputError(
+          "the model's planners read the wider view (--wide-view), but this world has none: set camera.wide_px");
+    view.wide_revealed = state.wide_revealed_image(i);
+    view.wide_seen = state.wide_seen_cells(i);
+  }
   if (!agent_.config().team_channels || state.team <= 1) return view;
   teammate_poses_.clear();
   teammate_goals_.clear();
@@ -135,7 +143,7 @@ void AgentPolicy::sample_goals(const BatchState& state, std::span<const std::int
     const auto i = static_cast<int>(rows[r]);
     const agent::RobotView view = view_of(state, i, has_goal_[i] ? &goals_now_[i] : nullptr, goals_now_, has_goal_);
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area,
-                               config.occupancy, config.team_channels);
+                               config.occupancy, config.team_channels, config.wide_view);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);
@@ -199,7 +207,7 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
     // Every robot holds a goal while it moves: the teammates' are theirs now.
     const agent::RobotView view = view_of(state, static_cast<int>(i), &state.goal[i], state.goal, all_goals_);
     agent::write_planner_input(frame_, patch_px_, view, data + static_cast<std::size_t>(r) * channels * area,
-                               agent_.config().occupancy, agent_.config().team_channels);
+                               agent_.config().occupancy, agent_.config().team_channels, agent_.config().wide_view);
   }
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);

@@ -73,6 +73,8 @@ void RolloutEngine::refresh_state() {
   state_.seen = env_->seen();
   state_.revealed = env_->revealed();
   state_.occupied = env_->occupied();
+  state_.wide_revealed = env_->wide_revealed();
+  state_.wide_seen = env_->wide_seen();
   state_.goal = std::span<const grid::Cell>(goals_.data(), static_cast<std::size_t>(state_.count));
 }
 

@@ -30,9 +30,20 @@ struct BatchState {
   /// o as bytes: count * H * W, 1 where the robot cannot stand (env::BatchEnv::occupied); empty in
   /// a world without obstacles.
   std::span<const std::uint8_t> occupied;
+  /// The wider view's coarse map and where it is set, count * H * W bytes each
+  /// (env::BatchEnv::wide_revealed, wide_seen); empty in a world without it.
+  std::span<const std::uint8_t> wide_revealed;
+  std::span<const std::uint8_t> wide_seen;
 
   const std::uint8_t* revealed_image(int robot) const {
     return revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
+  }
+  /// Robot `robot`'s coarse map and its mask, or null in a world without the wider view.
+  const std::uint8_t* wide_revealed_image(int robot) const {
+    return wide_revealed.empty() ? nullptr : wide_revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
+  }
+  const std::uint8_t* wide_seen_cells(int robot) const {
+    return wide_seen.empty() ? nullptr : wide_seen.data() + static_cast<std::size_t>(robot) * frame.area_px();
   }
   /// Robot `robot`'s o, or null in a world without obstacles.
   const std::uint8_t* occupied_cells(int robot) const {

@@ -113,6 +113,9 @@ constexpr Row kRows[] = {
         "Planners also read where the teammates stand and where their goals are, and a team's robots choose their "
         "goals one after the other (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,
         /*stored_unless_default=*/true),
+    row("wide_view", "network", T::Flag, &NetworkConfig::wide_view, 0, 0, "--wide-view", "",
+        "Planners also read the wider view (camera.wide_px): its coarse map y_w and where it has looked, h_w (beyond "
+        "the paper)", kBoth, R::Kept, A::Networks, false, false, true, /*stored_unless_default=*/true),
     row("goals_only", "network", T::Flag, &NetworkConfig::goals_only, 0, 0, "--goals-only", "",
         "No action planner: every move's axis is drawn i.i.d. 1/2 - 1/2, no f2 parameters or arithmetic; trains in "
         "modes i and ii only (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,

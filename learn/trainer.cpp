@@ -161,6 +161,9 @@ struct Trainer::Impl {
             fmt::format("{}: a validation label is {}, the network has {} classes (from the training labels){}", origin,
                         label, config.network.classes, sum_note));
     worlds::check_against_floor(config.world, composer.width_px(), composer.height_px());
+    if (config.network.wide_view && !config.world.camera.wide())
+      throw InputError(config.world.file.string() +
+                       ": camera.wide_px: expected a wider view (wide_px > 0) for planners that read it (--wide-view)");
     frame = {.width_px = composer.width_px(),
              .height_px = composer.height_px(),
              .pixel_size_m = config.world.floor.pixel_size_m};

@@ -520,5 +520,29 @@ TEST(Networks, AddingTheTeammatesChannelsKeepsWhatThePlannersCompute) {
   EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
 }
 
+// The wider view's channels added to a model with every other extra: y_w and h_w come last,
+// read with zero weights, so the grown planners compute what the model's did.
+TEST(Networks, AddingTheWiderViewsChannelsKeepsWhatThePlannersCompute) {
+  torch::manual_seed(7);
+  NetworkConfig config;
+  config.planner_width = 4;
+  config.occupancy = true;
+  config.team_channels = true;
+  config.goal_context = 4;
+  Agent from(config);
+  NetworkConfig grown = config;
+  grown.wide_view = true;
+  Agent to(grown);
+  copy_into_grown(*from, *to);
+  EXPECT_EQ(planner_channels(grown), planner_channels(config) + 2);
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({3, planner_channels(config), 9, 8}) - 0.5;
+  const torch::Tensor wide = torch::rand({3, 2, 9, 8});
+  const torch::Tensor u_w = torch::cat({u, wide}, 1);
+  EXPECT_TRUE(torch::allclose(to->goal->forward(u_w), from->goal->forward(u), 1e-6, 1e-6));
+  EXPECT_TRUE(torch::allclose(to->action->forward(u_w), from->action->forward(u), 1e-6, 1e-6));
+  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace scout::agent
