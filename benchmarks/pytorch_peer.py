@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import statistics
 import subprocess
@@ -29,8 +30,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
-import torch.nn as nn
+
+# .venv leaves out triton (torch.compile's GPU kernels: python/requirements.txt); on the CPU the
+# compiler does not need it, and torch's warning that GPU flop counting will not work is noise here.
+logging.getLogger("torch.utils.flop_counter").setLevel(logging.ERROR)
+import torch  # noqa: E402
+import torch.nn as nn  # noqa: E402
 
 MODES = {"i": 1, "ii": 2, "iii": 3}
 

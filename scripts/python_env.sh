@@ -23,9 +23,17 @@ fi
 
 # Installed unless up to date (the stamp is the requirements file this environment was made from).
 if ! [ -f "$stamp" ] || ! cmp -s "$stamp" "$requirements"; then
-  echo "setup: installing $requirements into $venv (PyTorch with its CUDA libraries: about 2.8 GB from PyPI)"
+  # --no-deps: the file pins the whole environment, and leaves out on purpose what torch needs only
+  # on a GPU. --no-cache-dir: pip's cache would hold a second copy of the 2 GB of wheels.
+  # A full disk would otherwise surface as pip's OSError half-way through 2 GB of downloads.
+  free_mb=$(($(df -Pk . | awk 'NR == 2 {print $4}') / 1024))
+  if ((free_mb < 5000)); then
+    echo "setup: $venv needs about 5,000 MB of disk while it installs (4.2 GB once made); $(df -P . | awk 'NR == 2 {print $6}') has $free_mb MB free" >&2
+    exit 1
+  fi
+  echo "setup: installing $requirements into $venv (PyTorch with the CUDA libraries it loads: about 2.4 GB from PyPI)"
   if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --timeout 60 --retries 3 \
-    --only-binary :all: -r "$requirements" >"$venv/pip.log" 2>&1; then
+    --only-binary :all: --no-deps --no-cache-dir -r "$requirements" >"$venv/pip.log" 2>&1; then
     echo "setup: could not install $requirements from PyPI (pip's log: $venv/pip.log; the last line:" \
       "$(grep -v '^\s*$' "$venv/pip.log" | tail -1)); Scout needs its PyTorch to build: reach PyPI and run" \
       "./scripts/setup.sh again, or build against a LibTorch of your own (README, \"Which PyTorch\")" >&2
