@@ -282,6 +282,10 @@ void VectorEnv::write(const VectorOutputs& out) const {
   constexpr float kScale = 1.0f / 255.0f;
   if (out.patch)
     for (std::size_t k = 0; k < patches.size(); ++k) out.patch[k] = patches[k] * kScale;
+  const std::span<const std::uint8_t> wide_patches = env_->wide_patches();
+  const bool wide = !wide_patches.empty();
+  if (out.wide_patch && wide)
+    for (std::size_t k = 0; k < wide_patches.size(); ++k) out.wide_patch[k] = wide_patches[k] * kScale;
   // Per robot: the pose and the centre.
   for (int r = 0; r < num_envs_ * team_; ++r) {
     const grid::Cell pose = env_->poses()[r];
@@ -303,6 +307,13 @@ void VectorEnv::write(const VectorOutputs& out) const {
     if (out.occupied && !occupied.empty())
       std::copy_n(occupied.begin() + static_cast<std::ptrdiff_t>(area * first), area, out.occupied + area * i);
     if (out.seen) std::copy_n(env_->seen()[first].data().data(), area, out.seen + area * i);
+    if (out.wide_revealed && wide) {
+      const std::uint8_t* map = env_->wide_revealed().data() + area * first;
+      for (std::size_t k = 0; k < area; ++k) out.wide_revealed[area * i + k] = map[k] * kScale;
+    }
+    if (out.wide_seen && wide)
+      std::copy_n(env_->wide_seen().begin() + static_cast<std::ptrdiff_t>(area * first), area,
+                  out.wide_seen + area * i);
     if (out.time_step) out.time_step[i] = time_step_[i];
     if (out.label) out.label[i] = label_[i];
     if (out.index) out.index[i] = planned_[i].index;

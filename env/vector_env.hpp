@@ -70,6 +70,10 @@ struct VectorOutputs {
   /// N x H x W, o: 1 where the robot's disc cannot stand beside its run's obstacles (written in a
   /// world with obstacles only: VectorEnv::has_obstacles)
   std::uint8_t* occupied = nullptr;
+  /// The wider view (written in a world with one only: VectorEnv::wide_px() > 0):
+  float* wide_patch = nullptr;        ///< N x w x w (N x K x w x w), each robot's coarse window in [0, 1]
+  float* wide_revealed = nullptr;     ///< N x H x W, the team's coarse map where set, 0 elsewhere, in [0, 1]
+  std::uint8_t* wide_seen = nullptr;  ///< N x H x W, 1 where the coarse map is set
 };
 
 /// The action of one step (spans of num_envs rows).
@@ -99,6 +103,7 @@ class VectorEnv {
   int patch_px() const { return world_.camera.patch_px; }
   /// The world has obstacles (fixed or drawn per run): observations then carry o.
   bool has_obstacles() const { return !world_.obstacles.none(); }
+  int wide_px() const { return world_.camera.wide_px; }  ///< the wider view's side (0: none)
   int width() const { return frame_.width_px; }
   int height() const { return frame_.height_px; }
   int classes() const { return classes_; }      ///< D: the split's largest label + 1 (0: unlabelled)

@@ -116,6 +116,12 @@ void RolloutEngine::record_snapshots(std::vector<RolloutRecord>& records, int ep
     s.robot = state_.pose[i];
     if (with_goal) s.goal = state_.goal[i];
     s.seen = state_.seen[i].data();
+    if (const std::uint8_t* map = state_.wide_revealed_image(static_cast<int>(i))) {
+      const std::size_t area = static_cast<std::size_t>(state_.frame.area_px());
+      s.wide_revealed.assign(map, map + area);
+      s.wide_seen.assign(state_.wide_seen_cells(static_cast<int>(i)),
+                         state_.wide_seen_cells(static_cast<int>(i)) + area);
+    }
     s.path_length = records[i].path.size();
     records[i].snapshots.push_back(std::move(s));
   }

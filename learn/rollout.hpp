@@ -94,7 +94,9 @@ struct SnapshotRecord {
   grid::Cell robot;
   std::optional<grid::Cell> goal;
   std::vector<std::uint8_t> seen;  ///< H * W, 1 where seen
-  std::size_t path_length = 0;     ///< poses of RolloutRecord::path visited so far
+  /// The wider view's coarse map and where it is set (H * W each; empty in a world without it).
+  std::vector<std::uint8_t> wide_revealed, wide_seen;
+  std::size_t path_length = 0;  ///< poses of RolloutRecord::path visited so far
 };
 
 /// Everything one robot did in one rollout.

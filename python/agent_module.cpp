@@ -36,9 +36,14 @@ struct Observation {
   const std::uint8_t* seen = nullptr;
   const float* revealed = nullptr;
   const std::uint8_t* occupied = nullptr;  // o, in worlds with obstacles; null: all zeros
+  // The wider view's coarse map and where it is set, in worlds with one; null: none given.
+  const float* wide_revealed = nullptr;
+  const std::uint8_t* wide_seen = nullptr;
 
   Observation(const Array<std::int32_t>& pose_a, const Array<std::uint8_t>& seen_a, const Array<float>& revealed_a,
-              int patch, const std::optional<Array<std::uint8_t>>& occupied_a = std::nullopt) {
+              int patch, const std::optional<Array<std::uint8_t>>& occupied_a = std::nullopt,
+              const std::optional<Array<float>>& wide_revealed_a = std::nullopt,
+              const std::optional<Array<std::uint8_t>>& wide_seen_a = std::nullopt) {
     if (seen_a.ndim() != 3 || seen_a.shape(0) < 1)
       throw InputError("obs['seen']: expected shape (num_envs, H, W) with num_envs >= 1");
     n = static_cast<int>(seen_a.shape(0));
@@ -56,6 +61,16 @@ struct Observation {
           occupied_a->shape(2) != width)
         throw InputError("obs['occupied']: expected the shape of obs['seen']");
       occupied = occupied_a->data();
+    }
+    if (wide_revealed_a.has_value() != wide_seen_a.has_value())
+      throw InputError("obs['wide_revealed'] and obs['wide_seen']: expected both or neither");
+    if (wide_revealed_a) {
+      for (const py::array* a :
+           {static_cast<const py::array*>(&*wide_revealed_a), static_cast<const py::array*>(&*wide_seen_a)})
+        if (a->ndim() != 3 || a->shape(0) != n || a->shape(1) != height || a->shape(2) != width)
+          throw InputError("obs['wide_revealed'] and obs['wide_seen']: expected the shape of obs['seen']");
+      wide_revealed = wide_revealed_a->data();
+      wide_seen = wide_seen_a->data();
     }
     patch_px = patch;
     pose = pose_a.data();
@@ -91,13 +106,15 @@ class AgentCore {
   int classes() const { return agent_->classes(); }
   std::string precision() const { return agent::to_string(agent_->precision()); }
   std::string trained_precision() const { return agent::to_string(agent_->config().precision); }
+  bool wide_view() const { return agent_->config().network.wide_view; }
 
   // Returns (moves (N,), goals (N, 2)).
   py::tuple act(const Array<std::int32_t>& pose, const Array<std::uint8_t>& seen, const Array<float>& revealed,
                 const Array<std::int32_t>& time_step, const Array<std::uint64_t>& policy_seed,
                 const Array<std::int32_t>& episode, const py::array_t<bool, py::array::c_style>& episode_start,
-                int patch_px, const std::optional<Array<std::uint8_t>>& occupied) {
-    const Observation obs(pose, seen, revealed, patch_px, occupied);
+                int patch_px, const std::optional<Array<std::uint8_t>>& occupied,
+                const std::optional<Array<float>>& wide_revealed, const std::optional<Array<std::uint8_t>>& wide_seen) {
+    const Observation obs(pose, seen, revealed, patch_px, occupied, wide_revealed, wide_seen);
     const int n = obs.n;
     const std::int32_t* t = per_robot<std::int32_t>(time_step, n, "obs['time_step']");
     const std::uint64_t* seeds = per_robot<std::uint64_t>(policy_seed, n, "info['policy_seed']");
@@ -190,6 +207,18 @@ class AgentCore {
     } else {
       state_.occupied = {};
     }
+    if (obs.wide_revealed != nullptr) {
+      wide_revealed_.resize(area * n);
+      for (std::size_t k = 0; k < area * n; ++k)
+        wide_revealed_[k] =
+            static_cast<std::uint8_t>(std::lround(std::clamp(obs.wide_revealed[k], 0.0f, 1.0f) * 255.0f));
+      wide_seen_.assign(obs.wide_seen, obs.wide_seen + area * n);
+      state_.wide_revealed = wide_revealed_;
+      state_.wide_seen = wide_seen_;
+    } else {
+      state_.wide_revealed = {};
+      state_.wide_seen = {};
+    }
   }
 
   std::unique_ptr<learn::TrainedAgent> agent_;
@@ -201,6 +230,7 @@ class AgentCore {
   std::vector<grid::RevealMask> masks_;
   std::vector<std::uint8_t> revealed_;
   std::vector<std::uint8_t> occupied_;
+  std::vector<std::uint8_t> wide_revealed_, wide_seen_;
   std::vector<std::uint8_t> need_;
   std::vector<grid::Axis> axes_;
 };
@@ -218,9 +248,10 @@ PYBIND11_MODULE(_scout_agent, m) {
       .def_property_readonly("classes", &AgentCore::classes)
       .def_property_readonly("precision", &AgentCore::precision)
       .def_property_readonly("trained_precision", &AgentCore::trained_precision)
+      .def_property_readonly("wide_view", &AgentCore::wide_view)
       .def("act", &AgentCore::act, py::arg("pose"), py::arg("seen"), py::arg("revealed"), py::arg("time_step"),
            py::arg("policy_seed"), py::arg("episode"), py::arg("episode_start"), py::arg("patch_px"),
-           py::arg("occupied") = py::none())
+           py::arg("occupied") = py::none(), py::arg("wide_revealed") = py::none(), py::arg("wide_seen") = py::none())
       .def("classify", &AgentCore::classify, py::arg("pose"), py::arg("seen"), py::arg("revealed"),
            py::arg("patch_px"));
 }

@@ -139,6 +139,9 @@ struct Outputs {
   Array<std::int32_t> pose, time_step, label, index, goal_episode;
   Array<std::uint8_t> seen;
   Array<std::uint8_t> occupied;  // worlds with obstacles only (empty otherwise)
+  // Worlds with a wider view only (empty otherwise).
+  Array<float> wide_patch, wide_revealed;
+  Array<std::uint8_t> wide_seen;
   Array<double> pose_m;
   Array<std::uint64_t> policy_seed;
   py::array_t<bool> terminated, truncated, goal_episode_start;
@@ -161,6 +164,11 @@ struct Outputs {
     goal_episode = Array<std::int32_t>(n);
     seen = Array<std::uint8_t>({n, h, w});
     if (e.has_obstacles()) occupied = Array<std::uint8_t>({n, h, w});
+    if (const py::ssize_t wp = e.wide_px(); wp > 0) {
+      wide_patch = Array<float>(per_robot({wp, wp}));
+      wide_revealed = Array<float>({n, h, w});
+      wide_seen = Array<std::uint8_t>({n, h, w});
+    }
     pose_m = Array<double>(per_robot({2}));
     policy_seed = Array<std::uint64_t>(n);
     terminated = py::array_t<bool>(n);
@@ -182,7 +190,10 @@ struct Outputs {
             .reward = reward.mutable_data(),
             .terminated = reinterpret_cast<std::uint8_t*>(terminated.mutable_data()),
             .truncated = reinterpret_cast<std::uint8_t*>(truncated.mutable_data()),
-            .occupied = occupied.size() > 0 ? occupied.mutable_data() : nullptr};
+            .occupied = occupied.size() > 0 ? occupied.mutable_data() : nullptr,
+            .wide_patch = wide_patch.size() > 0 ? wide_patch.mutable_data() : nullptr,
+            .wide_revealed = wide_revealed.size() > 0 ? wide_revealed.mutable_data() : nullptr,
+            .wide_seen = wide_seen.size() > 0 ? wide_seen.mutable_data() : nullptr};
   }
 
   // Which goal episode each robot's next move belongs to, and whether it starts one (a goal is due).
@@ -204,6 +215,11 @@ struct Outputs {
     obs["revealed"] = revealed;
     obs["seen"] = seen;
     if (occupied.size() > 0) obs["occupied"] = occupied;  // worlds with obstacles
+    if (wide_patch.size() > 0) {                          // worlds with a wider view
+      obs["wide_patch"] = wide_patch;
+      obs["wide_revealed"] = wide_revealed;
+      obs["wide_seen"] = wide_seen;
+    }
     obs["time_step"] = time_step;
     return obs;
   }
@@ -354,6 +370,11 @@ class VectorEnvCore {
       s.revealed = e.batch().revealed().data() + area * robot;
       s.faint_unseen_floor = e.world().floor.composed();
       s.patch_px = e.patch_px();
+      if (e.wide_px() > 0) {
+        s.wide_revealed = e.batch().wide_revealed().data() + area * robot;
+        s.wide_seen = e.batch().wide_seen().data() + area * robot;
+        s.wide_side_px = e.wide_px() * e.world().camera.wide_scale;
+      }
       s.robot = (*paths_)[robot].back();
       s.goal = goals_[robot];
       s.path = (*paths_)[robot];
@@ -447,6 +468,7 @@ PYBIND11_MODULE(_scout, m) {
       .def_property_readonly("classes", [](const VectorEnvCore& c) { return c.env().classes(); })
       .def_property_readonly("has_obstacles", [](const VectorEnvCore& c) { return c.env().has_obstacles(); })
       .def_property_readonly("team_size", [](const VectorEnvCore& c) { return c.env().team_size(); })
+      .def_property_readonly("wide_px", [](const VectorEnvCore& c) { return c.env().wide_px(); })
       .def_property_readonly("episodes", [](const VectorEnvCore& c) { return c.env().world().task.episodes; })
       .def_property_readonly("steps", [](const VectorEnvCore& c) { return c.env().world().task.steps; })
       .def_property_readonly("step_px", [](const VectorEnvCore& c) { return c.env().step_px(); })

@@ -34,8 +34,9 @@ static_assert(sizeof(PixelPose) == 2 * sizeof(GLint), "PixelPose is uploaded as 
 // capture_at()'s vertex: its centre as two floats, in the same buffer (8 bytes a robot as well).
 static_assert(sizeof(FloorPoint) == 2 * sizeof(GLfloat), "FloorPoint is uploaded as a vec2");
 
-// Both shaders are compiled with "#define STACKED_FLOORS 0|1" after the version line (see
-// Impl::floors_per_layer). The vertex shader places robot i's point on the centre of tile i.
+// Every shader is compiled with "#define STACKED_FLOORS 0|1" (see Impl::floors_per_layer) and
+// "#define WIDE_VIEW 0|1" after the version line. The vertex shader places robot i's point on the
+// centre of tile i.
 constexpr const char* kVersion = "#version 330 core\n";
 
 constexpr const char* kVertexShader = R"(
@@ -52,6 +53,13 @@ flat out float layer;
 #endif
 void main() {
   int robot_index = gl_VertexID;
+#if WIDE_VIEW
+  if (gl_InstanceID == 1) {
+    place_wide_tile(pose, robot_index, tile_columns, framebuffer_px);
+    return;
+  }
+  kind = 0;
+#endif
   ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * patch_px;
   // Integer division truncates, and patch_px > 0, so patch_px / 2 is floor(m / 2). GLSL int
   // arithmetic wraps on overflow: an absurd pose still lands far off the floor and reads 0.
@@ -95,6 +103,12 @@ flat in float layer;
 #endif
 layout(location = 0) out vec4 colour;
 void main() {
+#if WIDE_VIEW
+  if (kind == 1) {
+    colour = vec4(wide_grey(floor_px, floors_per_layer), 0.0, 0.0, 1.0);
+    return;
+  }
+#endif
 #if STACKED_FLOORS
   ivec2 texel = ivec2(gl_FragCoord.xy) + window_minus_tile;
   float value = 0.0;
@@ -133,6 +147,15 @@ flat out vec2 fraction;
 flat out int robot;
 void main() {
   int robot_index = gl_VertexID;
+#if WIDE_VIEW
+  if (gl_InstanceID == 1) {
+    // The cell that holds the centre (clamped as below).
+    place_wide_tile(ivec2(floor(clamp(centre, vec2(-1024.0), vec2(floor_px) + 1024.0))), robot_index, tile_columns,
+                    framebuffer_px);
+    return;
+  }
+  kind = 0;
+#endif
   ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * patch_px;
   // Window pixel (0, 0)'s sample point in texel-centre coordinates (texel t at t + 0.5 becomes t).
   vec2 corner = clamp(centre - 0.5, vec2(-1024.0), vec2(floor_px) + 1024.0);
@@ -153,10 +176,13 @@ void main() {
 // Stacked floors: the border would show the neighbouring floor, so four texelFetch with an
 // explicit bounds test. Texel values are made exact grey levels (integers in float) before
 // weighting.
-constexpr const char* kBilinearFragmentShader = R"(
+// Extension directives come before any declaration (so before the wider view's part).
+constexpr const char* kGatherExtension = R"(
 #if !STACKED_FLOORS
 #extension GL_ARB_texture_gather : require
 #endif
+)";
+constexpr const char* kBilinearFragmentShader = R"(
 uniform sampler2DArray floors;
 uniform ivec2 floor_px;
 uniform vec2 inverse_floor_px;
@@ -172,6 +198,12 @@ float grey(ivec2 t, int layer, int row_offset) {
 }
 #endif
 void main() {
+#if WIDE_VIEW
+  if (kind == 1) {
+    colour = vec4(wide_grey(floor_px, floors_per_layer), 0.0, 0.0, 1.0);
+    return;
+  }
+#endif
   ivec2 texel = ivec2(gl_FragCoord.xy) + window_minus_tile;
 #if STACKED_FLOORS
   int layer = robot / floors_per_layer;
@@ -198,68 +230,64 @@ void main() {
 }
 )";
 
-// The wider view: a second grid of wide_px tiles below the patches' (from framebuffer row
-// wide_top), drawn by its own program before the one read-back. Tile pixel (i, j) of robot r is
-// the mean of the wide_scale x wide_scale floor texels from window + (i, j) * wide_scale, where
-// the window starts floor(wide_px * wide_scale / 2) texels before the robot's cell on each axis;
-// texels off the floor count as 0. The sum is taken in integers and rounded half up,
-// (2 sum + n) / (2 n) with n = wide_scale^2, exactly what wide_patch computes on the CPU. With
-// FLOAT_CENTRES the point is a capture_at() centre, whose cell is its floor (clamped as there).
-constexpr const char* kWideVertexShader = R"(
-#if FLOAT_CENTRES
-layout(location = 0) in vec2 centre;
-#else
-layout(location = 0) in ivec2 pose;
-#endif
-uniform int tile_columns;
+// The wider view, drawn in the same draw as the patches: with a wider view the points are drawn
+// as two instances, and instance 1 of robot r is its tile in a second grid of wide_px tiles below
+// the patches' (from framebuffer row wide_top). Tile pixel (i, j) is the mean of the wide_scale x
+// wide_scale floor texels from window + (i, j) * wide_scale, where the window starts
+// floor(wide_px * wide_scale / 2) texels before the robot's cell on each axis; texels off the
+// floor count as 0. The sum comes from four reads of the floor's summed-area table (floor_sums:
+// texel (x, y) holds the sum of the floor over [0, x) x [0, y), made on the CPU when the floors are
+// loaded), whatever the scale: summing the block texel by texel took 16 reads a pixel at scale 4
+// and made a capture five times as slow. Clamping the block's corners to [0, floor_px] is what
+// makes the texels off the floor 0. Integers throughout and rounded half up, (2 sum + n) / (2 n)
+// with n = wide_scale^2: exactly what wide_patch computes on the CPU.
+//
+// These parts come before the body of both vertex shaders and both fragment shaders (WIDE_VIEW 0
+// leaves them out).
+constexpr const char* kWideVertexPart = R"(
+#if WIDE_VIEW
 uniform int wide_px;
 uniform int wide_scale;
 uniform int wide_top;
-uniform vec2 framebuffer_px;
-uniform ivec2 floor_px;
-flat out ivec2 window;
-flat out ivec2 tile_origin;
-flat out int robot;
-void main() {
-  int robot_index = gl_VertexID;
-#if FLOAT_CENTRES
-  ivec2 cell = ivec2(floor(clamp(centre, vec2(-1024.0), vec2(floor_px) + 1024.0)));
-#else
-  ivec2 cell = pose;
-#endif
-  tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * wide_px + ivec2(0, wide_top);
-  window = cell - ivec2((wide_px * wide_scale) / 2);
-  robot = robot_index;
+flat out ivec2 wide_offset;  // tile pixel p's block starts at floor texel p * wide_scale + wide_offset
+flat out int wide_robot;
+flat out int kind;           // 0: a patch's tile, 1: a wider view's
+void place_wide_tile(ivec2 cell, int robot_index, int tile_columns, vec2 framebuffer_px) {
+  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * wide_px + ivec2(0, wide_top);
+  ivec2 window = cell - ivec2((wide_px * wide_scale) / 2);
+  wide_offset = window - tile_origin * wide_scale;
+  wide_robot = robot_index;
+  kind = 1;
   vec2 centre_px = vec2(tile_origin) + 0.5 * float(wide_px);
   gl_Position = vec4(centre_px / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
   gl_PointSize = float(wide_px);
 }
+#endif
 )";
 
-constexpr const char* kWideFragmentShader = R"(
-uniform sampler2DArray floors;
-uniform ivec2 floor_px;
-uniform int floors_per_layer;
+constexpr const char* kWideFragmentPart = R"(
+#if WIDE_VIEW
+uniform usampler2DArray floor_sums;
 uniform int wide_scale;
-flat in ivec2 window;
-flat in ivec2 tile_origin;
-flat in int robot;
-layout(location = 0) out vec4 colour;
-void main() {
-  ivec2 base = window + (ivec2(gl_FragCoord.xy) - tile_origin) * wide_scale;
-  int layer = robot / floors_per_layer;
-  int row_offset = (robot % floors_per_layer) * floor_px.y;
-  int sum = 0;
-  for (int dy = 0; dy < wide_scale; ++dy) {
-    for (int dx = 0; dx < wide_scale; ++dx) {
-      ivec2 t = base + ivec2(dx, dy);
-      if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, floor_px)))
-        sum += int(texelFetch(floors, ivec3(t.x, t.y + row_offset, layer), 0).r * 255.0 + 0.5);
-    }
-  }
-  int n = wide_scale * wide_scale;
-  colour = vec4(float((2 * sum + n) / (2 * n)) / 255.0, 0.0, 0.0, 1.0);
+flat in ivec2 wide_offset;
+flat in int wide_robot;
+flat in int kind;
+float wide_grey(ivec2 floor_px, int floors_per_layer) {
+  // GLSL int arithmetic wraps: a block far off the floor (an absurd pose) has both corners
+  // clamped to the same edge and sums 0.
+  ivec2 start = ivec2(gl_FragCoord.xy) * wide_scale + wide_offset;
+  ivec2 lo = clamp(start, ivec2(0), floor_px);
+  ivec2 hi = min(max(start, ivec2(-wide_scale)) + wide_scale, floor_px);
+  int layer = wide_robot / floors_per_layer;
+  int row = (wide_robot % floors_per_layer) * (floor_px.y + 1);
+  uint sum = texelFetch(floor_sums, ivec3(hi.x, hi.y + row, layer), 0).r -
+             texelFetch(floor_sums, ivec3(lo.x, hi.y + row, layer), 0).r -
+             texelFetch(floor_sums, ivec3(hi.x, lo.y + row, layer), 0).r +
+             texelFetch(floor_sums, ivec3(lo.x, lo.y + row, layer), 0).r;
+  uint n = uint(wide_scale * wide_scale);
+  return float((2u * sum + n) / (2u * n)) / 255.0;
 }
+#endif
 )";
 
 std::string shader_log(GLuint shader) {
@@ -278,12 +306,15 @@ std::string program_log(GLuint program) {
   return log.c_str();
 }
 
-GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, const char* name,
-                      const char* extra_define = "") {
+// A shader's source: the version, its defines, `extensions`, the wider view's part, then `body`.
+GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, bool wide_view, const char* name,
+                      const char* extensions = "") {
   GLuint shader = glCreateShader(kind);
-  const char* define = stacked_floors ? "#define STACKED_FLOORS 1\n" : "#define STACKED_FLOORS 0\n";
-  const char* sources[] = {kVersion, define, extra_define, body};
-  glShaderSource(shader, 4, sources, nullptr);
+  const char* stacked = stacked_floors ? "#define STACKED_FLOORS 1\n" : "#define STACKED_FLOORS 0\n";
+  const char* wide = wide_view ? "#define WIDE_VIEW 1\n" : "#define WIDE_VIEW 0\n";
+  const char* wide_part = kind == GL_VERTEX_SHADER ? kWideVertexPart : kWideFragmentPart;
+  const char* sources[] = {kVersion, stacked, wide, extensions, wide_part, body};
+  glShaderSource(shader, 6, sources, nullptr);
   glCompileShader(shader);
   GLint ok = GL_FALSE;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -330,13 +361,14 @@ struct PatchCamera::Impl {
   GLuint floor_texture = 0;
   GLuint framebuffer = 0;
   GLuint colour_buffer = 0;
+  // The wider view's summed-area tables, a (width + 1) x (height + 1) R32UI image per floor laid
+  // out as the floors are; `floor_sums_upload` is their CPU copy, grown to the largest batch loaded.
+  GLuint floor_sums_texture = 0;
+  std::vector<std::uint32_t> floor_sums_upload;
   GLuint program = 0;
   // capture_at(): its own program and vertex array (the centres are floats in pose_buffer).
   GLuint bilinear_program = 0;
   GLuint centre_vertex_array = 0;
-  // The wider view's programs: at grid poses (capture) and at the cells of centres (capture_at).
-  GLuint wide_program = 0;
-  GLuint wide_at_program = 0;
   bool bilinear_bound = false;          // which program and vertex array are bound now
   std::vector<std::uint8_t> read_back;  // the tile grid, framebuffer_width_px wide
   std::string description;
@@ -378,12 +410,13 @@ struct PatchCamera::Impl {
                   reinterpret_cast<const char*>(glGetString(GL_VERSION));
   }
 
-  GLuint link_program(const char* vertex_body, const char* fragment_body, const char* vertex_define = "") {
+  GLuint link_program(const char* vertex_body, const char* fragment_body, const char* fragment_extensions = "") {
     const bool stacked = floors_per_layer > 1;
-    GLuint vertex = compile_shader(GL_VERTEX_SHADER, vertex_body, stacked, "vertex", vertex_define);
+    const bool wide_view = wide.px > 0;
+    GLuint vertex = compile_shader(GL_VERTEX_SHADER, vertex_body, stacked, wide_view, "vertex");
     GLuint fragment = 0;
     try {
-      fragment = compile_shader(GL_FRAGMENT_SHADER, fragment_body, stacked, "fragment");
+      fragment = compile_shader(GL_FRAGMENT_SHADER, fragment_body, stacked, wide_view, "fragment", fragment_extensions);
     } catch (...) {
       glDeleteShader(vertex);
       throw;
@@ -412,6 +445,7 @@ struct PatchCamera::Impl {
                 1.0f / static_cast<float>(floor_height_px));
     glUniform1i(glGetUniformLocation(linked, "floors_per_layer"), floors_per_layer);
     glUniform1i(glGetUniformLocation(linked, "floors"), 0);
+    glUniform1i(glGetUniformLocation(linked, "floor_sums"), 1);
     glUniform1i(glGetUniformLocation(linked, "wide_px"), wide.px);
     glUniform1i(glGetUniformLocation(linked, "wide_scale"), wide.scale);
     glUniform1i(glGetUniformLocation(linked, "wide_top"), wide_top);
@@ -422,20 +456,12 @@ struct PatchCamera::Impl {
   // its first use, so that a GL without that extension still runs exact worlds.
   void create_programs() {
     program = link_program(kVertexShader, kFragmentShader);
-    if (wide.px > 0) {
-      wide_program = link_program(kWideVertexShader, kWideFragmentShader, "#define FLOAT_CENTRES 0\n");
-      wide_at_program = link_program(kWideVertexShader, kWideFragmentShader, "#define FLOAT_CENTRES 1\n");
-    }
     bind_crop();
   }
 
-  // The wider view's tiles, drawn after the patches' with the vertex array that is bound (the
-  // same points), then the patches' program again.
-  void draw_wide(int robots, bool at_centres) {
-    glUseProgram(at_centres ? wide_at_program : wide_program);
-    glDrawArrays(GL_POINTS, 0, robots);
-    glUseProgram(at_centres ? bilinear_program : program);
-  }
+  // One draw for the batch: the patches' points, and with `wide` their wider views' as the
+  // second instance.
+  void draw(int robots, bool wide_view) { glDrawArraysInstanced(GL_POINTS, 0, robots, wide_view ? 2 : 1); }
 
   // capture() and capture_at() each bind their program and vertex array only when the other
   // one drew last, so a run of capture() calls makes no extra GL calls. pose_buffer stays bound
@@ -447,7 +473,8 @@ struct PatchCamera::Impl {
   }
 
   void bind_bilinear() {
-    if (bilinear_program == 0) bilinear_program = link_program(kBilinearVertexShader, kBilinearFragmentShader);
+    if (bilinear_program == 0)
+      bilinear_program = link_program(kBilinearVertexShader, kBilinearFragmentShader, kGatherExtension);
     glUseProgram(bilinear_program);
     glBindVertexArray(centre_vertex_array);
     bilinear_bound = true;
@@ -489,6 +516,21 @@ struct PatchCamera::Impl {
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
     const GLfloat border[] = {0.0f, 0.0f, 0.0f, 0.0f};
     glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
+    if (wide.px > 0) {
+      if (static_cast<long long>(floors_per_layer) * (floor_height_px + 1) > max_texture_px) {
+        throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " wider views' tables of " +
+                                 std::to_string(floor_height_px + 1) + " rows do not fit the GL texture limits");
+      }
+      glActiveTexture(GL_TEXTURE1);
+      glGenTextures(1, &floor_sums_texture);
+      glBindTexture(GL_TEXTURE_2D_ARRAY, floor_sums_texture);
+      glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R32UI, floor_width_px + 1, (floor_height_px + 1) * floors_per_layer,
+                     layers);
+      // Read with texelFetch only, always inside the table.
+      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glActiveTexture(GL_TEXTURE0);
+    }
 
     GLint max_renderbuffer_px = 0;
     glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
@@ -518,6 +560,46 @@ struct PatchCamera::Impl {
     glPointParameteri(GL_POINT_SPRITE_COORD_ORIGIN, GL_LOWER_LEFT);
 
     read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px, 0);
+  }
+
+  // The wider view's summed-area tables of `count` floors, made here and uploaded like the floors
+  // (whole layers in one call). 240 floors of 60 x 60: about a millisecond.
+  void load_floor_sums(std::span<const std::uint8_t> floors, int count) {
+    const std::size_t w = static_cast<std::size_t>(floor_width_px);
+    const std::size_t h = static_cast<std::size_t>(floor_height_px);
+    const std::size_t table = (w + 1) * (h + 1);
+    if (floor_sums_upload.size() < table * static_cast<std::size_t>(count))
+      floor_sums_upload.resize(table * static_cast<std::size_t>(count));
+    for (int f = 0; f < count; ++f) {
+      const std::uint8_t* floor = floors.data() + static_cast<std::size_t>(f) * w * h;
+      std::uint32_t* sums = floor_sums_upload.data() + static_cast<std::size_t>(f) * table;
+      std::fill_n(sums, w + 1, 0u);  // row 0: the sum over no rows
+      for (std::size_t y = 0; y < h; ++y) {
+        const std::uint32_t* above = sums + y * (w + 1);
+        std::uint32_t* row = sums + (y + 1) * (w + 1);
+        std::uint32_t row_sum = 0;
+        row[0] = 0;
+        for (std::size_t x = 0; x < w; ++x) {
+          row_sum += floor[y * w + x];
+          row[x + 1] = above[x + 1] + row_sum;
+        }
+      }
+    }
+    glActiveTexture(GL_TEXTURE1);
+    const int whole_layers = count / floors_per_layer;
+    const int rest = count % floors_per_layer;
+    const int table_rows = floor_height_px + 1;
+    if (whole_layers > 0) {
+      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, floor_width_px + 1, table_rows * floors_per_layer, whole_layers,
+                      GL_RED_INTEGER, GL_UNSIGNED_INT, floor_sums_upload.data());
+    }
+    if (rest > 0) {
+      const std::size_t offset =
+          table * static_cast<std::size_t>(whole_layers) * static_cast<std::size_t>(floors_per_layer);
+      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, floor_width_px + 1, table_rows * rest, 1,
+                      GL_RED_INTEGER, GL_UNSIGNED_INT, floor_sums_upload.data() + offset);
+    }
+    glActiveTexture(GL_TEXTURE0);
   }
 
   // capture()'s and capture_at()'s argument checks; `what` names the call, `items` its points.
@@ -586,12 +668,11 @@ struct PatchCamera::Impl {
     if (OSMesaGetCurrentContext() == context ||
         OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
       if (program != 0) glDeleteProgram(program);
-      if (wide_program != 0) glDeleteProgram(wide_program);
-      if (wide_at_program != 0) glDeleteProgram(wide_at_program);
       if (bilinear_program != 0) glDeleteProgram(bilinear_program);
       if (framebuffer != 0) glDeleteFramebuffers(1, &framebuffer);
       if (colour_buffer != 0) glDeleteRenderbuffers(1, &colour_buffer);
       if (floor_texture != 0) glDeleteTextures(1, &floor_texture);
+      if (floor_sums_texture != 0) glDeleteTextures(1, &floor_sums_texture);
       if (pose_buffer != 0) glDeleteBuffers(1, &pose_buffer);
       if (vertex_array != 0) glDeleteVertexArrays(1, &vertex_array);
       if (centre_vertex_array != 0) glDeleteVertexArrays(1, &centre_vertex_array);
@@ -672,6 +753,7 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
     glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest, 1,
                     GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
   }
+  if (impl.wide.px > 0) impl.load_floor_sums(floors, count);
   impl.floors_loaded = count;
 }
 
@@ -686,9 +768,8 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
 
   const int robots = static_cast<int>(poses.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
-  glDrawArrays(GL_POINTS, 0, robots);
   const bool wide = !wide_patches.empty();
-  if (wide) impl.draw_wide(robots, /*at_centres=*/false);
+  impl.draw(robots, wide);
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 
@@ -708,9 +789,8 @@ void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std:
 
   const int robots = static_cast<int>(centres.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(centres.size_bytes()), centres.data());
-  glDrawArrays(GL_POINTS, 0, robots);
   const bool wide = !wide_patches.empty();
-  if (wide) impl.draw_wide(robots, /*at_centres=*/true);
+  impl.draw(robots, wide);
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 

@@ -49,15 +49,27 @@ cv::Vec3b unseen_colour(std::uint8_t gray, bool faint) {
           static_cast<std::uint8_t>(45 + add)};
 }
 
-// Draws the outline of a floor window (columns x - floor(m/2) .. + m - 1, same rows), clipped to
-// the floor, as bands `thickness` output pixels wide lying inside the window, so that the
-// outline covers exactly the window's border pixels and nothing outside.
-void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int thickness, const cv::Scalar& colour) {
-  const long long half = snapshot.patch_px / 2;
+// A pixel seen only by the wider view: its coarse grey at 60 % over a shade a little lighter than
+// the unseen one (so that a coarse black is told from the unseen floor), blue exceeding red by 32:
+// it never looks like a pixel seen at full resolution.
+cv::Vec3b coarse_colour(std::uint8_t coarse) {
+  const int add = coarse * 6 / 10;
+  return {static_cast<std::uint8_t>(82 + add), static_cast<std::uint8_t>(62 + add),
+          static_cast<std::uint8_t>(50 + add)};
+}
+
+// Draws the outline of a floor window (columns x - floor(side/2) .. + side - 1, same rows; side:
+// the patch's m unless given), clipped to the floor, as bands `thickness` output pixels wide lying
+// inside the window, so that the outline covers exactly the window's border pixels and nothing
+// outside.
+void draw_window(cv::Mat& image, const Snapshot& snapshot, PixelPose centre, int thickness, const cv::Scalar& colour,
+                 int side = 0) {
+  if (side == 0) side = snapshot.patch_px;
+  const long long half = side / 2;
   const long long x0 = std::max<long long>(0, centre.x - half);
   const long long y0 = std::max<long long>(0, centre.y - half);
-  const long long x1 = std::min<long long>(snapshot.width_px - 1, centre.x - half + snapshot.patch_px - 1);
-  const long long y1 = std::min<long long>(snapshot.height_px - 1, centre.y - half + snapshot.patch_px - 1);
+  const long long x1 = std::min<long long>(snapshot.width_px - 1, centre.x - half + side - 1);
+  const long long y1 = std::min<long long>(snapshot.height_px - 1, centre.y - half + side - 1);
   if (x0 > x1 || y0 > y1) return;  // the window is wholly off the floor
   const int s = snapshot.scale;
   const int left = static_cast<int>(x0) * s;
@@ -249,7 +261,10 @@ void draw_floor(cv::Mat& map, const Snapshot& snapshot, const cv::Mat& colours,
       const std::size_t index = static_cast<std::size_t>(y) * snapshot.width_px + x;
       const std::uint8_t gray = snapshot.floor[index];
       const bool seen = snapshot.revealed == nullptr || snapshot.revealed[index] != 0;
-      cv::Vec3b colour = seen ? cv::Vec3b(gray, gray, gray) : unseen_colour(gray, snapshot.faint_unseen_floor);
+      const bool coarse = !seen && snapshot.wide_seen != nullptr && snapshot.wide_seen[index] != 0;
+      cv::Vec3b colour = seen     ? cv::Vec3b(gray, gray, gray)
+                         : coarse ? coarse_colour(snapshot.wide_revealed[index])
+                                  : unseen_colour(gray, snapshot.faint_unseen_floor);
       if (has_heat) colour = blend_heat(colour, colours.at<cv::Vec3b>(0, levels[index]));
       if (snapshot.slip != nullptr && snapshot.slip[index] != 0)
         for (int c = 0; c < 3; ++c) colour[c] = static_cast<std::uint8_t>((2 * colour[c] + kSlipTint[c]) / 3);
@@ -295,6 +310,9 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   if (snapshot.patch_px < 1) {
     throw std::invalid_argument("draw_snapshot: patch_px must be positive, got " + std::to_string(snapshot.patch_px));
   }
+  if (snapshot.wide_side_px < 0 || (snapshot.wide_revealed == nullptr) != (snapshot.wide_seen == nullptr)) {
+    throw std::invalid_argument("draw_snapshot: the wider view needs wide_side_px >= 0 and both its map and mask");
+  }
   const long long map_width = static_cast<long long>(snapshot.width_px) * snapshot.scale;
   const long long map_height = static_cast<long long>(snapshot.height_px) * snapshot.scale;
   if (map_width > kMaxSidePx || map_height > kMaxSidePx) {
@@ -336,6 +354,14 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   for (std::size_t k = 0; k < snapshot.teammates.size(); ++k)
     if (snapshot.teammates[k].goal)
       draw_window(map, snapshot, *snapshot.teammates[k].goal, std::max(1, outline_px / 2), kTeammateColours[k % 7]);
+  // The wider window, thin, under the robot's own: at the grid pose (the camera takes it at the
+  // cell that holds the robot's centre).
+  if (snapshot.wide_side_px > 0) {
+    const PixelPose cell = snapshot.body ? PixelPose{static_cast<int>(std::floor(snapshot.body->x_px)),
+                                                     static_cast<int>(std::floor(snapshot.body->y_px))}
+                                         : snapshot.robot;
+    draw_window(map, snapshot, cell, std::max(1, outline_px / 2), kRobotColour, snapshot.wide_side_px);
+  }
   draw_robot(map, snapshot, snapshot.robot, snapshot.body, kRobotColour, kRimColour);
   for (std::size_t k = 0; k < snapshot.teammates.size(); ++k) {
     const Snapshot::Teammate& mate = snapshot.teammates[k];

@@ -85,11 +85,14 @@ struct SimBatch {
   std::vector<std::uint64_t> motion_seeds;  // each robot's motion errors and pushes (worlds that have them)
 };
 
-// `floor_side`: the world on a floor of that side (floor.size_px), its task and layout unchanged.
-SimBatch gather_sim_batch(const BenchOptions& opt, std::optional<int> floor_side = std::nullopt) {
+// `floor_side`: the world on a floor of that side (floor.size_px), its task and layout unchanged;
+// `without_wide_view`: with its camera's wider view off.
+SimBatch gather_sim_batch(const BenchOptions& opt, std::optional<int> floor_side = std::nullopt,
+                          bool without_wide_view = false) {
   SimBatch b;
   b.world = worlds::load_world(opt.world);
   if (floor_side) b.world.floor.size_px = worlds::FloorSize{*floor_side, *floor_side};
+  if (without_wide_view) b.world.camera.wide_px = 0;
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   b.floors = worlds::load_floors(b.world, data_root);
   b.frame = {
@@ -182,20 +185,22 @@ void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vecto
     for (int i = 0; i < n; ++i) robots.place(i, b.starts[i], b.motion_seeds[i]);
     for (int m = 0; m < moves; ++m) robots.move(commands[m], results);
   }));
-  // Camera alone: the recorded poses rendered and read back.
+  // Camera alone: the recorded poses rendered and read back (with the world's wider view).
   const int patch = b.world.camera.patch_px;
-  render::PatchCamera camera(b.frame.width_px, b.frame.height_px, patch, n);
+  const render::WideView wide{b.world.camera.wide_px, b.world.camera.wide_scale};
+  render::PatchCamera camera(b.frame.width_px, b.frame.height_px, patch, n, wide);
   camera.load_floors(b.floor_pixels, n);
   std::vector<std::uint8_t> patches(static_cast<std::size_t>(n) * patch * patch);
+  std::vector<std::uint8_t> wide_patches(static_cast<std::size_t>(n) * wide.px * wide.px);
   // As the environment does: crops at grid poses where moves land on cells, else the floor sampled
   // at the true centres.
   const bool exact = b.world.ideal_motion();
   f.camera = median(time_repeats(opt.repeats, [&](int) {
     for (int m = 0; m < moves; ++m) {
       if (exact)
-        camera.capture(poses[m], patches);
+        camera.capture(poses[m], patches, wide_patches);
       else
-        camera.capture_at(centres[m], patches);
+        camera.capture_at(centres[m], patches, wide_patches);
     }
   }));
   f.threads = robots.threads();
@@ -236,8 +241,11 @@ void print_sim(const BenchOptions& opt, const SimBatch& b, const SimFigures& f) 
   const std::string shape =
       K == 1 ? fmt::format("E={} x T={}", world.task.episodes, world.task.steps)
              : fmt::format("E/K={} x T={}, teams of K={}", world.task.episodes / K, world.task.steps, K);
-  fmt::print("scout bench sim: {} robots x {} moves ({}), m={}, {} repeats, {} physics threads\n", b.n,
-             b.moves_per_rollout, shape, world.camera.patch_px, opt.repeats, f.threads);
+  const std::string wide = world.camera.wide() ? fmt::format(" and a wider view of {0}x{0} pixels of {1}x{1}",
+                                                             world.camera.wide_px, world.camera.wide_scale)
+                                               : std::string();
+  fmt::print("scout bench sim: {} robots x {} moves ({}), m={}{}, {} repeats, {} physics threads\n", b.n,
+             b.moves_per_rollout, shape, world.camera.patch_px, wide, opt.repeats, f.threads);
   fmt::print("  world {}: {:.3g} m/px, max speed {} m/s, dt {:.4g} s\n", opt.world, b.frame.pixel_size_m,
              world.robot.max_speed_mps, world.physics.dt_s);
   fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
@@ -286,30 +294,39 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
 }
 
 // --floor-sizes: the world's task on floors of each side in turn, in one process, and each
-// figure beside the first size's (the speed a larger floor keeps).
+// figure beside the first size's (the speed a larger floor keeps). A world with a wider view is
+// timed on each floor with it and without it.
 void bench_sim_floor_sizes(const BenchOptions& opt) {
-  std::vector<SimBatch> batches;
+  const bool wide = worlds::load_world(opt.world).camera.wide();
+  std::vector<SimBatch> batches;            // per floor: without the wider view, then (a world with one) with it
   for (const int side : opt.floor_sizes) {  // every size checked before anything is timed
     try {
-      batches.push_back(gather_sim_batch(opt, side));
+      batches.push_back(gather_sim_batch(opt, side, /*without_wide_view=*/true));
+      if (wide) batches.push_back(gather_sim_batch(opt, side));
     } catch (const InputError& e) {
       throw InputError(fmt::format("--floor-sizes: {}: {}", side, e.what()));
     }
   }
   fmt::print("scout bench sim: {} robots, {} repeats, the world {} on floors of each size\n", opt.robots, opt.repeats,
              opt.world);
-  fmt::print("  {:<10} {:>18} {:>8} {:>18} {:>18}\n", "floor", "physics + camera", "ratio", "physics alone",
-             "camera alone");
-  double first = 0;
+  fmt::print("  {:<10} {:<18} {:>18} {:>8} {:>18} {:>18}\n", "floor", "camera", "physics + camera", "ratio",
+             "physics alone", "camera alone");
+  double first[2] = {0, 0};  // the first floor's figure without and with the wider view
   for (const SimBatch& b : batches) {
     const SimFigures f = time_sim(opt, b);
     const double steps = double(b.n) * b.moves_per_rollout, together = steps / f.together;
-    if (first == 0) first = together;
-    fmt::print("  {:<10} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}\n",
-               fmt::format("{} x {}", b.frame.width_px, b.frame.height_px), together, 100 * together / first,
+    const worlds::CameraSpec& camera = b.world.camera;
+    double& reference = first[camera.wide() ? 1 : 0];
+    if (reference == 0) reference = together;
+    const std::string view = camera.wide() ? fmt::format("patch + wide {0}x{0}/{1}", camera.wide_px, camera.wide_scale)
+                                           : std::string("patch");
+    fmt::print("  {:<10} {:<18} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}\n",
+               fmt::format("{} x {}", b.frame.width_px, b.frame.height_px), view, together, 100 * together / reference,
                steps / f.physics, steps / f.camera);
   }
-  fmt::print("  (agent-steps/s, medians; ratio: physics + camera against the first floor)\n");
+  fmt::print(
+      "  (agent-steps/s, medians; ratio: physics + camera against the first floor with the same camera;\n"
+      "   wide PxP/S: the wider view's P x P pixels, each the mean of S x S floor pixels)\n");
   fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));
 }
 

@@ -23,6 +23,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.obstacles = run.obstacles;
   s.slip = run.slip;
   s.faint_unseen_floor = run.faint_floor;
+  s.wide_side_px = run.wide_side_px;
   s.teammates.resize(team - 1);
   // Robot 0 is drawn through the snapshot's own fields, robot k > 0 through teammates[k - 1].
   auto path_of = [&](std::size_t k) -> std::vector<render::PixelPose>& {

@@ -24,6 +24,7 @@ struct RunAnimation {
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask, drawn on every frame; null: none
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask, tinted on every frame; null: none
   bool faint_floor = false;                 ///< the unseen floor shows faintly (a composed floor)
+  int wide_side_px = 0;  ///< the wider window's side in floor pixels, outlined where the body is (0: none)
 };
 
 /// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame

@@ -279,7 +279,7 @@ constexpr Row<CameraSpec> kCameraRows[] = {
      "m: the camera sees an m × m window; the upper bound is the renderer's limit"},
     // The wider view; written only when it is on (every earlier world's text stays).
     {"wide_px", Type::Integer, &CameraSpec::wide_px, closed(0, kMaxPatchPx),
-     "and `wide_px` × `wide_scale` at most the floor's larger side", "pixels",
+     "and `wide_px` × `wide_scale` at most twice the floor's larger side", "pixels",
      "the wider view: a second window of `wide_px` × `wide_px` coarse pixels taken with the patch, each the mean "
      "of `wide_scale` × `wide_scale` floor pixels; 0: none"},
     {"wide_scale", Type::Integer, &CameraSpec::wide_scale, closed(1, 16), "", "pixels",
@@ -1425,13 +1425,15 @@ void check_against_floor(const World& world, int floor_width_px, int floor_heigh
   const std::string size = std::to_string(floor_width_px) + "x" + std::to_string(floor_height_px);
   const int smallest = std::min(floor_width_px, floor_height_px);
   const int span = world.camera.wide_px * world.camera.wide_scale;
-  if (span > std::max(floor_width_px, floor_height_px)) {
+  // Twice the side sees the whole floor from any cell (a corner included); a wider window would
+  // only add black.
+  if (span > 2 * std::max(floor_width_px, floor_height_px)) {
     const int line = field_line(world, "camera.wide_px", "camera");
     throw InputError(one_line(fmt::format(
-        "{}:{}: camera.wide_px: expected wide_px x wide_scale at most the floor's larger side, {} (the floor is {} "
-        "pixels), got {} x {} = {}",
-        origin, line, std::max(floor_width_px, floor_height_px), size, world.camera.wide_px, world.camera.wide_scale,
-        span)));
+        "{}:{}: camera.wide_px: expected wide_px x wide_scale at most twice the floor's larger side, {} (the floor is "
+        "{} pixels), got {} x {} = {}",
+        origin, line, 2 * std::max(floor_width_px, floor_height_px), size, world.camera.wide_px,
+        world.camera.wide_scale, span)));
   }
   if (world.camera.patch_px > smallest) {
     const int line = field_line(world, "camera.patch_px", "camera");

@@ -321,8 +321,7 @@ class Agent:
         self.precision = self._core.precision
         self.trained_precision = self._core.trained_precision
 
-    @staticmethod
-    def _robots(obs, info=None, need_info=False):
+    def _robots(self, obs, info=None, need_info=False):
         """The arrays the agent reads, checked to describe the same robots and floor: integers
         that fit where integers are read, finite values in [0, 1] for the revealed floor."""
         for where, source in [("obs", obs)] + ([("info", info)] if need_info else []):
@@ -369,6 +368,16 @@ class Agent:
                   # o, in worlds with obstacles (a model with the occupancy channel reads zeros without it)
                   "occupied": get(obs, "obs", "occupied", np.uint8, (n, h, w)) if "occupied" in obs else None,
                   "patch_px": int(patch.shape[1])}
+        if self._core.wide_view:  # the wider view's coarse map, in worlds with one (camera.wide_px)
+            if "wide_revealed" not in obs or "wide_seen" not in obs:
+                raise ValueError("scout.Agent: the model's planners read the wider view (--wide-view): expected "
+                                 "obs['wide_revealed'] and obs['wide_seen'], which a world with camera.wide_px gives")
+            wide = get(obs, "obs", "wide_revealed", float, (n, h, w))
+            if not (np.all(wide >= 0) and np.all(wide <= 1)):
+                raise ValueError("obs['wide_revealed']: expected values in [0, 1] (the coarse map's pixels / 255)")
+            arrays.update(wide_revealed=wide, wide_seen=get(obs, "obs", "wide_seen", np.uint8, (n, h, w)))
+        else:
+            arrays.update(wide_revealed=None, wide_seen=None)
         if need_info:
             arrays.update(time_step=get(obs, "obs", "time_step", np.int32, (n,)),
                           policy_seed=get(info, "info", "policy_seed", np.uint64, (n,)),
@@ -381,7 +390,8 @@ class Agent:
         keeps each move from passing it, as the paper's protocol does)."""
         a = self._robots(obs, info, need_info=True)
         moves, goals = self._core.act(a["pose"], a["seen"], a["revealed"], a["time_step"], a["policy_seed"],
-                                      a["episode"], a["episode_start"], a["patch_px"], a["occupied"])
+                                      a["episode"], a["episode_start"], a["patch_px"], a["occupied"],
+                                      a["wide_revealed"], a["wide_seen"])
         return {"move": moves, "goal": goals}
 
     def classify(self, obs):

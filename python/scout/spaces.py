@@ -225,6 +225,10 @@ def describe(core):
     }
     if core.has_obstacles:  # o: where the robot cannot stand beside its run's obstacles
         observation["occupied"] = box(0, 1, (h, w), np.uint8)
+    if core.wide_px > 0:  # the wider view: each robot's coarse window, the team's coarse map and where it is set
+        observation["wide_patch"] = box(0.0, 1.0, (*team, core.wide_px, core.wide_px), np.float32)
+        observation["wide_revealed"] = box(0.0, 1.0, (h, w), np.float32)
+        observation["wide_seen"] = box(0, 1, (h, w), np.uint8)
     observation["time_step"] = box(0, core.episodes // k * core.steps, (), np.int32)
     single_observation = (S.Dict if S else Dict)(observation)
     multi = S.MultiDiscrete if S else MultiDiscrete

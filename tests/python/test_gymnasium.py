@@ -305,10 +305,12 @@ def test_the_large_floor_ids_make_searching_tasks_that_gymnasium_accepts(env_id,
     envs = gymnasium.make_vec(env_id, num_envs=3, split="validation")
     assert envs.single_observation_space["revealed"].shape == (side, side)
     assert envs.single_observation_space["patch"].shape == (8, 8)
+    assert envs.single_observation_space["wide_patch"].shape == (8, 8)
     envs = gymnasium.wrappers.vector.RecordEpisodeStatistics(envs)
     envs = gymnasium.wrappers.vector.FlattenObservation(envs)
     obs, info = envs.reset(seed=3)
-    assert obs.shape == (3, 8 * 8 + 2 + 2 * side * side + 1)
+    # patch, pose, revealed, seen, time step, then the wider view: its window, coarse map and mask
+    assert obs.shape == (3, 8 * 8 + 2 + 2 * side * side + 1 + 8 * 8 + 2 * side * side)
     moves = 16  # 4 x 4 in these worlds
     rng = np.random.default_rng(1)
     episodes = 0

@@ -645,3 +645,54 @@ def test_a_team_world_has_k_robots_per_environment_sharing_what_they_have_seen(t
     assert obs["pose"].shape == (2, 2)
     with pytest.raises(ValueError, match="teams of 2 robots"):
         scout.Agent(MODEL).act(*envs.reset(seed=seed))
+
+
+TRANSLATED_WORLD = os.path.join(SOURCE, "worlds", "translated-60.yaml")
+
+
+def test_the_wider_view_is_observed_and_a_wide_view_agent_reads_it_as_scout_run_does(tmp_path):
+    # A model whose planners read the wider view (--wide-view), its y_w and h_w weights moved off
+    # zero by a few steps in the 60 x 60 translated world (8 x 8 coarse pixels of 6 x 6).
+    run = tmp_path / "wide"
+    subprocess.run([BINARY, "train", TRANSLATED_WORLD, "--out", str(run), "--init-from", MODEL, "--wide-view",
+                    "--epochs", "0,0,1", "--train-limit", "40", "--validation-limit", "20", "--batch", "20",
+                    "--lr", "0.01", "--threads", "1", "--seed", "4"], check=True, capture_output=True)
+    model = str(run / "checkpoint.pt")
+    n, seed, side, wide, scale = 12, 5, 60, 8, 6
+    envs = scout.make_vec(TRANSLATED_WORLD, n, seed=seed)
+    obs, info = envs.reset(seed=seed)
+    assert envs.observation_space.contains(obs)
+    assert obs["wide_patch"].shape == (n, wide, wide) and obs["wide_seen"].shape == (n, side, side)
+    # What the coarse map holds: each look's window of 48 x 48 floor pixels around the robot's
+    # cell, clipped to the floor, painted block by block with the look's coarse pixels.
+    for step in range(3):
+        for i in range(n):
+            x0, y0 = obs["pose"][i] - wide * scale // 2
+            block = np.kron(obs["wide_patch"][i], np.ones((scale, scale), np.float32))
+            ys, xs = slice(max(y0, 0), min(y0 + wide * scale, side)), slice(max(x0, 0), min(x0 + wide * scale, side))
+            window = block[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
+            assert np.array_equal(obs["wide_revealed"][i][ys, xs], window), f"robot {i}, move {step}"
+            assert obs["wide_seen"][i][ys, xs].all()
+            if step == 0:  # nothing else is set yet
+                assert obs["wide_seen"][i].sum() == window.size
+        seen_before = obs["wide_seen"].copy()
+        obs, *_ = envs.step({"move": np.full(n, step % 4)})
+        assert np.all(obs["wide_seen"] >= seen_before)  # the map only grows
+    assert "wide_patch" not in scout.make_vec(WORLD, 2, seed=1).reset()[0]
+
+    # The agent chooses what `scout run` chooses with the same model and seed.
+    out = tmp_path / "run"
+    subprocess.run([BINARY, "run", TRANSLATED_WORLD, "--checkpoint", model, "--seed", str(seed), "--count", str(n),
+                    "--no-images", "--out", str(out)], check=True, capture_output=True)
+    runs = json.loads((out / "trajectory.json").read_text())["runs"]
+    agent = scout.Agent(model)
+    _, poses, goals, _ = drive(envs, agent, seed)
+    for i, r in enumerate(runs):
+        assert list(poses[0, i]) == r["start"]
+        assert [list(g) for g in goals[:, i]] == [s["goal"] for s in r["steps"]], f"robot {i}"
+    # It reads the coarse map: without what it shows, it chooses otherwise; without the keys, one line.
+    obs, info = envs.reset(seed=seed)
+    blind = dict(obs, wide_revealed=np.zeros_like(obs["wide_revealed"]), wide_seen=np.zeros_like(obs["wide_seen"]))
+    assert not np.array_equal(agent.act(obs, info)["goal"], agent.act(blind, info)["goal"])
+    with pytest.raises(ValueError, match=r"planners read the wider view \(--wide-view\): expected obs\['wide_revealed'\]"):
+        agent.act({k: v for k, v in obs.items() if not k.startswith("wide_")}, info)

@@ -658,9 +658,11 @@ TEST(WidePatch, IsTheMeanOfEachBlockWithTheFloorEdgeBlack) {
 TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere) {
   for (const WideView wide : {WideView{5, 4}, WideView{3, 3}, WideView{8, 1}, WideView{7, 2}}) {
     const int width = 37, height = 29, m = 6, count = 60;
-    std::vector<PixelPose> poses = random_poses(count - 4, width, height, 77);
-    // Corners and a pose far off the floor: the window there is black or partly so.
-    for (const PixelPose p : {PixelPose{0, 0}, PixelPose{36, 28}, PixelPose{-40, 3}, PixelPose{18, 200}})
+    std::vector<PixelPose> poses = random_poses(count - 6, width, height, 77);
+    // Corners and poses far off the floor, two near int's limits (the shader's int arithmetic
+    // wraps there): the window is black or partly so.
+    for (const PixelPose p : {PixelPose{0, 0}, PixelPose{36, 28}, PixelPose{-40, 3}, PixelPose{18, 200},
+                              PixelPose{2147483600, 4}, PixelPose{-2147483600, -2147483600}})
       poses.push_back(p);
     const Floors floors = random_floors(width, height, count, 78);
     PatchCamera camera(width, height, m, count, wide);

@@ -210,18 +210,18 @@ TEST(FloorLayout, ADataSetFloorSetComposesWithTheWorldsLayout) {
   const long ink = std::accumulate(floor.begin(), floor.end(), 0L);
   const std::uint8_t* digit = floors.images.image(17);
   EXPECT_EQ(ink, std::accumulate(digit, digit + 784, 0L));
-  // A wider view may cover the composed floor, not more.
+  // A wider view may cover the composed floor from any cell (twice its side), not more.
   World wide = w;
   wide.camera.wide_px = 15;
-  wide.camera.wide_scale = 4;
+  wide.camera.wide_scale = 8;
   EXPECT_EQ(load_floors(wide, std::string(SCOUT_SOURCE_DIR) + "/data").width_px(), 60);
   wide.camera.wide_px = 16;
   try {
     load_floors(wide, std::string(SCOUT_SOURCE_DIR) + "/data");
     ADD_FAILURE() << "a wider view larger than the floor was accepted";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("camera.wide_px: expected wide_px x wide_scale at most the floor's larger "
-                                         "side, 60 (the floor is 60x60 pixels), got 16 x 4 = 64"),
+    EXPECT_NE(std::string(e.what()).find("camera.wide_px: expected wide_px x wide_scale at most twice the floor's "
+                                         "larger side, 120 (the floor is 60x60 pixels), got 16 x 8 = 128"),
               std::string::npos)
         << e.what();
   }
