@@ -270,16 +270,30 @@ void BatchEnv::reveal_wide() {
   for (int i = 0; i < count_; ++i) {
     const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
     const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
+    // The window clipped to the floor, painted a run of floor pixels per wide pixel (no division
+    // per floor pixel: this runs at every step for every robot).
+    const int xa = std::max(x0, 0), xb = std::min(x0 + px * s, width);
+    const int ya = std::max(y0, 0), yb = std::min(y0 + px * s, height);
+    if (xa >= xb || ya >= yb) continue;
     const int team_first = i - i % team_size_;
     for (int j = team_first; j < team_first + team_size_; ++j) {
       std::uint8_t* coarse = wide_revealed_.data() + area * j;
       std::uint8_t* seen = wide_seen_.data() + area * j;
-      for (int y = std::max(y0, 0); y < std::min(y0 + px * s, height); ++y) {
-        const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
-        for (int x = std::max(x0, 0); x < std::min(x0 + px * s, width); ++x) {
-          coarse[static_cast<std::size_t>(y) * width + x] = look_row[(x - x0) / s];
-          seen[static_cast<std::size_t>(y) * width + x] = 1;
+      // A block's rows are equal: the first is painted run by run, the others copied from it.
+      for (int y = ya; y < yb; ++y) {
+        std::uint8_t* row = coarse + static_cast<std::size_t>(y) * width;
+        if (y > ya && (y - y0) % s != 0) {
+          std::copy(row - width + xa, row - width + xb, row + xa);
+        } else {
+          const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
+          for (int c = (xa - x0) / s; c < px; ++c) {
+            const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
+            if (from >= to) break;
+            std::fill(row + from, row + to, look_row[c]);
+          }
         }
+        std::fill(seen + static_cast<std::size_t>(y) * width + xa, seen + static_cast<std::size_t>(y) * width + xb,
+                  std::uint8_t{1});
       }
     }
   }

@@ -43,6 +43,7 @@ constexpr const char* kVertexShader = R"(
 layout(location = 0) in ivec2 pose;
 uniform int tile_columns;
 uniform int patch_px;
+uniform int tile_px;  // patch_px, or the wider view's side where that is larger
 uniform vec2 framebuffer_px;
 #if STACKED_FLOORS
 flat out ivec2 window_minus_tile;
@@ -53,14 +54,10 @@ flat out float layer;
 #endif
 void main() {
   int robot_index = gl_VertexID;
+  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * tile_px;
 #if WIDE_VIEW
-  if (gl_InstanceID == 1) {
-    place_wide_tile(pose, robot_index, tile_columns, framebuffer_px);
-    return;
-  }
-  kind = 0;
+  set_wide_offset(pose, tile_origin);
 #endif
-  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * patch_px;
   // Integer division truncates, and patch_px > 0, so patch_px / 2 is floor(m / 2). GLSL int
   // arithmetic wraps on overflow: an absurd pose still lands far off the floor and reads 0.
   ivec2 window_origin = pose - ivec2(patch_px / 2);
@@ -72,10 +69,10 @@ void main() {
   layer = float(robot_index);
 #endif
   // The point's centre sits exactly on the tile's centre (an integer or half-integer), so its
-  // m x m square covers the tile's pixel centres and no others.
-  vec2 centre = vec2(tile_origin) + 0.5 * float(patch_px);
+  // square covers the tile's pixel centres and no others.
+  vec2 centre = vec2(tile_origin) + 0.5 * float(tile_px);
   gl_Position = vec4(centre / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
-  gl_PointSize = float(patch_px);
+  gl_PointSize = float(tile_px);
 }
 )";
 
@@ -103,12 +100,6 @@ flat in float layer;
 #endif
 layout(location = 0) out vec4 colour;
 void main() {
-#if WIDE_VIEW
-  if (kind == 1) {
-    colour = vec4(wide_grey(floor_px, floors_per_layer), 0.0, 0.0, 1.0);
-    return;
-  }
-#endif
 #if STACKED_FLOORS
   ivec2 texel = ivec2(gl_FragCoord.xy) + window_minus_tile;
   float value = 0.0;
@@ -121,7 +112,15 @@ void main() {
   vec2 texel_centre = gl_FragCoord.xy + window_minus_tile;
   float value = texture(floors, vec3(texel_centre * inverse_floor_px, layer)).r;
 #endif
+#if WIDE_VIEW
+#if STACKED_FLOORS
+  colour = vec4(value, wide_grey(robot, floors_per_layer), 0.0, 1.0);
+#else
+  colour = vec4(value, wide_grey(int(layer), floors_per_layer), 0.0, 1.0);
+#endif
+#else
   colour = vec4(value, 0.0, 0.0, 1.0);
+#endif
 }
 )";
 
@@ -140,6 +139,7 @@ constexpr const char* kBilinearVertexShader = R"(
 layout(location = 0) in vec2 centre;
 uniform int tile_columns;
 uniform int patch_px;
+uniform int tile_px;
 uniform vec2 framebuffer_px;
 uniform ivec2 floor_px;
 flat out ivec2 window_minus_tile;
@@ -147,25 +147,20 @@ flat out vec2 fraction;
 flat out int robot;
 void main() {
   int robot_index = gl_VertexID;
+  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * tile_px;
 #if WIDE_VIEW
-  if (gl_InstanceID == 1) {
-    // The cell that holds the centre (clamped as below).
-    place_wide_tile(ivec2(floor(clamp(centre, vec2(-1024.0), vec2(floor_px) + 1024.0))), robot_index, tile_columns,
-                    framebuffer_px);
-    return;
-  }
-  kind = 0;
+  // At the cell that holds the centre (clamped as below).
+  set_wide_offset(ivec2(floor(clamp(centre, vec2(-1024.0), vec2(floor_px) + 1024.0))), tile_origin);
 #endif
-  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * patch_px;
   // Window pixel (0, 0)'s sample point in texel-centre coordinates (texel t at t + 0.5 becomes t).
   vec2 corner = clamp(centre - 0.5, vec2(-1024.0), vec2(floor_px) + 1024.0);
   vec2 whole = floor(corner);
   fraction = corner - whole;
   window_minus_tile = ivec2(whole) - ivec2(patch_px / 2) - tile_origin;
   robot = robot_index;
-  vec2 tile_centre = vec2(tile_origin) + 0.5 * float(patch_px);
+  vec2 tile_centre = vec2(tile_origin) + 0.5 * float(tile_px);
   gl_Position = vec4(tile_centre / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
-  gl_PointSize = float(patch_px);
+  gl_PointSize = float(tile_px);
 }
 )";
 
@@ -198,12 +193,6 @@ float grey(ivec2 t, int layer, int row_offset) {
 }
 #endif
 void main() {
-#if WIDE_VIEW
-  if (kind == 1) {
-    colour = vec4(wide_grey(floor_px, floors_per_layer), 0.0, 0.0, 1.0);
-    return;
-  }
-#endif
   ivec2 texel = ivec2(gl_FragCoord.xy) + window_minus_tile;
 #if STACKED_FLOORS
   int layer = robot / floors_per_layer;
@@ -226,21 +215,28 @@ void main() {
   float fx = fraction.x;
   float fy = fraction.y;
   float value = (1.0 - fx) * (1.0 - fy) * a + fx * (1.0 - fy) * b + (1.0 - fx) * fy * c + fx * fy * d;
+#if WIDE_VIEW
+  colour = vec4(floor(value + 0.5) / 255.0, wide_grey(robot, floors_per_layer), 0.0, 1.0);
+#else
   colour = vec4(floor(value + 0.5) / 255.0, 0.0, 0.0, 1.0);
+#endif
 }
 )";
 
-// The wider view, drawn in the same draw as the patches: with a wider view the points are drawn
-// as two instances, and instance 1 of robot r is its tile in a second grid of wide_px tiles below
-// the patches' (from framebuffer row wide_top). Tile pixel (i, j) is the mean of the wide_scale x
-// wide_scale floor texels from window + (i, j) * wide_scale, where the window starts
-// floor(wide_px * wide_scale / 2) texels before the robot's cell on each axis; texels off the
-// floor count as 0. The sum comes from four reads of the floor's summed-area table (floor_sums:
-// texel (x, y) holds the sum of the floor over [0, x) x [0, y), made on the CPU when the floors are
-// loaded), whatever the scale: summing the block texel by texel took 16 reads a pixel at scale 4
-// and made a capture five times as slow. Clamping the block's corners to [0, floor_px] is what
-// makes the texels off the floor 0. Integers throughout and rounded half up, (2 sum + n) / (2 n)
-// with n = wide_scale^2: exactly what wide_patch computes on the CPU.
+// The wider view, in the same draw and the same fragments as the patches: with a wider view each
+// robot's tile is max(m, wide_px) pixels a side and the framebuffer is RG8, the patch in red (its
+// m x m corner) and the wider view in green (its wide_px x wide_px corner). Green pixel (i, j) of
+// robot r is the mean of the wide_scale x wide_scale floor texels from window + (i, j) *
+// wide_scale, where the window starts floor(wide_px * wide_scale / 2) texels before the robot's
+// cell on each axis; texels off the floor count as 0. Each is one read of the floor's block means
+// (block_means: texel (u, v) holds the mean of the block that starts at floor texel (u, v) -
+// (wide_scale - 1), made on the CPU when the floors are loaded, rounded half up exactly as
+// wide_patch computes it; the table covers every block that touches the floor, and its zero
+// border every block that does not). Measured at 240 robots, 8 x 8 of 6 x 6, against the patches
+// alone (2.4 M a second): summing each block in the shader, 36 texelFetch a pixel, or four reads of
+// a summed-area texture, in a tile grid of its own drawn as a second instance, ran 3 to 6 times as
+// slow; one read in the patch's own fragments, read back as a second channel, is measured in the
+// README (speed).
 //
 // These parts come before the body of both vertex shaders and both fragment shaders (WIDE_VIEW 0
 // leaves them out).
@@ -248,44 +244,33 @@ constexpr const char* kWideVertexPart = R"(
 #if WIDE_VIEW
 uniform int wide_px;
 uniform int wide_scale;
-uniform int wide_top;
 flat out ivec2 wide_offset;  // tile pixel p's block starts at floor texel p * wide_scale + wide_offset
-flat out int wide_robot;
-flat out int kind;           // 0: a patch's tile, 1: a wider view's
-void place_wide_tile(ivec2 cell, int robot_index, int tile_columns, vec2 framebuffer_px) {
-  ivec2 tile_origin = ivec2(robot_index % tile_columns, robot_index / tile_columns) * wide_px + ivec2(0, wide_top);
+void set_wide_offset(ivec2 cell, ivec2 tile_origin) {
   ivec2 window = cell - ivec2((wide_px * wide_scale) / 2);
   wide_offset = window - tile_origin * wide_scale;
-  wide_robot = robot_index;
-  kind = 1;
-  vec2 centre_px = vec2(tile_origin) + 0.5 * float(wide_px);
-  gl_Position = vec4(centre_px / framebuffer_px * 2.0 - 1.0, 0.0, 1.0);
-  gl_PointSize = float(wide_px);
 }
 #endif
 )";
 
 constexpr const char* kWideFragmentPart = R"(
 #if WIDE_VIEW
-uniform usampler2DArray floor_sums;
+uniform sampler2DArray block_means;
 uniform int wide_scale;
+uniform ivec2 block_means_px;         // (floor width, height) + wide_scale - 1
+uniform vec2 inverse_block_means_px;  // 1 / block_means_px
 flat in ivec2 wide_offset;
-flat in int wide_robot;
-flat in int kind;
-float wide_grey(ivec2 floor_px, int floors_per_layer) {
-  // GLSL int arithmetic wraps: a block far off the floor (an absurd pose) has both corners
-  // clamped to the same edge and sums 0.
-  ivec2 start = ivec2(gl_FragCoord.xy) * wide_scale + wide_offset;
-  ivec2 lo = clamp(start, ivec2(0), floor_px);
-  ivec2 hi = min(max(start, ivec2(-wide_scale)) + wide_scale, floor_px);
-  int layer = wide_robot / floors_per_layer;
-  int row = (wide_robot % floors_per_layer) * (floor_px.y + 1);
-  uint sum = texelFetch(floor_sums, ivec3(hi.x, hi.y + row, layer), 0).r -
-             texelFetch(floor_sums, ivec3(lo.x, hi.y + row, layer), 0).r -
-             texelFetch(floor_sums, ivec3(hi.x, lo.y + row, layer), 0).r +
-             texelFetch(floor_sums, ivec3(lo.x, lo.y + row, layer), 0).r;
-  uint n = uint(wide_scale * wide_scale);
-  return float((2u * sum + n) / (2u * n)) / 255.0;
+float wide_grey(int wide_robot, int floors_per_layer) {
+  // The block's texel in the table. GLSL int arithmetic wraps: a block far off the floor (an
+  // absurd pose) still lands far outside the table.
+  ivec2 t = ivec2(gl_FragCoord.xy) * wide_scale + wide_offset + ivec2(wide_scale - 1);
+#if STACKED_FLOORS
+  if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, block_means_px))) return 0.0;
+  int row_offset = (wide_robot % floors_per_layer) * block_means_px.y;
+  return texelFetch(block_means, ivec3(t.x, t.y + row_offset, wide_robot / floors_per_layer), 0).r;
+#else
+  // At the texel's centre, nearest: texel t exactly, and the zero border off the table.
+  return texture(block_means, vec3((vec2(t) + 0.5) * inverse_block_means_px, float(wide_robot))).r;
+#endif
 }
 #endif
 )";
@@ -342,7 +327,8 @@ struct PatchCamera::Impl {
   int patch_px = 0;
   int max_robots = 0;
   WideView wide;     // px 0: no wider view
-  int wide_top = 0;  // framebuffer row where the wide tiles start (below the patches')
+  int tile_px = 0;   // a robot's tile: max(patch_px, wide.px) a side
+  int channels = 1;  // the framebuffer's: R8 (the patches), RG8 with a wider view (green)
   // llvmpipe allows 2048 array layers; beyond that, several floors are stacked in one layer
   // (they are contiguous in the caller's buffer, so the upload stays one call).
   int floors_per_layer = 1;
@@ -361,10 +347,15 @@ struct PatchCamera::Impl {
   GLuint floor_texture = 0;
   GLuint framebuffer = 0;
   GLuint colour_buffer = 0;
-  // The wider view's summed-area tables, a (width + 1) x (height + 1) R32UI image per floor laid
-  // out as the floors are; `floor_sums_upload` is their CPU copy, grown to the largest batch loaded.
-  GLuint floor_sums_texture = 0;
-  std::vector<std::uint32_t> floor_sums_upload;
+  // The wider view's block means, a (width + scale - 1) x (height + scale - 1) R8 image per floor
+  // laid out as the floors are; `block_means_upload` is their CPU copy, grown to the largest batch
+  // loaded, and the rest load_block_means' working rows.
+  GLuint block_means_texture = 0;
+  std::vector<std::uint8_t> block_means_upload;
+  std::vector<std::uint8_t> padded_row;
+  std::vector<std::uint16_t> row_sums, column_sums;
+  int block_means_width_px() const { return floor_width_px + wide.scale - 1; }
+  int block_means_height_px() const { return floor_height_px + wide.scale - 1; }
   GLuint program = 0;
   // capture_at(): its own program and vertex array (the centres are floats in pose_buffer).
   GLuint bilinear_program = 0;
@@ -437,6 +428,7 @@ struct PatchCamera::Impl {
     glUseProgram(linked);
     glUniform1i(glGetUniformLocation(linked, "tile_columns"), tile_columns);
     glUniform1i(glGetUniformLocation(linked, "patch_px"), patch_px);
+    glUniform1i(glGetUniformLocation(linked, "tile_px"), tile_px);
     glUniform2f(glGetUniformLocation(linked, "framebuffer_px"), static_cast<float>(framebuffer_width_px),
                 static_cast<float>(framebuffer_height_px));
     // Unused uniforms are optimised away; glUniform* at location -1 is a no-op.
@@ -445,10 +437,12 @@ struct PatchCamera::Impl {
                 1.0f / static_cast<float>(floor_height_px));
     glUniform1i(glGetUniformLocation(linked, "floors_per_layer"), floors_per_layer);
     glUniform1i(glGetUniformLocation(linked, "floors"), 0);
-    glUniform1i(glGetUniformLocation(linked, "floor_sums"), 1);
+    glUniform1i(glGetUniformLocation(linked, "block_means"), 1);
+    glUniform2i(glGetUniformLocation(linked, "block_means_px"), block_means_width_px(), block_means_height_px());
+    glUniform2f(glGetUniformLocation(linked, "inverse_block_means_px"),
+                1.0f / static_cast<float>(block_means_width_px()), 1.0f / static_cast<float>(block_means_height_px()));
     glUniform1i(glGetUniformLocation(linked, "wide_px"), wide.px);
     glUniform1i(glGetUniformLocation(linked, "wide_scale"), wide.scale);
-    glUniform1i(glGetUniformLocation(linked, "wide_top"), wide_top);
     return linked;
   }
 
@@ -459,9 +453,8 @@ struct PatchCamera::Impl {
     bind_crop();
   }
 
-  // One draw for the batch: the patches' points, and with `wide` their wider views' as the
-  // second instance.
-  void draw(int robots, bool wide_view) { glDrawArraysInstanced(GL_POINTS, 0, robots, wide_view ? 2 : 1); }
+  // One draw for the batch: a point per robot.
+  void draw(int robots) { glDrawArrays(GL_POINTS, 0, robots); }
 
   // capture() and capture_at() each bind their program and vertex array only when the other
   // one drew last, so a run of capture() calls makes no extra GL calls. pose_buffer stays bound
@@ -517,18 +510,22 @@ struct PatchCamera::Impl {
     const GLfloat border[] = {0.0f, 0.0f, 0.0f, 0.0f};
     glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
     if (wide.px > 0) {
-      if (static_cast<long long>(floors_per_layer) * (floor_height_px + 1) > max_texture_px) {
+      if (static_cast<long long>(floors_per_layer) * block_means_height_px() > max_texture_px ||
+          block_means_width_px() > max_texture_px) {
         throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " wider views' tables of " +
-                                 std::to_string(floor_height_px + 1) + " rows do not fit the GL texture limits");
+                                 std::to_string(block_means_height_px()) + " rows do not fit the GL texture limits");
       }
       glActiveTexture(GL_TEXTURE1);
-      glGenTextures(1, &floor_sums_texture);
-      glBindTexture(GL_TEXTURE_2D_ARRAY, floor_sums_texture);
-      glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R32UI, floor_width_px + 1, (floor_height_px + 1) * floors_per_layer,
+      glGenTextures(1, &block_means_texture);
+      glBindTexture(GL_TEXTURE_2D_ARRAY, block_means_texture);
+      glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, block_means_width_px(), block_means_height_px() * floors_per_layer,
                      layers);
-      // Read with texelFetch only, always inside the table.
+      // As the floors: nearest at texel centres, and the zero border for blocks off the floor.
       glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
       glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+      glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
       glActiveTexture(GL_TEXTURE0);
     }
 
@@ -540,12 +537,12 @@ struct PatchCamera::Impl {
     }
     glGenRenderbuffers(1, &colour_buffer);
     glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_R8, framebuffer_width_px, framebuffer_height_px);
+    glRenderbufferStorage(GL_RENDERBUFFER, channels == 2 ? GL_RG8 : GL_R8, framebuffer_width_px, framebuffer_height_px);
     glGenFramebuffers(1, &framebuffer);
     glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-      throw std::runtime_error("PatchCamera: the R8 framebuffer is incomplete");
+      throw std::runtime_error("PatchCamera: the R8/RG8 framebuffer is incomplete");
     }
     glReadBuffer(GL_COLOR_ATTACHMENT0);
     glViewport(0, 0, framebuffer_width_px, framebuffer_height_px);
@@ -559,45 +556,73 @@ struct PatchCamera::Impl {
     // sprite coordinates, if ever used, run the same way as framebuffer rows.
     glPointParameteri(GL_POINT_SPRITE_COORD_ORIGIN, GL_LOWER_LEFT);
 
-    read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px, 0);
+    read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px * channels, 0);
   }
 
-  // The wider view's summed-area tables of `count` floors, made here and uploaded like the floors
-  // (whole layers in one call). 240 floors of 60 x 60: about a millisecond.
-  void load_floor_sums(std::span<const std::uint8_t> floors, int count) {
-    const std::size_t w = static_cast<std::size_t>(floor_width_px);
-    const std::size_t h = static_cast<std::size_t>(floor_height_px);
-    const std::size_t table = (w + 1) * (h + 1);
-    if (floor_sums_upload.size() < table * static_cast<std::size_t>(count))
-      floor_sums_upload.resize(table * static_cast<std::size_t>(count));
+  // The wider view's block means of `count` floors, made here and uploaded like the floors (whole
+  // layers in one call). Entry (u, v) of a floor's table is the mean of the scale x scale block
+  // from floor texel (u, v) - (scale - 1), texels off the floor 0, rounded half up as wide_patch
+  // does. Made from box sums in uint16 (a block sums to at most 255 x 256): each row's sums over
+  // `scale` columns, then over `scale` rows, loops the compiler vectorises; a summed-area table
+  // with a division per entry took ten times as long, about 10 ms a reset at 240 floors of 100 x 100.
+  void load_block_means(std::span<const std::uint8_t> floors, int count) {
+    const int w = floor_width_px, h = floor_height_px, s = wide.scale;
+    const int mw = block_means_width_px(), mh = block_means_height_px();
+    const std::size_t table = static_cast<std::size_t>(mw) * static_cast<std::size_t>(mh);
+    if (block_means_upload.size() < table * static_cast<std::size_t>(count))
+      block_means_upload.resize(table * static_cast<std::size_t>(count));
+    // padded_row: a floor row with scale - 1 zeros each side; row_sums: each floor row's sums over
+    // `scale` columns, with scale - 1 zero rows above and below; column_sums: one table row's.
+    padded_row.assign(static_cast<std::size_t>(w + 2 * (s - 1)), 0);
+    row_sums.assign(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)), 0);
+    column_sums.resize(static_cast<std::size_t>(mw));
+    // The mean, halves up, in float: with x = 2 sum + n exact and q = x / (2 n) = k + f, f is 0 or
+    // at least 1 / (2 n) from either integer, while float's error in x * (1 / (2 n)) is at most
+    // 255 x 2^-22 < 1 / (4 n); adding 1 / (4 n) before truncating gives k exactly.
+    const int n = s * s;
+    const float inverse = 1.0f / static_cast<float>(2 * n), nudge = 1.0f / static_cast<float>(4 * n);
     for (int f = 0; f < count; ++f) {
       const std::uint8_t* floor = floors.data() + static_cast<std::size_t>(f) * w * h;
-      std::uint32_t* sums = floor_sums_upload.data() + static_cast<std::size_t>(f) * table;
-      std::fill_n(sums, w + 1, 0u);  // row 0: the sum over no rows
-      for (std::size_t y = 0; y < h; ++y) {
-        const std::uint32_t* above = sums + y * (w + 1);
-        std::uint32_t* row = sums + (y + 1) * (w + 1);
-        std::uint32_t row_sum = 0;
-        row[0] = 0;
-        for (std::size_t x = 0; x < w; ++x) {
-          row_sum += floor[y * w + x];
-          row[x + 1] = above[x + 1] + row_sum;
+      for (int y = 0; y < h; ++y) {
+        std::copy_n(floor + static_cast<std::size_t>(y) * w, w, padded_row.begin() + (s - 1));
+        std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
+        std::fill_n(sums, mw, std::uint16_t{0});
+        for (int k = 0; k < s; ++k) {
+          const std::uint8_t* shifted = padded_row.data() + k;
+          for (int u = 0; u < mw; ++u) sums[u] = static_cast<std::uint16_t>(sums[u] + shifted[u]);
         }
+      }
+      std::uint8_t* means = block_means_upload.data() + static_cast<std::size_t>(f) * table;
+      // acc: rows v .. v + scale - 1 of row_sums (floor rows v - (scale - 1) .. v), kept by adding
+      // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
+      std::uint16_t* acc = column_sums.data();
+      std::fill_n(acc, mw, std::uint16_t{0});
+      for (int k = 0; k + 1 < s; ++k) {
+        const std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(k) * mw;
+        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + sums[u]);
+      }
+      for (int v = 0; v < mh; ++v) {
+        const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
+        const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v > 0 ? v - 1 : 0) * mw;
+        const std::uint16_t keep = v > 0 ? 0xFFFF : 0;  // the row before row 0 is none
+        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u] - (leaving[u] & keep));
+        std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
+        for (int u = 0; u < mw; ++u)
+          out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
       }
     }
     glActiveTexture(GL_TEXTURE1);
     const int whole_layers = count / floors_per_layer;
     const int rest = count % floors_per_layer;
-    const int table_rows = floor_height_px + 1;
     if (whole_layers > 0) {
-      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, floor_width_px + 1, table_rows * floors_per_layer, whole_layers,
-                      GL_RED_INTEGER, GL_UNSIGNED_INT, floor_sums_upload.data());
+      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh * floors_per_layer, whole_layers, GL_RED,
+                      GL_UNSIGNED_BYTE, block_means_upload.data());
     }
     if (rest > 0) {
       const std::size_t offset =
           table * static_cast<std::size_t>(whole_layers) * static_cast<std::size_t>(floors_per_layer);
-      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, floor_width_px + 1, table_rows * rest, 1,
-                      GL_RED_INTEGER, GL_UNSIGNED_INT, floor_sums_upload.data() + offset);
+      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, mw, mh * rest, 1, GL_RED, GL_UNSIGNED_BYTE,
+                      block_means_upload.data() + offset);
     }
     glActiveTexture(GL_TEXTURE0);
   }
@@ -629,38 +654,34 @@ struct PatchCamera::Impl {
            "), got " + std::to_string(wide_size));
   }
 
-  // Reads the drawn tiles back with one glReadPixels and copies them out, robot after robot (and
-  // the wider view's into `wide_out`, where it was drawn).
+  // Reads the drawn tiles back with one glReadPixels and copies them out, robot after robot: the
+  // patches from red, and the wider view from green into `wide_out` where it is asked for.
   void read_tiles(int robots, std::uint8_t* out, std::uint8_t* wide_out = nullptr) {
     // Only the tile rows that hold drawn tiles are read.
     const int used_tile_rows = (robots + tile_columns - 1) / tile_columns;
-    const int width = framebuffer_width_px;
-    const int rows = wide_out ? wide_top + used_tile_rows * wide.px : used_tile_rows * patch_px;
-    glReadPixels(0, 0, width, rows, GL_RED, GL_UNSIGNED_BYTE, read_back.data());
-    if (wide_out) {
-      const std::size_t w = static_cast<std::size_t>(wide.px);
+    const std::size_t row_bytes = static_cast<std::size_t>(framebuffer_width_px) * channels;
+    glReadPixels(0, 0, framebuffer_width_px, used_tile_rows * tile_px, channels == 2 ? GL_RG : GL_RED, GL_UNSIGNED_BYTE,
+                 read_back.data());
+    // Channel `channel` of a side x side corner of each robot's tile.
+    const auto copy_out = [&](std::uint8_t* to, int side, int channel) {
+      const std::size_t t = static_cast<std::size_t>(tile_px);
       for (int robot = 0; robot < robots; ++robot) {
-        const std::size_t tile_x = static_cast<std::size_t>(robot % tile_columns) * w;
-        const std::size_t tile_y =
-            static_cast<std::size_t>(wide_top) + static_cast<std::size_t>(robot / tile_columns) * w;
-        const std::uint8_t* tile = read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
-        for (std::size_t row = 0; row < w; ++row) {
-          std::memcpy(wide_out, tile + row * static_cast<std::size_t>(width), w);
-          wide_out += w;
+        const std::size_t tile_x = static_cast<std::size_t>(robot % tile_columns) * t;
+        const std::size_t tile_y = static_cast<std::size_t>(robot / tile_columns) * t;
+        const std::uint8_t* tile = read_back.data() + tile_y * row_bytes + tile_x * channels + channel;
+        for (int row = 0; row < side; ++row) {
+          const std::uint8_t* from = tile + static_cast<std::size_t>(row) * row_bytes;
+          if (channels == 1) {
+            std::memcpy(to, from, static_cast<std::size_t>(side));
+            to += side;
+          } else {
+            for (int column = 0; column < side; ++column) *to++ = from[2 * column];
+          }
         }
       }
-    }
-
-    const std::size_t m = static_cast<std::size_t>(patch_px);
-    for (int robot = 0; robot < robots; ++robot) {
-      const std::size_t tile_x = static_cast<std::size_t>(robot % tile_columns) * m;
-      const std::size_t tile_y = static_cast<std::size_t>(robot / tile_columns) * m;
-      const std::uint8_t* tile = read_back.data() + tile_y * static_cast<std::size_t>(width) + tile_x;
-      for (std::size_t row = 0; row < m; ++row) {
-        std::memcpy(out, tile + row * static_cast<std::size_t>(width), m);
-        out += m;
-      }
-    }
+    };
+    copy_out(out, patch_px, 0);
+    if (wide_out) copy_out(wide_out, wide.px, 1);
   }
 
   void release() noexcept {
@@ -672,7 +693,7 @@ struct PatchCamera::Impl {
       if (framebuffer != 0) glDeleteFramebuffers(1, &framebuffer);
       if (colour_buffer != 0) glDeleteRenderbuffers(1, &colour_buffer);
       if (floor_texture != 0) glDeleteTextures(1, &floor_texture);
-      if (floor_sums_texture != 0) glDeleteTextures(1, &floor_sums_texture);
+      if (block_means_texture != 0) glDeleteTextures(1, &block_means_texture);
       if (pose_buffer != 0) glDeleteBuffers(1, &pose_buffer);
       if (vertex_array != 0) glDeleteVertexArrays(1, &vertex_array);
       if (centre_vertex_array != 0) glDeleteVertexArrays(1, &centre_vertex_array);
@@ -705,10 +726,11 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
   impl.tile_columns = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(max_robots))));
   impl.tile_rows = (max_robots + impl.tile_columns - 1) / impl.tile_columns;
   impl.wide = wide;
-  impl.wide_top = impl.tile_rows * patch_px;
-  // The wider view's grid (the same columns and rows of wide.px tiles) lies below the patches'.
-  impl.framebuffer_width_px = impl.tile_columns * std::max(patch_px, wide.px);
-  impl.framebuffer_height_px = impl.tile_rows * (patch_px + wide.px);
+  impl.tile_px = std::max(patch_px, wide.px);
+  impl.channels = wide.px > 0 ? 2 : 1;
+  // With a wider view each tile holds both windows, the patch in red and the wider view in green.
+  impl.framebuffer_width_px = impl.tile_columns * impl.tile_px;
+  impl.framebuffer_height_px = impl.tile_rows * impl.tile_px;
   try {
     impl.create_context();
     // Buffers first: they settle floors_per_layer, which the programs' uniforms need.
@@ -753,7 +775,7 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
     glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest, 1,
                     GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
   }
-  if (impl.wide.px > 0) impl.load_floor_sums(floors, count);
+  if (impl.wide.px > 0) impl.load_block_means(floors, count);
   impl.floors_loaded = count;
 }
 
@@ -768,8 +790,8 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
 
   const int robots = static_cast<int>(poses.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
+  impl.draw(robots);
   const bool wide = !wide_patches.empty();
-  impl.draw(robots, wide);
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 
@@ -789,8 +811,8 @@ void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std:
 
   const int robots = static_cast<int>(centres.size());
   glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(centres.size_bytes()), centres.data());
+  impl.draw(robots);
   const bool wide = !wide_patches.empty();
-  impl.draw(robots, wide);
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
 }
 

@@ -656,7 +656,10 @@ TEST(WidePatch, IsTheMeanOfEachBlockWithTheFloorEdgeBlack) {
 }
 
 TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere) {
-  for (const WideView wide : {WideView{5, 4}, WideView{3, 3}, WideView{8, 1}, WideView{7, 2}}) {
+  // Wider and narrower than the patch, and scales up to the largest (whose block means run
+  // closest to the float arithmetic's limits).
+  for (const WideView wide :
+       {WideView{5, 4}, WideView{3, 3}, WideView{8, 1}, WideView{7, 2}, WideView{8, 6}, WideView{4, 16}}) {
     const int width = 37, height = 29, m = 6, count = 60;
     std::vector<PixelPose> poses = random_poses(count - 6, width, height, 77);
     // Corners and poses far off the floor, two near int's limits (the shader's int arithmetic
