@@ -55,6 +55,7 @@ struct TrainBenchOptions {
   std::string json_out;
   SettingOptions settings;  // the training settings bench train takes (the library's defaults: the paper preset)
   std::string modes = "i,ii,iii";
+  int floor_side = 0;  // --floor-size: the world's task on a square floor of this side (0: the world's floor)
   int batches = 5, warmup = 1, threads = 0;
   bool force = false;
   GroupFlags group;
@@ -373,6 +374,7 @@ learn::TrainBenchConfig bench_train_config(const TrainBenchOptions& opt) {
   c.world = worlds::load_world(opt.world);
   if (c.world.floor.dataset.empty())
     throw InputError(opt.world + ": floor.dataset: the training bench needs a data set (a PNG floor has no labels)");
+  if (opt.floor_side > 0) c.world.floor.size_px = worlds::FloorSize{opt.floor_side, opt.floor_side};
   const fs::path data_root = opt.data_root.empty() ? worlds::default_data_root() : fs::path(opt.data_root);
   c.data_folder = worlds::dataset_folder(c.world.floor.dataset, data_root);
   c.precision = learn::resolve_precision(c.precision);
@@ -399,12 +401,12 @@ void print_train_bench(const TrainBenchOptions& opt, const learn::TrainConfig& c
   opt.settings.announce_precision();
   const agent::NetworkConfig& n = c.network;
   fmt::print(
-      "scout bench train: {} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {}{} LibTorch threads, "
+      "scout bench train: {}{} (E={} x T={}, m={}), N={} x B={} = {} robots, {}, {}{} LibTorch threads, "
       "median of {} batches after {} warm-up\n",
-      opt.world, c.world.task.episodes, c.world.task.steps, c.world.camera.patch_px, c.rollouts, c.batch_images,
-      report.robots, agent::to_string(c.precision),
-      report.world_size > 1 ? fmt::format("{} processes x ", report.world_size) : "", report.threads, opt.batches,
-      opt.warmup);
+      opt.world, opt.floor_side > 0 ? fmt::format(" on a {0} x {0} floor", opt.floor_side) : std::string(),
+      c.world.task.episodes, c.world.task.steps, c.world.camera.patch_px, c.rollouts, c.batch_images, report.robots,
+      agent::to_string(c.precision), report.world_size > 1 ? fmt::format("{} processes x ", report.world_size) : "",
+      report.threads, opt.batches, opt.warmup);
   fmt::print("  widths: planners {} (width x depth), classifier {}\n", agent::describe_planners(n),
              agent::describe_classifier(n));
   fmt::print("  {:<5} {:>9} {:>9}   {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}   {:>12}\n", "mode", "images/s", "s/step",
@@ -496,7 +498,14 @@ void bench_train(const TrainBenchOptions& opt, const Context& context) {
     group = learn::ProcessGroup::connect(*options);
     config.threads = threads_per_process(opt.threads);
   }
-  const learn::TrainBenchReport report = learn::bench_training(config, interrupt_token(), group.get());
+  const learn::TrainBenchReport report = [&] {
+    try {
+      return learn::bench_training(config, interrupt_token(), group.get());
+    } catch (const InputError& e) {  // a floor the data's images do not fit, say: name the option
+      if (opt.floor_side == 0) throw;
+      throw InputError(fmt::format("--floor-size: {}: {}", opt.floor_side, e.what()));
+    }
+  }();
   if (group && group->rank() != 0) return;
   print_train_bench(opt, config.train, report);
   if (!opt.json_out.empty()) write_train_bench_json(opt, config.train, report, context);
@@ -539,6 +548,11 @@ void add_bench_command(CLI::App& app, const Context& context) {
   train_cmd->add_option("--world", topt->world, "World file")->capture_default_str();
   train_cmd->add_option("--data", topt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
   topt->settings.add_to(*train_cmd, /*bench=*/true);
+  train_cmd
+      ->add_option("--floor-size", topt->floor_side,
+                   "Time the world's task on a square floor of this side (floor.size_px; at least the images' size), "
+                   "e.g. 60")
+      ->check(CLI::Range(1, 512));
   train_cmd->add_option("--modes", topt->modes, "Modes to time: a comma-separated list of i, ii, iii")
       ->capture_default_str()
       ->check(parsed_by(parse_modes, "MODES"));
