@@ -313,8 +313,9 @@ TEST_F(TrainCli, BadOptionsAreRefusedWithOneLine) {
   expect_one_line_error(run("train " + world() + " --out " + path("o") + " --baseline --rollouts 1"),
                         {"--baseline: the leave-one-out baseline needs --rollouts >= 2"});
   // Planners that read the wider view need a world that has one.
-  expect_one_line_error(run("train " + world() + " --out " + path("o") + " --wide-view" + kTiny),
-                        {"camera.wide_px: expected a wider view (wide_px > 0) for planners that read it (--wide-view)"});
+  expect_one_line_error(
+      run("train " + world() + " --out " + path("o") + " --wide-view" + kTiny),
+      {"camera.wide_px: expected a wider view (wide_px > 0) for planners that read it (--wide-view)"});
   EXPECT_FALSE(fs::exists(path("o")));
 }
 
