@@ -561,13 +561,18 @@ def test_a_million_agent_steps_keep_memory_flat():
 OBSTACLES_WORLD = os.path.join(SOURCE, "worlds", "scenarios", "obstacles-random.yaml")
 
 
+def grown_model(world, run, channel, images):
+    """MODEL grown into a channel (--occupancy, --wide-view) and trained a few steps in `world`, so
+    that the channel's weights move off zero: the checkpoint's path."""
+    subprocess.run([BINARY, "train", world, "--out", str(run), "--init-from", MODEL, channel, "--epochs", "0,0,1",
+                    "--train-limit", str(images), "--validation-limit", "20", "--batch", "20", "--lr", "0.01",
+                    "--threads", "1", "--seed", "4"], check=True, capture_output=True)
+    return str(run / "checkpoint.pt")
+
+
 def test_a_world_with_obstacles_observes_o_and_the_agent_reads_it_as_scout_run_does(tmp_path):
     # A model with the occupancy channel, its o-weights moved off zero by a few steps in the world.
-    run = tmp_path / "occupancy"
-    subprocess.run([BINARY, "train", OBSTACLES_WORLD, "--out", str(run), "--init-from", MODEL, "--occupancy",
-                    "--epochs", "0,0,1", "--train-limit", "80", "--validation-limit", "20", "--batch", "20",
-                    "--lr", "0.01", "--threads", "1", "--seed", "4"], check=True, capture_output=True)
-    model = str(run / "checkpoint.pt")
+    model = grown_model(OBSTACLES_WORLD, tmp_path / "occupancy", "--occupancy", 80)
     n, seed = 24, 9
     envs = scout.make_vec(OBSTACLES_WORLD, n, seed=seed)
     obs, info = envs.reset(seed=seed)
@@ -653,11 +658,7 @@ TRANSLATED_WORLD = os.path.join(SOURCE, "worlds", "translated-60.yaml")
 def test_the_wider_view_is_observed_and_a_wide_view_agent_reads_it_as_scout_run_does(tmp_path):
     # A model whose planners read the wider view (--wide-view), its y_w and h_w weights moved off
     # zero by a few steps in the 60 x 60 translated world (8 x 8 coarse pixels of 6 x 6).
-    run = tmp_path / "wide"
-    subprocess.run([BINARY, "train", TRANSLATED_WORLD, "--out", str(run), "--init-from", MODEL, "--wide-view",
-                    "--epochs", "0,0,1", "--train-limit", "40", "--validation-limit", "20", "--batch", "20",
-                    "--lr", "0.01", "--threads", "1", "--seed", "4"], check=True, capture_output=True)
-    model = str(run / "checkpoint.pt")
+    model = grown_model(TRANSLATED_WORLD, tmp_path / "wide", "--wide-view", 40)
     n, seed, side, wide, scale = 12, 5, 60, 8, 6
     envs = scout.make_vec(TRANSLATED_WORLD, n, seed=seed)
     obs, info = envs.reset(seed=seed)
