@@ -473,6 +473,28 @@ struct PatchCamera::Impl {
     bilinear_bound = true;
   }
 
+  // The wider view's block means (load_block_means fills them): an R8 array laid out as the
+  // floors, sampled like them (nearest at texel centres, the zero border off the table).
+  void create_block_means_texture(GLint max_texture_px, const GLfloat* border) {
+    if (static_cast<long long>(floors_per_layer) * block_means_height_px() > max_texture_px ||
+        block_means_width_px() > max_texture_px) {
+      throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " wider views' tables of " +
+                               std::to_string(block_means_height_px()) + " rows do not fit the GL texture limits");
+    }
+    glActiveTexture(GL_TEXTURE1);
+    glGenTextures(1, &block_means_texture);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, block_means_texture);
+    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, block_means_width_px(), block_means_height_px() * floors_per_layer,
+                   layers);
+    // As the floors: nearest at texel centres, and the zero border for blocks off the floor.
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+    glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
+    glActiveTexture(GL_TEXTURE0);
+  }
+
   void create_buffers() {
     glGenVertexArrays(1, &vertex_array);
     glBindVertexArray(vertex_array);
@@ -509,25 +531,7 @@ struct PatchCamera::Impl {
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
     const GLfloat border[] = {0.0f, 0.0f, 0.0f, 0.0f};
     glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
-    if (wide.px > 0) {
-      if (static_cast<long long>(floors_per_layer) * block_means_height_px() > max_texture_px ||
-          block_means_width_px() > max_texture_px) {
-        throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " wider views' tables of " +
-                                 std::to_string(block_means_height_px()) + " rows do not fit the GL texture limits");
-      }
-      glActiveTexture(GL_TEXTURE1);
-      glGenTextures(1, &block_means_texture);
-      glBindTexture(GL_TEXTURE_2D_ARRAY, block_means_texture);
-      glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, block_means_width_px(), block_means_height_px() * floors_per_layer,
-                     layers);
-      // As the floors: nearest at texel centres, and the zero border for blocks off the floor.
-      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
-      glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
-      glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
-      glActiveTexture(GL_TEXTURE0);
-    }
+    if (wide.px > 0) create_block_means_texture(max_texture_px, border);
 
     GLint max_renderbuffer_px = 0;
     glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);

@@ -295,9 +295,8 @@ void draw_robot(cv::Mat& map, const Snapshot& snapshot, const PixelPose& robot,
   draw_moving_window(map, snapshot, *body, outline_px, window);
 }
 
-}  // namespace
-
-Picture draw_snapshot(const Snapshot& snapshot) {
+// Throws std::invalid_argument for a snapshot draw_snapshot cannot draw.
+void check_snapshot(const Snapshot& snapshot) {
   if (snapshot.floor == nullptr) throw std::invalid_argument("draw_snapshot: floor is null");
   if (snapshot.width_px <= 0 || snapshot.height_px <= 0) {
     throw std::invalid_argument("draw_snapshot: floor size must be positive, got " + std::to_string(snapshot.width_px) +
@@ -320,13 +319,21 @@ Picture draw_snapshot(const Snapshot& snapshot) {
                                 " px per side");
   }
   const std::size_t floor_pixels = static_cast<std::size_t>(snapshot.width_px) * snapshot.height_px;
-  const bool has_heat = !snapshot.goal_probabilities.empty();
-  if (has_heat && snapshot.goal_probabilities.size() != floor_pixels) {
+  if (!snapshot.goal_probabilities.empty() && snapshot.goal_probabilities.size() != floor_pixels) {
     throw std::invalid_argument("draw_snapshot: goal_probabilities has " +
                                 std::to_string(snapshot.goal_probabilities.size()) +
                                 " entries, expected one per floor pixel (" + std::to_string(snapshot.width_px) + " x " +
                                 std::to_string(snapshot.height_px) + " = " + std::to_string(floor_pixels) + ")");
   }
+}
+
+}  // namespace
+
+Picture draw_snapshot(const Snapshot& snapshot) {
+  check_snapshot(snapshot);
+  const long long map_width = static_cast<long long>(snapshot.width_px) * snapshot.scale;
+  const long long map_height = static_cast<long long>(snapshot.height_px) * snapshot.scale;
+  const bool has_heat = !snapshot.goal_probabilities.empty();
   const int s = snapshot.scale;
   const int width = static_cast<int>(map_width);
   const int height = static_cast<int>(map_height);

@@ -497,31 +497,38 @@ TEST(Networks, AddingAGoalContextBranchKeepsWhatThePlannersCompute) {
   EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
 }
 
-// The teammates' channels added to a model that reads o already: t_p and t_g come after o, read
-// with zero weights, so the grown planners compute what the model's did whatever they hold.
+// `config` grown by `grow` into two more planner channels, which come last and are read with
+// zero weights: the grown planners compute what the model's did whatever the channels hold
+// (`extra`: their values), and a grown model does not copy back into the smaller one.
+void expect_two_grown_channels_change_nothing(const NetworkConfig& config, void (*grow)(NetworkConfig&),
+                                              const torch::Tensor& extra) {
+  Agent from(config);
+  NetworkConfig grown = config;
+  grow(grown);
+  Agent to(grown);
+  copy_into_grown(*from, *to);
+  EXPECT_EQ(planner_channels(grown), planner_channels(config) + 2);
+  torch::NoGradGuard no_grad;
+  const torch::Tensor u = torch::rand({3, planner_channels(config), 9, 8}) - 0.5;
+  const torch::Tensor u_grown = torch::cat({u, extra}, 1);
+  EXPECT_TRUE(torch::allclose(to->goal->forward(u_grown), from->goal->forward(u), 1e-6, 1e-6));
+  EXPECT_TRUE(torch::allclose(to->action->forward(u_grown), from->action->forward(u), 1e-6, 1e-6));
+  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
+}
+
+// The teammates' channels added to a model that reads o already: t_p and t_g come after o.
 TEST(Networks, AddingTheTeammatesChannelsKeepsWhatThePlannersCompute) {
   torch::manual_seed(6);
   NetworkConfig config;
   config.planner_width = 4;
   config.occupancy = true;
   config.goal_context = 4;
-  Agent from(config);
-  NetworkConfig grown = config;
-  grown.team_channels = true;
-  Agent to(grown);
-  copy_into_grown(*from, *to);
-  EXPECT_EQ(planner_channels(grown), planner_channels(config) + 2);
-  torch::NoGradGuard no_grad;
-  const torch::Tensor u = torch::rand({3, planner_channels(config), 9, 8}) - 0.5;
   const torch::Tensor team = (torch::rand({3, 2, 9, 8}) > 0.5).to(torch::kFloat);
-  const torch::Tensor u_t = torch::cat({u, team}, 1);
-  EXPECT_TRUE(torch::allclose(to->goal->forward(u_t), from->goal->forward(u), 1e-6, 1e-6));
-  EXPECT_TRUE(torch::allclose(to->action->forward(u_t), from->action->forward(u), 1e-6, 1e-6));
-  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
+  expect_two_grown_channels_change_nothing(
+      config, [](NetworkConfig& c) { c.team_channels = true; }, team);
 }
 
-// The wider view's channels added to a model with every other extra: y_w and h_w come last,
-// read with zero weights, so the grown planners compute what the model's did.
+// The wider view's channels added to a model with every other extra: y_w and h_w come last.
 TEST(Networks, AddingTheWiderViewsChannelsKeepsWhatThePlannersCompute) {
   torch::manual_seed(7);
   NetworkConfig config;
@@ -529,19 +536,8 @@ TEST(Networks, AddingTheWiderViewsChannelsKeepsWhatThePlannersCompute) {
   config.occupancy = true;
   config.team_channels = true;
   config.goal_context = 4;
-  Agent from(config);
-  NetworkConfig grown = config;
-  grown.wide_view = true;
-  Agent to(grown);
-  copy_into_grown(*from, *to);
-  EXPECT_EQ(planner_channels(grown), planner_channels(config) + 2);
-  torch::NoGradGuard no_grad;
-  const torch::Tensor u = torch::rand({3, planner_channels(config), 9, 8}) - 0.5;
-  const torch::Tensor wide = torch::rand({3, 2, 9, 8});
-  const torch::Tensor u_w = torch::cat({u, wide}, 1);
-  EXPECT_TRUE(torch::allclose(to->goal->forward(u_w), from->goal->forward(u), 1e-6, 1e-6));
-  EXPECT_TRUE(torch::allclose(to->action->forward(u_w), from->action->forward(u), 1e-6, 1e-6));
-  EXPECT_THROW(copy_into_grown(*to, *from), std::invalid_argument);
+  expect_two_grown_channels_change_nothing(
+      config, [](NetworkConfig& c) { c.wide_view = true; }, torch::rand({3, 2, 9, 8}));
 }
 
 }  // namespace
