@@ -11,7 +11,7 @@
 namespace scout::core {
 
 /// Thrown when work stopped because a stop was requested. `what()` is one line for the user
-/// saying what was kept ("checkpoint saved: RUN/checkpoint.pt") or that nothing was written.
+/// saying what was kept ("checkpoint saved: RUN/checkpoint.safetensors") or that nothing was written.
 class Stopped : public std::runtime_error {
  public:
   explicit Stopped(const std::string& message = "interrupted; nothing was written") : std::runtime_error(message) {}

@@ -11,6 +11,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <span>
 #include <set>
 #include <sstream>
 
@@ -19,7 +20,8 @@
 #include "core/files.hpp"
 #include "core/input_file.hpp"
 #include "core/memory.hpp"
-#include "learn/internal/archive.hpp"
+#include "learn/internal/json_limits.hpp"
+#include "learn/internal/safetensors.hpp"
 
 namespace scout::learn {
 
@@ -102,50 +104,94 @@ fs::path resolve_checkpoint(const fs::path& path) {
 
 namespace {
 
-torch::serialize::OutputArchive checkpoint_archive(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
-                                                   const CheckpointState& state) {
-  torch::serialize::OutputArchive archive;
-  archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat)));
-  archive.write("config", c10::IValue(state.config.to_json()));
+namespace st = safetensors;
+
+// What every file's metadata says it is.
+constexpr const char* kFormatName = "scout-checkpoint";
+
+std::span<const std::byte> tensor_bytes(const torch::Tensor& t) {
+  return {static_cast<const std::byte*>(t.data_ptr()), static_cast<std::size_t>(t.nbytes())};
+}
+
+st::DType dtype_of(const torch::Tensor& t, const std::string& name) {
+  if (t.scalar_type() == torch::kFloat) return st::DType::F32;
+  if (t.scalar_type() == torch::kLong) return st::DType::I64;
+  throw std::logic_error("checkpoint: tensor " + name + " is " + c10::toString(t.scalar_type()) +
+                         "; Scout stores Float and Long");
+}
+
+// Adam's options as the file's "optimizer" metadata.
+std::string adam_options_json(const torch::optim::AdamOptions& o) {
+  return json({{"type", "adam"},
+               {"lr", o.lr()},
+               {"betas", {std::get<0>(o.betas()), std::get<1>(o.betas())}},
+               {"eps", o.eps()},
+               {"weight_decay", o.weight_decay()},
+               {"amsgrad", o.amsgrad()}})
+      .dump();
+}
+
+std::string progress_json(const CheckpointState& state) {
   const EpochSums& p = state.partial;
-  json progress = {{"stage", index(state.cursor.stage)},
-                   {"epoch", state.cursor.epoch},
-                   {"batch", state.cursor.batch},
-                   {"partial",
-                    {{"reward", finite_or_zero(p.reward)},
-                     {"loss", finite_or_zero(p.loss)},
-                     {"train_seconds", p.train_seconds},
-                     {"correct", p.correct},
-                     {"robots", p.rollouts},
-                     {"images", p.images},
-                     {"batches", p.batches},
-                     {"gradient_norm", finite_or_zero(p.gradient_norm)},
-                     {"gradient_steps", p.gradient_steps}}},
-                   {"history", history_json(state.history)},
-                   {"world_size", state.world_size},
-                   {"threads", state.threads}};
-  archive.write("progress", c10::IValue(progress.dump()));
-  torch::serialize::OutputArchive weights;
-  agent.save(weights);
-  archive.write("agent", weights);
-  if (optimizer) {
-    torch::serialize::OutputArchive optimizer_archive;
-    optimizer->save(optimizer_archive);
-    archive.write("optimizer", optimizer_archive);
-  }
-  // Sampling uses Scout's own counter-based streams (seed, stage, epoch, batch, robot); LibTorch's
-  // generator only initialises weights. Both are kept so that nothing random is lost.
-  archive.write("torch_rng_state", at::detail::getDefaultCPUGenerator().get_state());
-  return archive;
+  return json({{"stage", index(state.cursor.stage)},
+               {"epoch", state.cursor.epoch},
+               {"batch", state.cursor.batch},
+               {"partial",
+                {{"reward", finite_or_zero(p.reward)},
+                 {"loss", finite_or_zero(p.loss)},
+                 {"train_seconds", p.train_seconds},
+                 {"correct", p.correct},
+                 {"robots", p.rollouts},
+                 {"images", p.images},
+                 {"batches", p.batches},
+                 {"gradient_norm", finite_or_zero(p.gradient_norm)},
+                 {"gradient_steps", p.gradient_steps}}},
+               {"history", history_json(state.history)},
+               {"world_size", state.world_size},
+               {"threads", state.threads}})
+      .dump();
 }
 
 }  // namespace
 
 std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
                              const CheckpointState& state) {
-  std::ostringstream out;
-  checkpoint_archive(agent, optimizer, state).save_to(out);
-  return std::move(out).str();
+  // Every tensor as a contiguous CPU tensor kept alive until the file is assembled.
+  std::vector<torch::Tensor> held;
+  std::vector<st::TensorBytes> tensors;
+  const auto add = [&](const std::string& name, const torch::Tensor& value) {
+    held.push_back(value.detach().to(torch::kCPU).contiguous());
+    tensors.push_back({name, dtype_of(held.back(), name), held.back().sizes().vec(), tensor_bytes(held.back())});
+  };
+  held.reserve(4 * agent.parameters().size() + agent.buffers().size());
+  for (const auto& p : agent.named_parameters()) add(kAgentPrefix + p.key(), p.value());
+  for (const auto& b : agent.named_buffers()) add(kAgentPrefix + b.key(), b.value());
+  std::map<std::string, std::string> metadata = {{"format", kFormatName},
+                                                 {"format_version", std::to_string(kCheckpointFormat)},
+                                                 {"config", state.config.to_json()},
+                                                 {"progress", progress_json(state)}};
+  if (!state.manifest.empty()) metadata["manifest"] = state.manifest;
+  if (optimizer) {
+    auto& adam = dynamic_cast<torch::optim::Adam&>(*optimizer);
+    metadata["optimizer"] =
+        adam_options_json(static_cast<const torch::optim::AdamOptions&>(adam.param_groups().front().options()));
+    // Per parameter, by its name: Adam's step and two moments (none for a parameter that never had
+    // a gradient: a frozen layer, an unconsulted action planner).
+    for (const auto& p : agent.named_parameters()) {
+      const auto it = adam.state().find(adam_state_key(p.value()));
+      if (it == adam.state().end()) continue;
+      const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
+      const std::string at = kOptimizerPrefix + p.key();
+      add(at + ".exp_avg", s.exp_avg());
+      add(at + ".exp_avg_sq", s.exp_avg_sq());
+      add(at + ".step", torch::tensor(static_cast<std::int64_t>(s.step()), torch::kLong));
+    }
+  }
+  try {
+    return st::write(tensors, metadata);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("checkpoint: cannot be written (") + e.what() + ")");
+  }
 }
 
 void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
@@ -157,12 +203,20 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
 
 namespace {
 
-// The file's bytes; a checkpoint is read whole (Scout checks it before LibTorch parses it). Its
+namespace st = safetensors;
+
+// The file's bytes; a checkpoint is read whole and checked before a tensor is made from it. Its
 // size is bounded before a byte is read, and a FIFO or a device is refused without blocking.
 std::string read_checkpoint_file(const fs::path& file) {
   std::error_code ec;
-  if (!fs::exists(file, ec))
-    throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.pt or a model file)");
+  if (!fs::exists(file, ec)) {
+    const fs::path legacy = fs::path(file).replace_extension(".pt");
+    if (fs::exists(legacy, ec))
+      throw InputError(file.string() + ": no such checkpoint file; " + legacy.string() +
+                       " beside it is of Scout's format 1, which this build does not read; if you trust it, convert "
+                       "it once: scout convert " + legacy.string() + " --trusted");
+    throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.safetensors or a model file)");
+  }
   const core::RegularFile in = core::open_regular_file(file);
   if (in.size() > kMaxCheckpointBytes)
     throw InputError(fmt::format("{}: {} bytes, more than the {} a Scout checkpoint may have", file.string(), in.size(),
@@ -178,8 +232,8 @@ std::string read_checkpoint_file(const fs::path& file) {
   return bytes;
 }
 
-// The non-tensor part of a checkpoint: its "progress" entry (the schedule's position, the epoch in
-// progress, the history, the run's processes and threads).
+}  // namespace
+
 void read_progress(const std::string& text, const std::string& origin, CheckpointState& state) {
   int stage = 0;
   if (const std::optional<std::size_t> at = json_nested_beyond(text, kMaxJsonNesting))
@@ -213,6 +267,8 @@ void read_progress(const std::string& text, const std::string& origin, Checkpoin
   state.cursor.stage = static_cast<Stage>(stage);
 }
 
+namespace {
+
 // The config's networks against the file's size, before anything is built from the config: a
 // config that declares a billion parameters in a file of a megabyte is refused in microseconds.
 void check_network_fits(const agent::NetworkConfig& network, std::size_t file_bytes, const std::string& origin) {
@@ -223,288 +279,272 @@ void check_network_fits(const agent::NetworkConfig& network, std::size_t file_by
                                  core::format_bytes(file_bytes)));
 }
 
-// Plain values (strings, numbers) where Scout's writer stores them: the format number, the config
-// and the progress at the root, Adam's bookkeeping under optimizer. (check_optimizer), nothing else.
-void check_plain_values(const ArchiveContents& contents, const std::string& origin) {
-  const auto check = [&](const std::string& path) {
-    if (path == "scout_checkpoint_format" || path == "config" || path == "progress" || path.rfind("optimizer.", 0) == 0)
-      return;
-    throw InputError(origin + ": not a Scout checkpoint (" + path + " is not a value Scout's writer stores)");
-  };
-  for (const auto& item : contents.strings) check(item.first);
-  for (const auto& item : contents.ints) check(item.first);
-  for (const auto& item : contents.floats) check(item.first);
-  for (const auto& item : contents.bools) check(item.first);
-  for (const auto& item : contents.float_pairs) check(item.first);
+// Batches one epoch of `stage` can have at most: the run's digits (train_limit, else the most a
+// data set may hold) in batches of its size.
+std::int64_t max_batches_per_epoch(const TrainConfig& c, Stage stage) {
+  const std::int64_t images = c.train_limit > 0 ? c.train_limit : kMaxDigits;
+  const std::int64_t batch =
+      stage == Stage::Pretrain ? std::int64_t{c.batch_images} * c.rollouts : std::int64_t{c.batch_images};
+  return (images + batch - 1) / batch;
 }
 
-// Each agent tensor's name, shape and type against the agent the config describes. The agent is
-// built only once the file is known to hold that many weights, so that a crafted config cannot
-// make Scout allocate more than the file's own size. Returns the parameters' shapes in the
-// order Adam keeps them.
-std::vector<std::vector<std::int64_t>> check_agent_tensors(const ArchiveContents& contents,
-                                                           const agent::NetworkConfig& network,
-                                                           const std::string& origin) {
-  const std::string agent_prefix = "agent.";
-  std::map<std::string, const ArchiveTensor*> agent_tensors;
-  std::int64_t agent_values = 0;
-  for (const ArchiveTensor& t : contents.tensors) {
-    if (t.path.rfind(agent_prefix, 0) != 0) continue;
-    agent_tensors[t.path.substr(agent_prefix.size())] = &t;
-    agent_values += t.numel();  // each at most the file's size (inspect_archive): no overflow
+// Where the schedule stands, against the schedule the config gives: a stage with epochs left,
+// at most its epochs done, fewer batches than an epoch can have; a finished run at (done, 0, 0).
+void check_cursor(const CheckpointState& state, const std::string& origin) {
+  const ScheduleCursor& c = state.cursor;
+  const std::array<int, kTrainingStages> epochs = {state.config.pretrain_epochs, state.config.epochs[0],
+                                                   state.config.epochs[1], state.config.epochs[2]};
+  const auto refuse = [&](const std::string& expected) {
+    throw InputError(fmt::format("{}: progress: the schedule position (mode {}, epoch {}, batch {}) is outside the "
+                                 "config's schedule ({})",
+                                 origin, to_string(c.stage), c.epoch, c.batch, expected));
+  };
+  if (c.stage == Stage::Done) {
+    if (c.epoch != 0 || c.batch != 0) refuse("a finished run stands at epoch 0, batch 0");
+    return;
   }
-  const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
-  const std::int64_t parameters = agent::parameter_count(network);
-  if (agent_values < parameters)
-    throw InputError(fmt::format("{}{}it gives {} parameters, the file holds {} values)", origin, mismatch, parameters,
-                                 agent_values));
+  const int stage_epochs = epochs[index(c.stage)];
+  if (c.epoch >= stage_epochs) refuse(fmt::format("mode {} has {} epochs", to_string(c.stage), stage_epochs));
+  if (c.batch >= max_batches_per_epoch(state.config, c.stage))
+    refuse(fmt::format("an epoch has at most {} batches", max_batches_per_epoch(state.config, c.stage)));
+}
 
+// Optimizer steps the config's whole schedule can take: an Adam step count beyond it was not
+// written by training (at INT64_MAX, Adam's bias correction overflows into NaN weights).
+std::int64_t max_training_steps(const TrainConfig& c) {
+  const std::array<int, kTrainingStages> epochs = {c.pretrain_epochs, c.epochs[0], c.epochs[1], c.epochs[2]};
+  std::int64_t steps = 0;
+  for (Stage s = Stage::Pretrain; s != Stage::Done; s = next(s))
+    steps += std::int64_t{epochs[index(s)]} * max_batches_per_epoch(c, s);
+  return steps;
+}
+
+bool all_finite(const st::TensorView& t) {
+  if (t.dtype != st::DType::F32) return true;
+  const std::size_t n = t.bytes.size() / sizeof(float);
+  for (std::size_t i = 0; i < n; ++i) {
+    float v;
+    std::memcpy(&v, t.bytes.data() + i * sizeof(float), sizeof v);
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+std::string shape_text(const std::vector<std::int64_t>& shape) { return c10::str(c10::IntArrayRef(shape)); }
+
+// A metadata entry as JSON text: at most `max_bytes`, nested at most kMaxJsonNesting deep.
+const std::string& metadata_json(const st::File& file, const std::string& key, std::size_t max_bytes,
+                                 const std::string& origin) {
+  const auto it = file.metadata.find(key);
+  if (it == file.metadata.end()) throw InputError(origin + ": " + key + ": missing from the file's metadata");
+  if (it->second.size() > max_bytes)
+    throw InputError(fmt::format("{}: {}: {} bytes, more than the {} Scout's writer stays within", origin, key,
+                                 it->second.size(), core::format_bytes(max_bytes)));
+  if (const std::optional<std::size_t> at = json_nested_beyond(it->second, kMaxJsonNesting))
+    throw InputError(fmt::format("{}: {}: arrays and objects nested more than {} deep (at byte {})", origin, key,
+                                 kMaxJsonNesting, *at));
+  return it->second;
+}
+
+// The parts of a checkpoint besides its tensors: the format, the config, the progress, the
+// manifest, and which metadata keys may appear at all.
+CheckpointState check_metadata(const st::File& file, std::size_t file_bytes, const std::string& origin) {
+  for (const auto& [key, value] : file.metadata)
+    if (key != "format" && key != "format_version" && key != "config" && key != "progress" && key != "manifest" &&
+        key != "optimizer")
+      throw InputError(origin + ": __metadata__: " + one_line(key.substr(0, 80)) +
+                       " is not an entry Scout's writer stores");
+  const auto format = file.metadata.find("format");
+  if (format == file.metadata.end() || format->second != kFormatName)
+    throw InputError(origin + ": not a Scout checkpoint (its __metadata__ has no format: " + kFormatName + ")");
+  const auto version = file.metadata.find("format_version");
+  if (version == file.metadata.end() || version->second != std::to_string(kCheckpointFormat))
+    throw InputError(fmt::format("{}: format_version: this build reads {}, the file has {}", origin,
+                                 kCheckpointFormat,
+                                 version == file.metadata.end() ? std::string("none") : one_line(version->second.substr(0, 20))));
+  CheckpointState state;
+  state.config = TrainConfig::from_json(metadata_json(file, "config", kMaxConfigBytes, origin), origin);
+  check_network_fits(state.config.network, file_bytes, origin);
+  read_progress(metadata_json(file, "progress", kMaxProgressBytes, origin), origin, state);
+  check_cursor(state, origin);
+  if (const auto manifest = file.metadata.find("manifest"); manifest != file.metadata.end()) {
+    try {
+      if (!nlohmann::json::parse(metadata_json(file, "manifest", kMaxProgressBytes, origin)).is_object())
+        throw std::runtime_error("not an object");
+    } catch (const std::exception& e) {
+      throw InputError(origin + ": manifest: expected a JSON object (" + first_line(e.what()) + ")");
+    }
+    state.manifest = manifest->second;
+  }
+  return state;
+}
+
+// Each agent tensor's name, dtype and shape against the agent the config describes, and its
+// values finite; a tensor missing, misshapen or of no network is named. Returns the parameters'
+// names and shapes, in the order Adam keeps them.
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> check_agent_tensors(
+    const st::File& file, const agent::NetworkConfig& network, const std::string& origin) {
+  const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
   // Building the reference agent draws initial weights from LibTorch's generator: put its state
-  // back, so that checking a file never changes what a later construction draws.
+  // back, so that checking a file never changes what a later construction draws. (Its size is
+  // bounded by the file's: check_network_fits.)
   struct GeneratorRestore {
     at::Generator generator = at::detail::getDefaultCPUGenerator();
     at::Tensor state = generator.get_state();
     ~GeneratorRestore() { generator.set_state(state); }
   } restore;
   agent::Agent reference(network);
-  std::vector<std::vector<std::int64_t>> parameter_shapes;
-  std::size_t expected = 0;
+  std::vector<std::pair<std::string, std::vector<std::int64_t>>> parameter_shapes;
+  std::set<std::string> expected;
   const auto expect = [&](const std::string& name, const torch::Tensor& value) {
-    ++expected;
-    const auto it = agent_tensors.find(name);
-    if (it == agent_tensors.end()) throw InputError(origin + mismatch + name + " is missing)");
-    const ArchiveTensor& t = *it->second;
-    if (t.sizes != value.sizes().vec() || t.dtype != c10::toString(value.scalar_type()))
-      throw InputError(origin + mismatch + name + " is " + t.dtype + " " + c10::str(c10::IntArrayRef(t.sizes)) +
-                       ", the config gives " + c10::toString(value.scalar_type()) + " " + c10::str(value.sizes()) +
-                       ")");
+    expected.insert(kAgentPrefix + name);
+    const st::TensorView* t = file.find(kAgentPrefix + name);
+    if (!t) throw InputError(origin + mismatch + kAgentPrefix + name + " is missing)");
+    const st::DType dtype = value.scalar_type() == torch::kLong ? st::DType::I64 : st::DType::F32;
+    if (t->shape != value.sizes().vec() || t->dtype != dtype)
+      throw InputError(origin + mismatch + t->name + " is " + st::to_string(t->dtype) + " " + shape_text(t->shape) +
+                       ", the config gives " + st::to_string(dtype) + " " + c10::str(value.sizes()) + ")");
+    if (!all_finite(*t)) throw InputError(origin + ": " + t->name + ": holds values that are not finite (NaN or inf)");
   };
   for (const auto& p : reference->named_parameters()) {
     expect(p.key(), p.value());
-    parameter_shapes.push_back(p.value().sizes().vec());
+    parameter_shapes.emplace_back(p.key(), p.value().sizes().vec());
   }
   for (const auto& b : reference->named_buffers()) expect(b.key(), b.value());
-  if (agent_tensors.size() != expected)
-    throw InputError(origin + mismatch + "the file holds " + std::to_string(agent_tensors.size()) +
-                     " tensors, the config " + std::to_string(expected) + ")");
+  for (const st::TensorView& t : file.tensors)
+    if (t.name.rfind(kAgentPrefix, 0) == 0 && !expected.count(t.name))
+      throw InputError(origin + mismatch + one_line(t.name.substr(0, 80)) + " is not a tensor of its networks)");
   return parameter_shapes;
 }
 
-// The tensors besides the agent's: LibTorch's generator state, as the generator's get_state()
-// makes it, and Adam's (check_optimizer).
-void check_other_tensors(const ArchiveContents& contents, const std::string& origin) {
-  const std::int64_t rng_bytes = at::detail::getDefaultCPUGenerator().get_state().numel();
-  bool rng = false;
-  for (const ArchiveTensor& t : contents.tensors) {
-    if (t.path.rfind("agent.", 0) == 0 || t.path.rfind("optimizer.", 0) == 0) continue;
-    if (t.path == "torch_rng_state" && t.dtype == "Byte" && t.sizes == std::vector<std::int64_t>{rng_bytes}) {
-      rng = true;
+// Adam's state, as Scout's Adam keeps it: the options in their ranges (LibTorch would take a NaN
+// beta as it is), and per parameter either nothing (it never had a gradient) or a step in
+// [1, the schedule's steps] with two finite moments of the parameter's shape (the second >= 0).
+// Any other tensor is refused by name.
+void check_optimizer(const st::File& file, const CheckpointState& state,
+                     const std::vector<std::pair<std::string, std::vector<std::int64_t>>>& parameters,
+                     const std::string& origin) {
+  std::set<std::string> unchecked;
+  for (const st::TensorView& t : file.tensors)
+    if (t.name.rfind(kAgentPrefix, 0) != 0) unchecked.insert(t.name);
+  const auto refuse = [&](const std::string& what) { throw InputError(origin + ": " + one_line(what)); };
+  const auto options = file.metadata.find("optimizer");
+  if (options == file.metadata.end()) {
+    if (!unchecked.empty()) refuse(*unchecked.begin() + ": a tensor Scout's writer does not make (no optimizer in __metadata__)");
+    return;  // a model file
+  }
+  try {
+    const nlohmann::json o = nlohmann::json::parse(metadata_json(file, "optimizer", 4096, origin));
+    const auto number = [&](const char* key) {
+      const nlohmann::json& v = o.at(key);
+      if (!v.is_number()) throw std::runtime_error(std::string(key) + " is not a number");
+      return v.get<double>();
+    };
+    const double lr = number("lr"), eps = number("eps"), weight_decay = number("weight_decay");
+    if (o.at("type") != "adam") refuse("optimizer: type: expected adam, Scout's optimizer");
+    if (!std::isfinite(lr) || lr <= 0) refuse(fmt::format("optimizer: lr: expected a finite number > 0, got {}", lr));
+    if (!std::isfinite(eps) || eps <= 0)
+      refuse(fmt::format("optimizer: eps: expected a finite number > 0, got {}", eps));
+    if (weight_decay != 0) refuse(fmt::format("optimizer: weight_decay: expected 0, as Scout's Adam has, got {}", weight_decay));
+    const nlohmann::json& betas = o.at("betas");
+    const auto beta = [](const nlohmann::json& b) {
+      return b.is_number() && std::isfinite(b.get<double>()) && b.get<double>() >= 0 && b.get<double>() < 1;
+    };
+    if (!betas.is_array() || betas.size() != 2 || !beta(betas[0]) || !beta(betas[1]))
+      refuse("optimizer: betas: expected two numbers in [0, 1), got " + betas.dump().substr(0, 60));
+    if (o.at("amsgrad") != false) refuse("optimizer: amsgrad: expected false, as Scout's Adam has");
+    if (o.size() != 6) refuse("optimizer: expected exactly type, lr, betas, eps, weight_decay and amsgrad");
+  } catch (const nlohmann::json::exception& e) {
+    refuse(std::string("optimizer: unreadable (") + e.what() + ")");
+  } catch (const std::runtime_error& e) {
+    if (dynamic_cast<const InputError*>(&e)) throw;
+    refuse(std::string("optimizer: ") + e.what());
+  }
+  const std::int64_t max_steps = max_training_steps(state.config);
+  for (const auto& [name, shape] : parameters) {
+    const std::string at = kOptimizerPrefix + name;
+    const st::TensorView* step = file.find(at + ".step");
+    if (!step) {
+      for (const char* moment : {".exp_avg", ".exp_avg_sq"})
+        if (unchecked.count(at + moment)) refuse(at + ".step: missing beside " + at + moment);
       continue;
     }
-    throw InputError(origin + ": not a Scout checkpoint (tensor " + t.path + ", " + t.dtype + " " +
-                     c10::str(c10::IntArrayRef(t.sizes)) + ", is not one Scout's writer makes)");
+    unchecked.erase(at + ".step");
+    if (step->dtype != st::DType::I64 || !step->shape.empty())
+      refuse(at + ".step: " + st::to_string(step->dtype) + " " + shape_text(step->shape) + ", expected I64 [] (a count)");
+    std::int64_t steps = 0;
+    std::memcpy(&steps, step->bytes.data(), sizeof steps);
+    if (steps < 1 || steps > max_steps)
+      refuse(fmt::format("{}.step: {} Adam steps, expected 1 to {} (the config's schedule: at most {} batches)", at,
+                         steps, max_steps, max_steps));
+    for (const char* moment : {".exp_avg", ".exp_avg_sq"}) {
+      const st::TensorView* t = file.find(at + moment);
+      if (!t) refuse(at + moment + ": missing beside " + at + ".step");
+      unchecked.erase(at + moment);
+      if (t->dtype != st::DType::F32 || t->shape != shape)
+        refuse(at + moment + ": " + st::to_string(t->dtype) + " " + shape_text(t->shape) + ", expected F32 " +
+               shape_text(shape) + ", its parameter's shape");
+      if (!all_finite(*t)) refuse(at + moment + ": holds values that are not finite (NaN or inf)");
+    }
+    const st::TensorView& second = *file.find(at + ".exp_avg_sq");
+    for (std::int64_t i = 0; i < second.elements(); ++i) {
+      float v;
+      std::memcpy(&v, second.bytes.data() + i * sizeof(float), sizeof v);
+      if (v < 0) refuse(at + ".exp_avg_sq: holds a negative value (it is a mean of squares)");
+    }
   }
-  if (!rng) throw InputError(fmt::format("{}: torch_rng_state: missing (expected Byte [{}])", origin, rng_bytes));
+  if (!unchecked.empty()) refuse(*unchecked.begin() + ": a tensor Scout's writer does not make");
 }
 
-// Adam's state, as LibTorch's Adam writes it for Scout's one parameter group: every value where
-// the writer puts it, of its type and in its range, and nothing else. LibTorch's reader would
-// take a NaN beta or amsgrad as they are, and silently drop the moments of a parameter whose key
-// it cannot match: a resumed run would not continue the one that wrote the file.
-class OptimizerCheck {
- public:
-  OptimizerCheck(const ArchiveContents& contents, const std::string& origin) : contents_(contents), origin_(origin) {
-    const auto add = [this](const auto& values) {
-      for (const auto& item : values)
-        if (item.first.rfind(kPrefix, 0) == 0) unchecked_.insert(item.first.substr(kPrefix.size()));
-    };
-    add(contents.strings), add(contents.ints), add(contents.floats), add(contents.bools), add(contents.float_pairs);
-    for (const ArchiveTensor& t : contents.tensors)
-      if (t.path.rfind(kPrefix, 0) == 0) unchecked_.insert(t.path.substr(kPrefix.size()));
-  }
-
-  // `shapes`: the agent's parameters' shapes, in the order Adam holds them.
-  void run(const std::vector<std::vector<std::int64_t>>& shapes) {
-    if (unchecked_.empty()) return;  // a model file: no optimizer
-    if (text("pytorch_version") != "1.5.0") refuse("pytorch_version is not 1.5.0, what LibTorch's writer stores");
-    if (count("param_groups.param_groups/size") != 1) refuse("expected one parameter group, as Scout's Adam has");
-    const std::map<std::string, std::size_t> keys = parameter_keys(shapes.size());
-    options();
-    for (const auto& [key, index] : keys) state(key, shapes[index]);
-    if (!unchecked_.empty())
-      refuse(*unchecked_.begin() + " is not a value LibTorch's Adam stores for Scout's parameters");
-  }
-
- private:
-  static inline const std::string kPrefix = "optimizer.";
-  static inline const std::string kGroup = "param_groups.param_groups/0.";
-
-  [[noreturn]] void refuse(const std::string& what) const {
-    throw InputError(origin_ + ": optimizer: " + one_line(what));
-  }
-  // Marks `path` checked; false when the file does not hold it.
-  template <class Map>
-  const typename Map::mapped_type* take(const Map& values, const std::string& path) {
-    const auto it = values.find(kPrefix + path);
-    if (it == values.end()) return nullptr;
-    unchecked_.erase(path);
-    return &it->second;
-  }
-  const std::string& text(const std::string& path) {
-    const std::string* v = take(contents_.strings, path);
-    if (!v) refuse(path + ": missing (expected a string)");
-    return *v;
-  }
-  double real(const std::string& path) {
-    const double* v = take(contents_.floats, path);
-    if (!v) refuse(path + ": missing (expected a number)");
-    return *v;
-  }
-  const ArchiveTensor& tensor(const std::string& path) {
-    for (const ArchiveTensor& t : contents_.tensors)
-      if (t.path == kPrefix + path) {
-        unchecked_.erase(path);
-        return t;
-      }
-    refuse(path + ": missing (expected a tensor)");
-  }
-  // A count LibTorch's reader loops over: a 0-d Long tensor.
-  std::int64_t count(const std::string& path) {
-    const ArchiveTensor& t = tensor(path);
-    if (t.dtype != "Long" || !t.sizes.empty() || !t.value) refuse(path + ": expected a 0-d Long tensor (a count)");
-    return *t.value;
-  }
-
-  // params/0 ... params/N-1: the key (a parameter's address when written: "0x..." by LibTorch 1.x,
-  // decimal by 2.x) under which each parameter's state is kept, one per agent parameter, all
-  // different. Returns key -> index.
-  std::map<std::string, std::size_t> parameter_keys(std::size_t parameters) {
-    const std::string group = kGroup;
-    if (count(group + "params/size") != static_cast<std::int64_t>(parameters))
-      refuse(fmt::format("{}params/size: expected {}, the agent's parameters", group, parameters));
-    std::map<std::string, std::size_t> keys;
-    for (std::size_t i = 0; i < parameters; ++i) {
-      const std::string path = group + "params/" + std::to_string(i);
-      const std::string& key = text(path);
-      const bool hex = key.size() > 2 && key.size() <= 18 && key.rfind("0x", 0) == 0 &&
-                       key.find_first_not_of("0123456789abcdef", 2) == std::string::npos;
-      const bool decimal = !key.empty() && key.size() <= 20 && key.find_first_not_of("0123456789") == std::string::npos;
-      if (!hex && !decimal)
-        refuse(path + ": expected a parameter key (an address: 0x and hexadecimal digits, or decimal digits), got '" +
-               key.substr(0, 40) + "'");
-      if (!keys.emplace(key, i).second) refuse(path + ": the key " + key + " is another parameter's too");
-    }
-    return keys;
-  }
-
-  void options() {
-    const std::string at = std::string(kGroup) + "options.";
-    const double lr = real(at + "lr"), eps = real(at + "eps"), weight_decay = real(at + "weight_decay");
-    if (!std::isfinite(lr) || lr <= 0) refuse(fmt::format("{}lr: expected a finite number > 0, got {}", at, lr));
-    if (!std::isfinite(eps) || eps <= 0) refuse(fmt::format("{}eps: expected a finite number > 0, got {}", at, eps));
-    if (weight_decay != 0)
-      refuse(fmt::format("{}weight_decay: expected 0, as Scout's Adam has, got {}", at, weight_decay));
-    const std::pair<double, double>* betas = take(contents_.float_pairs, at + "betas");
-    const auto beta = [](double b) { return std::isfinite(b) && b >= 0 && b < 1; };
-    if (!betas || !beta(betas->first) || !beta(betas->second))
-      refuse(at + "betas: expected two numbers in [0, 1)" +
-             (betas ? fmt::format(", got ({}, {})", betas->first, betas->second) : std::string(", got none")));
-    const bool* amsgrad = take(contents_.bools, at + "amsgrad");
-    if (!amsgrad || *amsgrad) refuse(at + "amsgrad: expected false, as Scout's Adam has");
-  }
-
-  // One parameter's state, if it has one (a parameter that never had a gradient has none).
-  void state(const std::string& key, const std::vector<std::int64_t>& shape) {
-    const std::string at = "state." + key + ".";
-    const std::int64_t* step = take(contents_.ints, at + "step");
-    if (!step) {
-      for (const char* moment : {"exp_avg", "exp_avg_sq"})
-        if (unchecked_.count(at + moment)) refuse(at + "step: missing beside " + moment);
-      return;
-    }
-    if (*step < 0) refuse(fmt::format("{}step: expected a count >= 0, got {}", at, *step));
-    for (const char* moment : {"exp_avg", "exp_avg_sq"}) {
-      const ArchiveTensor& t = tensor(at + moment);
-      if (t.dtype != "Float" || t.sizes != shape)
-        refuse(at + moment + ": " + t.dtype + " " + c10::str(c10::IntArrayRef(t.sizes)) + ", expected Float " +
-               c10::str(c10::IntArrayRef(shape)) + ", its parameter's shape");
-    }
-  }
-
-  const ArchiveContents& contents_;
-  const std::string& origin_;
-  std::set<std::string> unchecked_;  // paths under optimizer. not checked yet
-};
-
-// Holds the archive against what Scout's writer produces before LibTorch parses it: its structure
-// (learn/internal/archive.hpp), then its format number, its config and progress, and its tensors.
-// Every check has one place and one message. Returns the state the file holds.
-CheckpointState check_archive(const std::string& bytes, const std::string& origin) {
-  ArchiveContents contents;
-  try {
-    contents = inspect_archive(bytes);
-  } catch (const std::runtime_error& e) {
-    throw InputError(origin + ": not a Scout checkpoint (" + e.what() + ")");
-  }
-  const auto format = contents.ints.find("scout_checkpoint_format");
-  if (format == contents.ints.end())
-    throw InputError(origin + ": not a Scout checkpoint (no scout_checkpoint_format entry)");
-  if (format->second != kCheckpointFormat)
-    throw InputError(fmt::format("{}: scout_checkpoint_format: this build reads format {}, the file has {}", origin,
-                                 kCheckpointFormat, format->second));
-  const auto config = contents.strings.find("config");
-  if (config == contents.strings.end()) throw InputError(origin + ": config: missing from the checkpoint");
-  CheckpointState state;
-  state.config = TrainConfig::from_json(config->second, origin);
-  check_network_fits(state.config.network, bytes.size(), origin);
-  const auto progress = contents.strings.find("progress");
-  if (progress == contents.strings.end()) throw InputError(origin + ": progress: missing from the checkpoint");
-  read_progress(progress->second, origin, state);
-  check_plain_values(contents, origin);
-  check_other_tensors(contents, origin);
-  OptimizerCheck(contents, origin).run(check_agent_tensors(contents, state.config.network, origin));
+// Holds a parsed file against what Scout's writer produces: its metadata, then its tensors. Every
+// check has one place and one message. Returns the state the file holds.
+CheckpointState check_checkpoint(const st::File& file, std::size_t file_bytes, const std::string& origin) {
+  CheckpointState state = check_metadata(file, file_bytes, origin);
+  check_optimizer(file, state, check_agent_tensors(file, state.config.network, origin), origin);
   return state;
 }
 
-void load_weights(torch::serialize::InputArchive& archive, const std::string& origin, agent::AgentImpl& agent,
+// Copies a checked tensor's bytes into `into` (same dtype and element count).
+void copy_into(const st::TensorView& from, torch::Tensor& into) {
+  torch::NoGradGuard no_grad;
+  std::memcpy(into.data_ptr(), from.bytes.data(), from.bytes.size());
+}
+
+torch::Tensor tensor_from(const st::TensorView& from) {
+  torch::Tensor t = torch::empty(from.shape, from.dtype == st::DType::I64 ? torch::kLong : torch::kFloat);
+  copy_into(from, t);
+  return t;
+}
+
+void load_weights(const st::File& file, const std::string& origin, agent::AgentImpl& agent,
                   torch::optim::Optimizer* optimizer) {
-  // LibTorch's load replaces each tensor with the file's whatever its shape: compare afterwards.
-  std::vector<std::pair<std::string, std::vector<std::int64_t>>> shapes;
-  for (const auto& p : agent.named_parameters()) shapes.emplace_back(p.key(), p.value().sizes().vec());
-  for (const auto& b : agent.named_buffers()) shapes.emplace_back(b.key(), b.value().sizes().vec());
-  const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
-  try {
-    torch::serialize::InputArchive weights;
-    archive.read("agent", weights);
-    agent.load(weights);
-  } catch (const std::exception& e) {
-    throw InputError(origin + mismatch + first_line(e.what()) + ")");
-  }
-  const auto parameters = agent.named_parameters();
-  const auto buffers = agent.named_buffers();
-  for (const auto& [name, shape] : shapes) {
-    const torch::Tensor* t = parameters.find(name);
-    if (!t) t = buffers.find(name);
-    if (!t || t->sizes().vec() != shape)
-      throw InputError(origin + mismatch + name + " is " + (t ? c10::str(t->sizes()) : std::string("missing")) +
-                       ", the config gives " + c10::str(c10::IntArrayRef(shape)) + ")");
-  }
-  // LibTorch's load makes each tensor share the archive's storage: give the agent its own, so that
-  // training one agent never changes what the opened checkpoint holds.
-  {
-    torch::NoGradGuard no_grad;
-    for (torch::Tensor& t : agent.parameters()) t.set_(t.clone());
-    for (torch::Tensor& t : agent.buffers()) t.set_(t.clone());
-  }
-  if (optimizer) {
-    try {
-      torch::serialize::InputArchive optimizer_archive;
-      archive.read("optimizer", optimizer_archive);
-      optimizer->load(optimizer_archive);
-    } catch (const std::exception& e) {
-      throw InputError(origin + ": optimizer: missing or unreadable (a model file cannot be resumed; " +
-                       first_line(e.what()) + ")");
-    }
+  // The agent was built from the checked config: each tensor is there, of its shape and dtype.
+  for (auto& p : agent.named_parameters()) copy_into(*file.find(kAgentPrefix + p.key()), p.value());
+  for (auto& b : agent.named_buffers()) copy_into(*file.find(kAgentPrefix + b.key()), b.value());
+  if (!optimizer) return;
+  const auto options = file.metadata.find("optimizer");
+  if (options == file.metadata.end())
+    throw InputError(origin + ": optimizer: missing (a model file holds weights only; it cannot be resumed)");
+  auto& adam = dynamic_cast<torch::optim::Adam&>(*optimizer);
+  const nlohmann::json o = nlohmann::json::parse(options->second);
+  auto& group = static_cast<torch::optim::AdamOptions&>(adam.param_groups().front().options());
+  group.lr(o.at("lr").get<double>())
+      .betas({o.at("betas")[0].get<double>(), o.at("betas")[1].get<double>()})
+      .eps(o.at("eps").get<double>())
+      .weight_decay(o.at("weight_decay").get<double>())
+      .amsgrad(false);
+  adam.state().clear();
+  for (const auto& p : agent.named_parameters()) {
+    const std::string at = kOptimizerPrefix + p.key();
+    const st::TensorView* step = file.find(at + ".step");
+    if (!step) continue;
+    auto state = std::make_unique<torch::optim::AdamParamState>();
+    std::int64_t steps = 0;
+    std::memcpy(&steps, step->bytes.data(), sizeof steps);
+    state->step(steps);
+    state->exp_avg(tensor_from(*file.find(at + ".exp_avg")));
+    state->exp_avg_sq(tensor_from(*file.find(at + ".exp_avg_sq")));
+    adam.state()[adam_state_key(p.value())] = std::move(state);
   }
 }
 
@@ -518,16 +558,20 @@ Checkpoint::Checkpoint(std::shared_ptr<const Contents> contents) : contents_(std
 const fs::path& Checkpoint::file() const { return contents_->file; }
 const CheckpointInfo& Checkpoint::info() const { return contents_->info; }
 
-Checkpoint open_checkpoint_bytes(const std::string& bytes, const std::string& origin) {
+Checkpoint open_checkpoint_bytes(std::string bytes, const std::string& origin) {
   ++g_opened;
   auto contents = std::make_shared<Checkpoint::Contents>();
   contents->file = origin;
-  contents->state = check_archive(bytes, origin);
-  try {
-    contents->archive.load_from(bytes.data(), bytes.size());
-  } catch (const std::exception& e) {
-    throw InputError(origin + ": not a Scout checkpoint (" + first_line(e.what()) + ")");
-  }
+  contents->bytes = std::move(bytes);
+  const std::span<const std::byte> view(reinterpret_cast<const std::byte*>(contents->bytes.data()),
+                                        contents->bytes.size());
+  if (st::looks_like_zip(view))
+    throw InputError(origin +
+                     ": a checkpoint of Scout's format 1 (LibTorch's zip and pickles), which this build does not "
+                     "read; if you trust the file, convert it once: scout convert " +
+                     origin + " --trusted");
+  contents->tensors = st::parse(view, origin);
+  contents->state = check_checkpoint(contents->tensors, contents->bytes.size(), origin);
   const CheckpointState& s = contents->state;
   contents->info = {kCheckpointFormat, s.config, s.cursor, s.history, s.world_size};
   return Checkpoint(std::move(contents));
@@ -539,7 +583,7 @@ Checkpoint open_checkpoint(const fs::path& path) {
 }
 
 void Checkpoint::Contents::load_into(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) const {
-  load_weights(archive, file.string(), agent, optimizer);
+  load_weights(tensors, file.string(), agent, optimizer);
 }
 
 agent::Agent Checkpoint::Contents::networks() const {

@@ -36,14 +36,15 @@ class Checkpoint {
   std::shared_ptr<const Contents> contents_;
 };
 
-/// Opens RUN/checkpoint.pt (for a run folder) or a model file: reads it once, holds it against
-/// what Scout's writer makes (learn/internal/archive.hpp: the zip, the pickles, the tensor
-/// records; then the format number, the config, the progress, and every tensor against the
-/// networks the config describes), and has LibTorch parse it once. Throws InputError with one line
-/// naming the file for anything that is not a Scout checkpoint of this format version.
+/// Opens RUN/checkpoint.safetensors (for a run folder) or a model file: reads it once, parses it
+/// (learn/internal/safetensors.hpp: every offset, size, dtype and shape against the file's length)
+/// and holds it against what Scout's writer makes (the format, the config, the progress against
+/// the schedule, every tensor against the networks the config describes, Adam's state in its
+/// ranges). Throws InputError with one line naming the file for anything that is not a Scout
+/// checkpoint of this format version.
 Checkpoint open_checkpoint(const std::filesystem::path& path);
 
-/// The checkpoint file a path names: RUN/checkpoint.pt for a run folder, else the path itself.
+/// The checkpoint file a path names: RUN/checkpoint.safetensors for a run folder, else the path itself.
 std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
 
 /// Writes a model file (what `scout run --checkpoint` and `scout eval` read): the checkpoint's
@@ -51,8 +52,20 @@ std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);
 /// model holds.
 CheckpointInfo export_model(const Checkpoint& checkpoint, const std::filesystem::path& model_file);
 
-/// The checkpoint format this build writes and reads.
-inline constexpr int kCheckpointFormat = 1;
+/// The checkpoint format this build writes and reads: 2, safetensors (format 1, LibTorch's
+/// torch::save archive, is read only by convert_legacy_checkpoint).
+inline constexpr int kCheckpointFormat = 2;
+
+/// The file name extension of checkpoints and models.
+inline constexpr const char* kCheckpointExtension = ".safetensors";
+
+/// Converts a checkpoint or model file of format 1 (`.pt`: LibTorch's zip of pickles) to format 2
+/// at `out`, with `manifest` (JSON text, may be empty) as its manifest: the same weights, Adam's
+/// state and schedule, so that a converted checkpoint resumes as the old one did. Reads `legacy`
+/// with LibTorch's own unpickler, which trusts its input: only for files the user trusts. Returns
+/// what the new file holds (opened again with every check).
+CheckpointInfo convert_legacy_checkpoint(const std::filesystem::path& legacy, const std::filesystem::path& out,
+                                         const std::string& manifest);
 
 /// The largest checkpoint or model file Scout reads (open_checkpoint refuses a larger one from its
 /// size, before reading a byte) and writes (a new run whose checkpoints would be larger is

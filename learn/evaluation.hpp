@@ -25,7 +25,7 @@ struct EvalProgress {
 };
 
 struct EvalConfig {
-  std::filesystem::path checkpoint;                 ///< RUN/checkpoint.pt or a model file
+  std::filesystem::path checkpoint;                 ///< RUN/checkpoint.safetensors or a model file
   std::optional<Checkpoint> opened;                 ///< `checkpoint` already opened: not read again
   std::filesystem::path images, labels;             ///< any IDX image and label files
   std::optional<std::filesystem::path> world_file;  ///< default: the checkpoint's world

@@ -18,7 +18,7 @@
 #include "core/error.hpp"
 #include "env/batch_env.hpp"
 #include "learn/auto_precision.hpp"
-#include "learn/internal/archive.hpp"
+#include "learn/internal/json_limits.hpp"
 
 namespace scout::learn {
 
@@ -31,7 +31,6 @@ namespace {
 constexpr int kMaxEpochs = 100000;
 constexpr int kMaxRollouts = 64;
 constexpr int kMaxBatchImages = 4096;
-constexpr int kMaxDigits = 100000000;
 
 // ---------------------------------------------------------------------------------------------
 // The schema: one row per TrainConfig field (worlds/world.cpp's tables are the model). The rows

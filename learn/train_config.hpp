@@ -31,6 +31,9 @@ struct TrainSetting;  // below
 /// How messages name a setting (nullptr: setting_key).
 using SettingName = std::string (*)(const TrainSetting& setting);
 
+/// The most digits a data set may have (train_limit and validation_limit are at most this).
+inline constexpr int kMaxDigits = 100000000;
+
 /// Everything that determines a training run (stored in every checkpoint).
 struct TrainConfig {
   worlds::World world;                ///< task, camera, robot and physics (floor.dataset names the data)

@@ -24,7 +24,7 @@ LearnedLayers learned_layers(const std::vector<EpochMetrics>& history);
 
 class TrainedAgent {
  public:
-  /// Loads RUN/checkpoint.pt or a model file; throws InputError naming the file. The networks run
+  /// Loads RUN/checkpoint.safetensors or a model file; throws InputError naming the file. The networks run
   /// in `precision` (Auto: this CPU's best), whatever precision the checkpoint was trained in.
   static std::unique_ptr<TrainedAgent> load(const std::filesystem::path& checkpoint,
                                             agent::Precision precision = agent::Precision::Auto);

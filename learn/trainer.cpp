@@ -103,6 +103,7 @@ struct Trainer::Impl {
   std::unique_ptr<RolloutEngine> engine;
   std::unique_ptr<AgentPolicy> policy;
   ScheduleCursor cursor;
+  std::string manifest;  // JSON text, stored in checkpoints
   std::vector<EpochMetrics> history;
   EpochSums sums;  // of the epoch in progress (non-empty after an interrupt)
   std::vector<fs::path> data_files;
@@ -190,6 +191,7 @@ struct Trainer::Impl {
     cursor = state.cursor;
     history = state.history;
     sums = state.partial;
+    manifest = state.manifest;
   }
 
   // Robots for this rank's share of a batch: B x N alone, ceil(B / ranks) x N in a group.
@@ -448,6 +450,7 @@ struct Trainer::Impl {
     state.partial = sums;
     state.world_size = ranks();
     state.threads = threads;
+    state.manifest = manifest;
     return state;
   }
 
@@ -715,5 +718,6 @@ int Trainer::world_size() const { return impl_->ranks(); }
 int Trainer::rank() const { return impl_->rank(); }
 fs::path Trainer::checkpoint_file() const { return impl_->run_dir / kCheckpointFile; }
 const std::vector<fs::path>& Trainer::data_files() const { return impl_->data_files; }
+void Trainer::set_manifest(std::string manifest) { impl_->manifest = std::move(manifest); }
 
 }  // namespace scout::learn

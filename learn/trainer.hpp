@@ -84,7 +84,7 @@ struct ScheduleCursor {
 };
 
 /// The files of a run folder.
-inline constexpr const char* kCheckpointFile = "checkpoint.pt";  ///< weights, Adam, config, schedule
+inline constexpr const char* kCheckpointFile = "checkpoint.safetensors";  ///< weights, Adam, config, schedule
 inline constexpr const char* kMetricsFile = "metrics.csv";       ///< one row per epoch
 
 /// What `Trainer::resume` may change; an unset field keeps the run's own.
@@ -105,7 +105,7 @@ struct ResumeOptions {
   std::optional<double> distillation = std::nullopt;
 };
 
-/// A training run in a folder: RUN/checkpoint.pt (every epoch, atomically), RUN/metrics.csv.
+/// A training run in a folder: RUN/checkpoint.safetensors (every epoch, atomically), RUN/metrics.csv.
 /// Run by one process, or by a group of them (distribute) that split each batch's images.
 class Trainer {
  public:
@@ -116,13 +116,13 @@ class Trainer {
   /// of the seed's initialisation, with a fresh optimizer: fine-tuning a trained agent.
   Trainer(const TrainConfig& config, std::filesystem::path run_dir, int threads, bool force_memory = false,
           const Checkpoint* initial_weights = nullptr);
-  /// Continues RUN/checkpoint.pt with what `options` changes. `threads` 0: the run's own count
+  /// Continues RUN/checkpoint.safetensors with what `options` changes. `threads` 0: the run's own count
   /// (LibTorch's sums depend on it: only the same count continues bit for bit), else one per
   /// core for checkpoints that do not record it. Throws InputError for a bad or foreign
   /// checkpoint, or an option that contradicts the run.
   static std::unique_ptr<Trainer> resume(const std::filesystem::path& run_dir, int threads,
                                          const ResumeOptions& options = {});
-  /// The same from RUN/checkpoint.pt already opened (open_checkpoint): nothing is read again.
+  /// The same from RUN/checkpoint.safetensors already opened (open_checkpoint): nothing is read again.
   static std::unique_ptr<Trainer> resume(const Checkpoint& checkpoint, const std::filesystem::path& run_dir,
                                          int threads, const ResumeOptions& options = {});
   /// Data-parallel training over `group` (learn/distributed.hpp); every rank calls this. Rank 0
@@ -158,6 +158,9 @@ class Trainer {
   std::filesystem::path checkpoint_file() const;
   /// The data files read (for manifests).
   const std::vector<std::filesystem::path>& data_files() const;
+  /// The run's manifest (JSON text), stored in every checkpoint from the next one on (a resumed
+  /// run keeps its checkpoint's until given another).
+  void set_manifest(std::string manifest);
 
  private:
   struct Impl;

@@ -45,6 +45,7 @@ void add_bench_command(CLI::App& app, const Context& context);
 void add_train_command(CLI::App& app, const Context& context);
 void add_eval_command(CLI::App& app, const Context& context);
 void add_export_command(CLI::App& app, const Context& context);
+void add_convert_command(CLI::App& app, const Context& context);
 void add_report_command(CLI::App& app, const Context& context);
 
 }  // namespace scout::tools

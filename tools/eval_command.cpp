@@ -166,7 +166,7 @@ void add_eval_command(CLI::App& app, const Context& context) {
       "baselines with the same classifier (in the first --baseline-runs runs), the classifier on full images and one "
       "greedy run.");
   cmd->add_option("--checkpoint", opt->checkpoint,
-                  "RUN/checkpoint.pt, the RUN folder, or a model file written by scout train")
+                  "RUN/checkpoint.safetensors, the RUN folder, or a model file written by scout train")
       ->required();
   cmd->add_option("--images", opt->images,
                   "IDX image file (idx3-ubyte, raw or .gz), e.g. data/mnist/t10k-images-idx3-ubyte")

@@ -1,5 +1,5 @@
 // scout export: a model file from a training run (weights, config and metrics history, without
-// the optimizer's state), small enough to commit, e.g. models/mnist.pt.
+// the optimizer's state), small enough to commit, e.g. models/mnist.safetensors.
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -53,7 +53,7 @@ void add_export_command(CLI::App& app, const Context& /*context*/) {
   auto* cmd = app.add_subcommand(
       "export", "Writes a model file from a training run: weights, config and metrics history, no optimizer state.");
   cmd->add_option("CHECKPOINT", o->checkpoint, "A run folder or checkpoint file")->required();
-  cmd->add_option("--out", o->out, "The model file to write, e.g. models/mnist.pt")->required();
+  cmd->add_option("--out", o->out, "The model file to write, e.g. models/mnist.safetensors")->required();
   cmd->add_flag("--overwrite", o->overwrite, "Replace an existing model file");
   cmd->callback([o] { export_command(*o); });
 }

@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
   scout::tools::add_train_command(app, context);
   scout::tools::add_eval_command(app, context);
   scout::tools::add_export_command(app, context);
+  scout::tools::add_convert_command(app, context);
   scout::tools::add_report_command(app, context);
   scout::tools::install_interrupt_handler();
   if (const std::string unknown = scout::tools::unknown_command_message(app, argc, argv); !unknown.empty()) {

@@ -148,7 +148,7 @@ std::vector<std::string> evaluated_data(const json& eval) {
   return out;
 }
 
-// The manifest a model or run came with: RUN/manifest.json, or X-manifest.json beside X.pt.
+// The manifest a model or run came with: RUN/manifest.json, or X-manifest.json beside X.safetensors.
 fs::path manifest_beside(const fs::path& model) {
   std::error_code ec;
   if (fs::is_directory(model, ec)) return model / kManifestFile;
@@ -798,11 +798,11 @@ void add_report_command(CLI::App& app, const Context& context) {
       "accuracy against epochs with both baselines, the confusion matrix, test episodes and accuracy against the "
       "observation budget (figures drawn by matplotlib on the project's Python, .venv/bin/python; SCOUT_PYTHON "
       "names another).");
-  cmd->add_option("model", opt->model, "A model file (models/mnist.pt) or a run folder (RUN/checkpoint.pt)")
+  cmd->add_option("model", opt->model, "A model file (models/mnist.safetensors) or a run folder (RUN/checkpoint.safetensors)")
       ->required();
   cmd->add_option("--out", opt->out, "Report folder to create (must not exist unless --overwrite)")->required();
   cmd->add_option("--eval", opt->eval_file,
-                  "The model's evaluation (scout eval --json); default: X-test-eval.json beside X.pt or "
+                  "The model's evaluation (scout eval --json); default: X-test-eval.json beside X.safetensors or "
                   "RUN/test-eval.json, else the report evaluates it");
   cmd->add_option("--images", opt->images, "Test images (default: the official MNIST test set of data set mnist)");
   cmd->add_option("--labels", opt->labels, "Test labels (with --images)");

@@ -484,7 +484,7 @@ void add_run_command(CLI::App& app, const Context& context) {
   cmd->add_flag("--no-images", opt->no_images, "Skip the PNG snapshots");
   auto* checkpoint =
       cmd->add_option("--checkpoint", opt->checkpoint,
-                      "Drive with this trained agent (RUN/checkpoint.pt), sampling its learned layers as in "
+                      "Drive with this trained agent (RUN/checkpoint.safetensors), sampling its learned layers as in "
                       "training; its prediction goes into trajectory.json and the pictures");
   cmd->add_flag("--greedy", opt->greedy, "With --checkpoint: argmax goals and actions instead of sampling")
       ->needs(checkpoint);

@@ -150,8 +150,9 @@ fs::path resume_data_folder(const TrainOptions& o, const learn::TrainConfig& c, 
   return folder;
 }
 
-void write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed,
-                    const std::string& init_from) {
+// Writes RUN/manifest.json and returns its text (the checkpoints hold it too).
+std::string write_manifest(const fs::path& run, const Context& context, const learn::Trainer& trainer, bool resumed,
+                           const std::string& init_from) {
   json manifest = make_manifest(context.argv, worlds::to_yaml(trainer.config().world), trainer.data_files(), "");
   const fs::path file = run / kManifestFile;
   // A resumed run keeps the first manifest and records each resumption under "resumed".
@@ -168,7 +169,7 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
                                   {"learning_rate", trainer.config().learning_rate},
                                   {"precision", agent::to_string(trainer.config().precision)}});
       write_file_atomic(file, first.dump(2) + "\n");
-      return;
+      return first.dump();
     } catch (const std::exception&) {
       // An unreadable manifest is replaced by a fresh one below.
     }
@@ -182,6 +183,7 @@ void write_manifest(const fs::path& run, const Context& context, const learn::Tr
   }
   manifest["outputs"] = {{"checkpoint", learn::kCheckpointFile}, {"metrics", learn::kMetricsFile}};
   write_file_atomic(file, manifest.dump(2) + "\n");
+  return manifest.dump();
 }
 
 // The config a new run's command line asks for (every rank of a group builds it, to compare).
@@ -236,7 +238,7 @@ learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint
   return config;
 }
 
-// --init-from's file: a model (scout export) or a checkpoint, or a run folder's checkpoint.pt.
+// --init-from's file: a model (scout export) or a checkpoint, or a run folder's checkpoint.safetensors.
 learn::Checkpoint open_init_model(const TrainOptions& o) {
   return learn::open_checkpoint(learn::resolve_checkpoint(o.init_from));
 }
@@ -254,7 +256,7 @@ void check_batch_split(int batch_images, int world_size) {
 std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::path& run, int threads, int world_size) {
   if (!o.resume.empty()) {
     if (!fs::is_regular_file(run / learn::kCheckpointFile))
-      throw InputError("--resume: " + o.resume + " holds no checkpoint.pt (expected a folder written by scout train)");
+      throw InputError("--resume: " + o.resume + " holds no checkpoint.safetensors (expected a folder written by scout train)");
     if (!core::take_folder_for_this_process(run))
       throw InputError("--resume: " + o.resume +
                        ": another scout train is writing this run; resume it once that one has ended");
@@ -416,7 +418,7 @@ void train_command(const TrainOptions& o, const Context& context) {
   hooks.checkpoint_every = std::chrono::milliseconds(std::llround(o.checkpoint_every_min * 60000));
   if (leader) {
     if (!resuming) o.settings.announce_precision();
-    write_manifest(run, context, trainer, resuming, o.init_from);
+    trainer.set_manifest(write_manifest(run, context, trainer, resuming, o.init_from));
     print_run_header(trainer, run, resuming);
     hooks.on_progress = [&](const learn::Progress& p) { progress.show(p); };
     hooks.on_epoch = [&](const learn::EpochMetrics& m) {
@@ -444,10 +446,10 @@ void add_train_command(CLI::App& app, const Context& context) {
   auto* cmd = app.add_subcommand(
       "train",
       "Train the agent (METHOD.md): optional full-image pretraining, then modes (i) -> (ii) -> (iii), with the "
-      "physics and the camera in the loop. Writes RUN/checkpoint.pt every epoch, RUN/metrics.csv, RUN/manifest.json.");
+      "physics and the camera in the loop. Writes RUN/checkpoint.safetensors every epoch, RUN/metrics.csv, RUN/manifest.json.");
   cmd->add_option("world", o->world, "World file (YAML), e.g. worlds/mnist.yaml (omit with --resume)");
   cmd->add_option("--out", o->out, "Run folder to create (must not exist)");
-  cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.pt");
+  cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.safetensors");
   cmd->add_option(
       "--init-from", o->init_from,
       "Start a new run from this model's weights (a model file, a checkpoint or a run folder): its "

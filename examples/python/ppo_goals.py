@@ -3,7 +3,7 @@
 
 The environment is Gymnasium's own: `gymnasium.make_vec("scout/MNIST-v0", ...)` on the training
 digits, with SAME_STEP autoreset, `RecordEpisodeStatistics` (the runs' returns) and
-`NormalizeReward` (what PPO learns from). The classifier is fixed: scout.Agent's (models/mnist.pt),
+`NormalizeReward` (what PPO learns from). The classifier is fixed: scout.Agent's (models/mnist.safetensors),
 asked at every move for its log-probabilities on what the robot has revealed so far, which the
 action carries as its `prediction`; the dense reward is then log p(label), so a run's return is
 higher the sooner the robot shows the classifier what it needs. An actor-critic (a small CNN over
@@ -195,7 +195,7 @@ def plot(curve, random_accuracy, random_return, path):
     right.axhline(100 * random_accuracy, color="grey", linestyle="--", label="random moves (training runs)")
     right.set(xlabel="training time (s)", ylabel="classifier accuracy after 20 moves (%)")
     right.legend()
-    fig.suptitle("PPO on gymnasium.make_vec(\"scout/MNIST-v0\", num_envs=64), fixed classifier (models/mnist.pt)")
+    fig.suptitle("PPO on gymnasium.make_vec(\"scout/MNIST-v0\", num_envs=64), fixed classifier (models/mnist.safetensors)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
@@ -204,7 +204,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=120, help="training time")
     parser.add_argument("--updates", type=int, help="train this many PPO updates instead (the same on any machine)")
-    parser.add_argument("--model", default=os.path.join(SOURCE, "models", "mnist.pt"), help="the fixed classifier")
+    parser.add_argument("--model", default=os.path.join(SOURCE, "models", "mnist.safetensors"), help="the fixed classifier")
     parser.add_argument("--num-envs", type=int, default=64)
     parser.add_argument("--lr", type=float, default=1e-3)
     parser.add_argument("--gamma", type=float, default=0.99)

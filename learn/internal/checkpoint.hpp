@@ -1,15 +1,18 @@
 #pragma once
-/// Checkpoint files (RUN/checkpoint.pt): weights, optimizer state, the resolved config, where
-/// the schedule stands and the metrics so far, written atomically. Torch header: learn/ only.
+/// Checkpoint files (RUN/checkpoint.safetensors): weights, optimizer state, the resolved config,
+/// where the schedule stands and the metrics so far, written atomically. Torch header: learn/ only.
 #include <torch/torch.h>
 
 #include <filesystem>
+#include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "agent/networks.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/internal/private.hpp"
+#include "learn/internal/safetensors.hpp"
 #include "learn/trainer.hpp"
 
 namespace scout::learn {
@@ -36,22 +39,52 @@ struct CheckpointState {
   EpochSums partial;   ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
   int world_size = 1;  ///< processes the run trained with (1 in files written before data-parallel runs)
   int threads = 0;     ///< LibTorch threads per process it trained with (0: not recorded)
+  std::string manifest;  ///< the run's manifest.json (JSON text; empty where none was given)
 };
+
+/// The file's tensor names: "agent." and the network's own parameter or buffer name; Adam's state
+/// per parameter under "optimizer." and the parameter's name, then ".step", ".exp_avg" or
+/// ".exp_avg_sq".
+inline const std::string kAgentPrefix = "agent.";
+inline const std::string kOptimizerPrefix = "optimizer.";
+
+/// The largest config and progress (or manifest) metadata entries read: Scout writes configs of
+/// about 2 KB, and a progress of about 400 bytes per epoch trained.
+inline constexpr std::size_t kMaxConfigBytes = std::size_t{64} << 10;
+inline constexpr std::size_t kMaxProgressBytes = std::size_t{3} << 20;
+
+/// The key under which LibTorch's optimizer keeps a parameter's state: its TensorImpl's address
+/// as text in LibTorch 1.x, the pointer itself in 2.x. (A template, so that only the branch of
+/// the LibTorch in use is compiled.)
+template <class Optimizer = torch::optim::Optimizer>
+auto adam_state_key(const torch::Tensor& parameter) {
+  using Key = typename std::decay_t<decltype(std::declval<Optimizer&>().state())>::key_type;
+  if constexpr (std::is_same_v<Key, std::string>) {
+    std::ostringstream text;
+    text << parameter.unsafeGetTensorImpl();
+    return text.str();
+  } else {
+    return static_cast<Key>(parameter.unsafeGetTensorImpl());
+  }
+}
 
 /// Writes the checkpoint atomically (a temporary file beside it, then a rename). `optimizer`
 /// may be null (a model file: weights and config only).
 void save_checkpoint(const std::filesystem::path& file, agent::AgentImpl& agent, torch::optim::Optimizer* optimizer,
                      const CheckpointState& state);
-/// What save_checkpoint writes, in memory (rank 0 broadcasts it to the other ranks).
+/// What save_checkpoint writes, in memory (rank 0 broadcasts it to the other ranks): a safetensors
+/// file (learn/internal/safetensors.hpp) whose __metadata__ holds the format, the config, the
+/// progress, the manifest and Adam's options as JSON text.
 std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer, const CheckpointState& state);
 
-/// An opened checkpoint (open_checkpoint): read, checked and parsed by LibTorch once.
+/// An opened checkpoint (open_checkpoint): read, parsed and checked once.
 struct Checkpoint::Contents {
   std::filesystem::path file;  ///< as messages name it
+  std::string bytes;           ///< the whole file
+  safetensors::File tensors;   ///< views into `bytes`, checked against the config
   CheckpointState state;
   CheckpointInfo info;
-  mutable torch::serialize::InputArchive archive;  ///< LibTorch's parse (its reads are not const)
-  mutable agent::Agent model{nullptr};             ///< networks(), once built
+  mutable agent::Agent model{nullptr};  ///< networks(), once built
 
   /// The checkpoint's networks, built from its config with its weights, in eval mode: built on
   /// first use, then shared by every caller that runs the model (none of them trains it).
@@ -61,9 +94,13 @@ struct Checkpoint::Contents {
   void load_into(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer) const;
 };
 
+/// A checkpoint's "progress" JSON (the schedule's position, the epoch in progress, the history,
+/// the run's processes and threads) into `state`; throws InputError naming `origin`.
+void read_progress(const std::string& text, const std::string& origin, CheckpointState& state);
+
 /// open_checkpoint for bytes already in memory (checkpoint_bytes' output, broadcast by rank 0);
 /// `origin` names them in errors.
-Checkpoint open_checkpoint_bytes(const std::string& bytes, const std::string& origin);
+Checkpoint open_checkpoint_bytes(std::string bytes, const std::string& origin);
 
 /// An opened checkpoint's networks (Contents::networks), and its state when `state` is given.
 agent::Agent load_agent(const Checkpoint& checkpoint, CheckpointState* state = nullptr);

@@ -283,12 +283,12 @@ if gymnasium is not None:
 
 
 class Agent:
-    """Scout's trained agent (a model file or RUN/checkpoint.pt): its goal planner, action planner
-    (where it has one: models/mnist.pt draws its axes i.i.d.) and classifier, driven from
+    """Scout's trained agent (a model file or RUN/checkpoint.safetensors): its goal planner, action planner
+    (where it has one: models/mnist.safetensors draws its axes i.i.d.) and classifier, driven from
     observations. With make_vec's arrays it chooses exactly what
     `scout run --checkpoint` chooses for the same seed:
 
-        agent = scout.Agent("models/mnist.pt")
+        agent = scout.Agent("models/mnist.safetensors")
         obs, info = envs.reset(seed=1)
         while True:
             obs, reward, terminated, truncated, info = envs.step(agent.act(obs, info))

@@ -18,6 +18,7 @@
 #include "learn/internal/checkpoint.hpp"
 #include "learn/trained_agent.hpp"
 #include "learn/trainer.hpp"
+#include "tests/support/safetensors_edit.hpp"
 #include "tests/support/training_fixture.hpp"
 
 namespace scout::learn {
@@ -48,12 +49,10 @@ TEST_F(Resume, BadCheckpointsAreRefusedWithOneLine) {
   // A future format version, otherwise well-formed.
   const fs::path future = run_dir("future");
   {
-    const CheckpointState state = open_checkpoint(good / kCheckpointFile).contents().state;
-    torch::serialize::OutputArchive archive;
-    archive.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(kCheckpointFormat + 1)));
-    archive.write("config", c10::IValue(state.config.to_json()));
-    archive.write("progress", c10::IValue(std::string("{}")));
-    archive.save_to((future / kCheckpointFile).string());
+    scout::testing::SafetensorsParts parts = scout::testing::split(bytes);
+    parts.header["__metadata__"]["format_version"] = std::to_string(kCheckpointFormat + 1);
+    parts.header["__metadata__"]["progress"] = "{}";
+    std::ofstream(future / kCheckpointFile, std::ios::binary) << scout::testing::join(parts);
   }
   const std::string line = resume_refusal(future);
   EXPECT_NE(line.find((future / kCheckpointFile).string()), std::string::npos) << line;
@@ -127,7 +126,7 @@ TEST_F(Resume, EachReaderOpensACheckpointOnce) {
   EXPECT_EQ(opens([&] { Trainer::resume(run_dir("run"), kThreads); }), 1);
   EXPECT_EQ(opens([&] { load_agent(file); }), 1);
   EXPECT_EQ(opens([&] { TrainedAgent::load(file, agent::Precision::Float32); }), 1);
-  EXPECT_EQ(opens([&] { export_model(open_checkpoint(file), temp_.path() / "model.pt"); }), 1);
+  EXPECT_EQ(opens([&] { export_model(open_checkpoint(file), temp_.path() / "model.safetensors"); }), 1);
   const Checkpoint opened = open_checkpoint(file);
   EXPECT_EQ(opens([&] { Trainer::resume(opened, run_dir("run"), kThreads); }), 0);
   EXPECT_EQ(opens([&] { TrainedAgent::load(opened, agent::Precision::Float32); }), 0);
@@ -158,11 +157,11 @@ TEST_F(Resume, EachReaderOpensACheckpointOnce) {
   expect_same_weights(*before, *again);
 }
 
-// Files written before this version still load (and later versions keep it so): the model that
-// shipped for the 8,000-digit set predates the per-epoch baselines, which read as absent and
+// Files written before this version still load once converted (and later versions keep it so): the
+// model that shipped for the 8,000-digit set predates the per-epoch baselines, which read as absent and
 // leave their metrics.csv fields empty.
 TEST(OlderFiles, AModelWrittenBeforeTheValidationBaselinesStillLoads) {
-  const std::filesystem::path model = std::filesystem::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.pt";
+  const std::filesystem::path model = std::filesystem::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.safetensors";
   const CheckpointInfo info = open_checkpoint(model).info();
   ASSERT_EQ(info.history.size(), 52u);  // 5 full-image epochs, then 10 + 15 + 22 of modes i - iii
   for (const EpochMetrics& m : info.history) {

@@ -1,12 +1,11 @@
 // Hostile checkpoint and model files: a seeded fuzz loop over random bytes and over Scout's own
-// files with mutated bytes, zip records, pickles, class stubs, tensor records and configs. Every
-// input is refused with one InputError line naming it, or accepted and loaded; none crashes,
-// hangs or makes the process allocate far beyond the file (the peak resident size is checked).
-// Mutations that would only meet the zip's CRC are re-packed with correct CRCs, so that they reach
-// the checks behind it (learn/internal/archive.hpp).
+// files with mutated bytes, header text, header fields, tensor bytes and configs. Every input is
+// refused with one InputError line naming it, or accepted and loaded; none crashes, hangs or
+// makes the process allocate far beyond the file (the peak resident size is checked). Mutations
+// of the header are joined again with its length recomputed, so that they reach the checks behind
+// the parser's.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -19,9 +18,8 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "learn/internal/archive.hpp"
 #include "learn/internal/checkpoint.hpp"
-#include "tests/support/checkpoint_zip.hpp"
+#include "tests/support/safetensors_edit.hpp"
 #include "tests/support/training_fixture.hpp"
 
 namespace scout::learn {
@@ -29,12 +27,10 @@ namespace {
 
 using namespace scout::learn::test_support;
 
-using scout::testing::entry;
-using scout::testing::le32;
-using scout::testing::pack;
-using scout::testing::put32;
-using scout::testing::unpack;
-using scout::testing::ZipFile;
+using scout::testing::join;
+using scout::testing::join_text;
+using scout::testing::SafetensorsParts;
+using scout::testing::split;
 
 // What one mutated input may take beyond the largest of Scout's own files: the mutation can grow a
 // record or a config within the bounds the reader allows, never to a network built from a bomb.
@@ -71,7 +67,7 @@ struct Tally {
 // Feeds one input to open_checkpoint_bytes and loads its weights, as a resumed run does. Returns whether it was
 // accepted; anything but a one-line InputError naming the input fails the test.
 bool feed(const std::string& bytes, Tally& tally) {
-  const std::string origin = "fuzz.pt";
+  const std::string origin = "fuzz.safetensors";
   const long before = reset_peak_kib();
   struct Measure {
     long before;
@@ -108,29 +104,27 @@ class CheckpointFuzz : public Resume {
 
 // The fuzzer: a seeded generator, Scout's own files to mutate, and a tally per kind of input.
 struct Fuzzer {
-  std::mt19937_64 rng{20261202};
+  std::mt19937_64 rng{20261207};
   std::vector<std::string> originals;  // three checkpoints and a model file
   std::map<std::string, Tally> tallies;
 
   std::size_t uniform(std::size_t n) { return static_cast<std::size_t>(rng() % n); }
-  const std::string& checkpoint() { return originals[uniform(3)]; }
+  const std::string& original() { return originals[uniform(originals.size())]; }
 
-  // Random bytes, some behind a zip end record.
   void random_bytes() {
     for (int i = 0; i < 1000; ++i) {
       std::string bytes(uniform(4096), '\0');
       for (char& c : bytes) c = static_cast<char>(rng());
-      if (i % 2) {  // an empty archive's end record: the signature and 18 zero bytes
-        bytes.append("PK\x05\x06", 4);
-        bytes.append(18, '\0');
+      if (i % 2 && bytes.size() >= 8) {  // a header length that fits the file
+        const std::string length = scout::testing::length_prefix(uniform(bytes.size() - 7));
+        bytes.replace(0, 8, length);
       }
       EXPECT_FALSE(feed(bytes, tallies["random bytes"]));
     }
   }
-  // Raw byte flips and truncations of the files as written: a flip in a record fails its CRC.
   void raw_flips() {
     for (int i = 0; i < 1200; ++i) {
-      std::string bytes = checkpoint();
+      std::string bytes = original();
       if (i % 6 == 0) {
         bytes.resize(uniform(bytes.size()));
         EXPECT_FALSE(feed(bytes, tallies["truncated"]));
@@ -140,93 +134,85 @@ struct Fuzzer {
       feed(bytes, tallies["raw flips"]);
     }
   }
-  // data.pkl flipped, a byte inserted or deleted, or a chunk repeated (memo writes, marks and
-  // tensors out of place); re-packed so that it passes the CRC and reaches the checks behind it.
-  void pickles() {
+  // The header's text: flipped, inserted, deleted or repeated bytes, joined with its new length.
+  void header_text() {
     for (int i = 0; i < 1800; ++i) {
-      ZipFile zip = unpack(checkpoint());
-      std::string& pickle = entry(zip, "data.pkl");
+      const SafetensorsParts parts = split(original());
+      std::string text = parts.header.dump();
       if (i % 3 == 0) {
-        for (int k = 1 + uniform(3); k > 0; --k) pickle[uniform(pickle.size())] ^= static_cast<char>(1 + uniform(255));
+        for (int k = 1 + uniform(3); k > 0; --k) text[uniform(text.size())] ^= static_cast<char>(1 + uniform(255));
       } else if (i % 3 == 1) {
         if (rng() % 2)
-          pickle.insert(uniform(pickle.size()), 1, static_cast<char>(rng()));
+          text.insert(uniform(text.size()), 1, "{}[],:\"0123456789-e."[uniform(20)]);
         else
-          pickle.erase(uniform(pickle.size()), 1);
+          text.erase(uniform(text.size()), 1);
       } else {
-        const std::size_t from = uniform(pickle.size()), length = 1 + uniform(64);
-        pickle.insert(uniform(pickle.size()), pickle.substr(from, length));
+        const std::size_t from = uniform(text.size()), length = 1 + uniform(64);
+        text.insert(uniform(text.size()), text.substr(from, length));
       }
-      feed(pack(zip), tallies["data.pkl"]);
+      feed(join_text(text, parts.data), tallies["header text"]);
     }
   }
-  // A tensor record shortened, lengthened, emptied, or an entry added.
-  void tensor_records() {
-    for (int i = 0; i < 600; ++i) {
-      ZipFile zip = unpack(checkpoint());
-      std::vector<std::string> records;
-      for (const auto& [name, bytes] : zip.entries)
-        if (name.rfind("data/", 0) == 0) records.push_back(name);
-      std::string& record = entry(zip, records[uniform(records.size())]);
+  // One tensor's dtype, shape or offsets set to another value.
+  void header_fields() {
+    const std::vector<nlohmann::ordered_json> values = {
+        -1, 0, 1, 3, 255, 1u << 20, std::uint64_t{1} << 62, "F16", "BF16", "U8", "I32", "F64", nullptr, "", 1.5};
+    for (int i = 0; i < 900; ++i) {
+      SafetensorsParts parts = split(original());
+      std::vector<std::string> names;
+      for (const auto& [name, entry] : parts.header.items())
+        if (name != "__metadata__") names.push_back(name);
+      nlohmann::ordered_json& entry = parts.header[names[uniform(names.size())]];
+      const nlohmann::ordered_json& value = values[uniform(values.size())];
       switch (uniform(4)) {
         case 0:
-          record.resize(record.size() ? uniform(record.size()) : 1);
+          entry["dtype"] = value;
           break;
         case 1:
-          record += std::string(1 + uniform(64), '\0');
+          if (entry["shape"].empty()) entry["shape"] = {1};
+          entry["shape"][uniform(entry["shape"].size())] = value;
           break;
         case 2:
-          record.clear();
+          entry["data_offsets"][uniform(2)] = value;
           break;
         case 3:
-          zip.entries.emplace_back("extra/" + std::to_string(i), "x");
+          entry["shape"].push_back(value);
           break;
       }
-      EXPECT_FALSE(feed(pack(zip), tallies["tensor records"]));
+      feed(join(parts), tallies["header fields"]);
     }
   }
-  // Class stubs that are not what the writer makes: TorchScript code never reaches the compiler.
-  void class_stubs() {
-    const std::vector<std::string> lines = {"  def forward(self):\n    return 1\n", "  x : List[int]\n", "import os\n",
-                                            "  __parameters__ = [\"a\"]\n", "  y : Tensor"};
-    for (int i = 0; i < 300; ++i) {
-      ZipFile zip = unpack(checkpoint());
-      std::vector<std::string*> stubs;
-      for (auto& [name, bytes] : zip.entries)
-        if (name.size() > 3 && name.substr(name.size() - 3) == ".py") stubs.push_back(&bytes);
-      std::string& stub = *stubs[uniform(stubs.size())];
-      if (i % 2)
-        stub += lines[uniform(lines.size())];
-      else
-        stub[uniform(stub.size())] ^= static_cast<char>(1 + uniform(255));
-      feed(pack(zip), tallies["class stubs"]);
+  // The tensors' bytes: flipped, or the data shortened or grown.
+  void tensor_bytes() {
+    for (int i = 0; i < 600; ++i) {
+      SafetensorsParts parts = split(original());
+      if (i % 2) {
+        for (int k = 1 + uniform(8); k > 0; --k)
+          parts.data[uniform(parts.data.size())] ^= static_cast<char>(1 + uniform(255));
+        feed(join(parts), tallies["tensor bytes"]);
+      } else {
+        if (rng() % 2)
+          parts.data.resize(uniform(parts.data.size()));
+        else
+          parts.data += std::string(1 + uniform(64), '\0');
+        EXPECT_FALSE(feed(join(parts), tallies["data length"]));
+      }
     }
   }
-  // Configs that describe other networks than the weights, from one too narrow to one that would
-  // take gigabytes: refused before the agent is built.
   void configs() {
     const std::vector<std::string> fields = {"planner_width",    "planner_depth", "classifier_width",
                                              "classifier_depth", "classes",       "image_channels"};
     for (int i = 0; i < 300; ++i) {
-      const std::size_t original = uniform(3);
-      ZipFile zip = unpack(originals[original]);
-      std::string& pickle = entry(zip, "data.pkl");
-      // data.pkl: ... BINUNICODE 'config' BINPUT n BINUNICODE <length> <json> ...
-      const std::size_t opcode = pickle.find("config") + 6 + 2;
-      ASSERT_EQ(pickle[opcode], 'X');
-      const std::uint32_t length = le32(pickle, opcode + 1);
-      nlohmann::json config = nlohmann::json::parse(pickle.substr(opcode + 5, length));
-      // ResNet-18 always has four stages: its classifier_depth changes nothing (and loads).
+      const std::size_t which = uniform(3);
+      SafetensorsParts parts = split(originals[which]);
+      nlohmann::json config = nlohmann::json::parse(parts.header["__metadata__"]["config"].get<std::string>());
       std::string field = fields[uniform(fields.size())];
-      if (original == 2 && field == "classifier_depth") field = "classifier_width";
+      if (which == 2 && field == "classifier_depth") field = "classifier_width";
       const int before = config["network"][field].get<int>();
       const int after = i % 3 == 0 ? 512 : std::max(1, before + 1 + static_cast<int>(uniform(8)));
       config["network"][field] = after;
-      const std::string text = config.dump(2);
-      std::string replaced = "X";
-      put32(replaced, static_cast<std::uint32_t>(text.size()));
-      pickle.replace(opcode, 5 + length, replaced + text);
-      EXPECT_FALSE(feed(pack(zip), tallies["configs"])) << field << " " << before << " -> " << after;
+      parts.header["__metadata__"]["config"] = config.dump(2);
+      EXPECT_FALSE(feed(join(parts), tallies["configs"])) << field << " " << before << " -> " << after;
     }
   }
 };
@@ -236,18 +222,18 @@ TEST_F(CheckpointFuzz, EveryInputIsRefusedInOneLineOrLoads) {
   fuzz.originals = {checkpoint_of(agent::ClassifierKind::Paper, "paper"),
                     checkpoint_of(agent::ClassifierKind::Strided, "strided"),
                     checkpoint_of(agent::ClassifierKind::ResNet18, "resnet"),
-                    read_bytes(fs::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.pt")};
-  // Scout's own files load, and so do they re-packed by the fuzzer's writer.
+                    read_bytes(fs::path(SCOUT_SOURCE_DIR) / "tests/data/mnist-8k-v1.safetensors")};
+  // Scout's own files load, and so do they split and joined again by the fuzzer's writer.
   for (const std::string& original : fuzz.originals) {
     EXPECT_TRUE(feed(original, fuzz.tallies["original"]));
-    EXPECT_TRUE(feed(pack(unpack(original)), fuzz.tallies["original"]));
+    EXPECT_TRUE(feed(join(split(original)), fuzz.tallies["original"]));
   }
   ASSERT_EQ(fuzz.tallies["original"].accepted, 8);
   fuzz.random_bytes();
   fuzz.raw_flips();
-  fuzz.pickles();
-  fuzz.tensor_records();
-  fuzz.class_stubs();
+  fuzz.header_text();
+  fuzz.header_fields();
+  fuzz.tensor_bytes();
   fuzz.configs();
 
   int cases = 0;
@@ -260,7 +246,8 @@ TEST_F(CheckpointFuzz, EveryInputIsRefusedInOneLineOrLoads) {
     EXPECT_LE(tally.peak_kib, fuzz.tallies["original"].peak_kib + kInputSlackKiB) << kind;
   }
   EXPECT_GE(cases, 5000);
-  EXPECT_GT(fuzz.tallies["data.pkl"].refused, 1000);
+  EXPECT_GT(fuzz.tallies["header text"].refused, 1000);
+  EXPECT_GT(fuzz.tallies["header fields"].refused, 500);
 }
 
 // Each layer of the check names what it found, in one line.
@@ -268,35 +255,34 @@ TEST_F(CheckpointFuzz, RefusalsNameWhatIsWrong) {
   const std::string original = checkpoint_of(agent::ClassifierKind::Paper, "paper");
   const auto refusal = [](const std::string& bytes) -> std::string {
     try {
-      open_checkpoint_bytes(bytes, "f.pt");
+      open_checkpoint_bytes(bytes, "f.safetensors");
     } catch (const InputError& e) {
       return e.what();
     }
     return "accepted";
   };
-  std::string flipped = original;
-  ZipFile zip = unpack(original);
-  // A flipped byte in the first tensor record.
-  const std::size_t record = original.find(zip.folder + "/data/0");
-  flipped[record + 200] ^= 1;
-  EXPECT_NE(refusal(flipped).find("CRC-32"), std::string::npos) << refusal(flipped);
+  SafetensorsParts parts = split(original);
+  const std::string first = parts.header.begin().key();
 
-  ZipFile code = zip;
-  entry(code, "code/__torch__.py") += "  def forward(self):\n";
-  EXPECT_NE(refusal(pack(code)).find("code/__torch__.py:"), std::string::npos) << refusal(pack(code));
+  SafetensorsParts dtype = parts;
+  dtype.header[first]["dtype"] = "F16";
+  EXPECT_NE(refusal(join(dtype)).find("tensor '" + first + "': dtype \"F16\""), std::string::npos)
+      << refusal(join(dtype));
 
-  ZipFile shorter = zip;
-  entry(shorter, "data/0").resize(4);
-  EXPECT_NE(refusal(pack(shorter)).find("storage 0 declares"), std::string::npos) << refusal(pack(shorter));
+  SafetensorsParts shorter = parts;
+  shorter.data.resize(shorter.data.size() - 4);
+  EXPECT_NE(refusal(join(shorter)).find("the data after the header is"), std::string::npos) << refusal(join(shorter));
 
-  ZipFile global = zip;
-  std::string& pickle = entry(global, "data.pkl");
-  const std::size_t at = pickle.find("collections\nOrderedDict");
-  ASSERT_NE(at, std::string::npos);
-  pickle.replace(at, 23, "os\nsystem\n\n\n\n\n\n\n\n\n\n\n\n");  // the same length
-  EXPECT_NE(refusal(pack(global)).find("global 'os system'"), std::string::npos) << refusal(pack(global));
+  SafetensorsParts renamed = parts;
+  renamed.header["agent.renamed"] = renamed.header[first];
+  renamed.header.erase(first);
+  EXPECT_NE(refusal(join(renamed)).find(first + " is missing"), std::string::npos) << refusal(join(renamed));
 
-  EXPECT_EQ(refusal(pack(zip)), "accepted");
+  SafetensorsParts code = parts;
+  code.header["__metadata__"]["format"] = "pickle";
+  EXPECT_NE(refusal(join(code)).find("not a Scout checkpoint"), std::string::npos) << refusal(join(code));
+
+  EXPECT_EQ(refusal(join(parts)), "accepted");
 }
 
 }  // namespace

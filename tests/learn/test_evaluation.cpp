@@ -317,7 +317,7 @@ TEST_F(Evaluation, BadInputIsOneLineNamingTheFile) {
   why = refusal(c);
   EXPECT_NE(why.find("camera.patch_px"), std::string::npos) << why;
   // Not a checkpoint; a missing image file; a label file given as images.
-  const fs::path text = temp_->write("bad/not-a-checkpoint.pt", "hello\n");
+  const fs::path text = temp_->write("bad/not-a-checkpoint.safetensors", "hello\n");
   c = config(1, 1);
   c.checkpoint = text;
   why = refusal(c);

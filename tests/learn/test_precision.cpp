@@ -293,11 +293,11 @@ TEST_F(Precision, IsStoredInTheConfigAndOlderConfigsReadAsFp32) {
   std::string bad = text;
   bad.replace(at, key.size(), "\"precision\": \"fp8\",");
   try {
-    TrainConfig::from_json(bad, "RUN/checkpoint.pt");
+    TrainConfig::from_json(bad, "RUN/checkpoint.safetensors");
     FAIL() << "fp8 was accepted";
   } catch (const InputError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("RUN/checkpoint.pt"), std::string::npos) << what;
+    EXPECT_NE(what.find("RUN/checkpoint.safetensors"), std::string::npos) << what;
     EXPECT_NE(what.find("precision"), std::string::npos) << what;
   }
 }

@@ -29,7 +29,7 @@ TrainConfig valid_config() {
 // The one-line InputError that from_json throws for `text` (empty if none).
 std::string refusal(const std::string& text) {
   try {
-    TrainConfig::from_json(text, "RUN/checkpoint.pt");
+    TrainConfig::from_json(text, "RUN/checkpoint.safetensors");
   } catch (const InputError& e) {
     return e.what();
   }
@@ -170,13 +170,13 @@ TEST(TrainSettings, OptionTextsRoundTripAndBadOnesAreRefused) {
 TEST(TrainSettings, ACheckpointsBadValueIsNamedByItsKey) {
   const std::string text = valid_config().to_json();
   const std::string rollouts = refusal(with_value(text, "rollouts", "0"));
-  EXPECT_EQ(rollouts, "RUN/checkpoint.pt: config: rollouts: expected an integer in [1, 64], got 0");
+  EXPECT_EQ(rollouts, "RUN/checkpoint.safetensors: config: rollouts: expected an integer in [1, 64], got 0");
   const std::string lr = refusal(with_value(text, "learning_rate", "10"));
-  EXPECT_EQ(lr, "RUN/checkpoint.pt: config: learning_rate: expected a number in (0, 10), got 10");
+  EXPECT_EQ(lr, "RUN/checkpoint.safetensors: config: learning_rate: expected a number in (0, 10), got 10");
   const std::string width = refusal(with_value(text, "planner_width", "0"));
-  EXPECT_EQ(width, "RUN/checkpoint.pt: config: network.planner_width: expected an integer in [1, 512], got 0");
+  EXPECT_EQ(width, "RUN/checkpoint.safetensors: config: network.planner_width: expected an integer in [1, 512], got 0");
   const std::string baseline = refusal(with_value(with_value(text, "rollouts", "1"), "leave_one_out", "true"));
-  EXPECT_EQ(baseline, "RUN/checkpoint.pt: config: leave_one_out: the leave-one-out baseline needs rollouts >= 2");
+  EXPECT_EQ(baseline, "RUN/checkpoint.safetensors: config: leave_one_out: the leave-one-out baseline needs rollouts >= 2");
   for (const std::string& what : {rollouts, lr, width, baseline}) EXPECT_EQ(what.find("--"), std::string::npos) << what;
 }
 

@@ -661,7 +661,7 @@ TEST_F(Resume, ANonFiniteLossStopsAndKeepsTheLastGoodCheckpoint) {
   EXPECT_EQ(trainer->history().size(), 1u);
   // Nothing half-written beside it.
   for (const auto& entry : fs::directory_iterator(run))
-    EXPECT_EQ(entry.path().filename().string().find(".checkpoint.pt.tmp"), std::string::npos) << entry.path();
+    EXPECT_EQ(entry.path().filename().string().find(".checkpoint.safetensors.tmp"), std::string::npos) << entry.path();
 }
 
 // --- 7. Validation digits are never trained on ----------------------------------------------------------------------

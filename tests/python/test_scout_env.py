@@ -20,7 +20,7 @@ import scout
 SOURCE = os.environ.get("SCOUT_SOURCE_DIR", os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
 BINARY = os.environ.get("SCOUT_BINARY", os.path.join(SOURCE, "build", "tools", "scout"))
 WORLD = os.path.join(SOURCE, "worlds", "mnist.yaml")
-MODEL = os.path.join(SOURCE, "tests", "data", "mnist-8k-v1.pt")
+MODEL = os.path.join(SOURCE, "tests", "data", "mnist-8k-v1.safetensors")
 DATA = os.path.join(os.environ.get("SCOUT_DATA", os.path.join(SOURCE, "data")), "mnist")
 
 
@@ -215,7 +215,7 @@ def agent_and_robots():
 
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"model": 123}, TypeError, "model: expected a path to a model file or run folder, got 123"),
-    ({"model": "/no/such.pt"}, ValueError, "/no/such.pt: no such checkpoint file"),
+    ({"model": "/no/such.safetensors"}, ValueError, "/no/such.safetensors: no such checkpoint file"),
     ({"model": os.path.join(SOURCE, "README.md")}, ValueError,
      f"{os.path.join(SOURCE, 'README.md')}: not a Scout checkpoint"),
     ({"greedy": "no"}, TypeError, "greedy: expected True or False, got 'no'"),
@@ -567,7 +567,7 @@ def grown_model(world, run, channel, images):
     subprocess.run([BINARY, "train", world, "--out", str(run), "--init-from", MODEL, channel, "--epochs", "0,0,1",
                     "--train-limit", str(images), "--validation-limit", "20", "--batch", "20", "--lr", "0.01",
                     "--threads", "1", "--seed", "4"], check=True, capture_output=True)
-    return str(run / "checkpoint.pt")
+    return str(run / "checkpoint.safetensors")
 
 
 def test_a_world_with_obstacles_observes_o_and_the_agent_reads_it_as_scout_run_does(tmp_path):

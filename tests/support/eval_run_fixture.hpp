@@ -83,7 +83,7 @@ class EvalRun : public ::testing::Test {
     for (const auto& [run, epochs] : {std::pair{"run", "1,1,1"}, std::pair{"run_i", "1,0,0"}}) {
       const Result r = scout("train " + world() + " --out " + path(run) + " --epochs " + epochs + common);
       ASSERT_EQ(r.status, 0) << r.output;
-      ASSERT_TRUE(fs::exists(path(run) + "/checkpoint.pt")) << r.output;
+      ASSERT_TRUE(fs::exists(path(run) + "/checkpoint.safetensors")) << r.output;
     }
   }
   static void TearDownTestSuite() {
@@ -93,7 +93,7 @@ class EvalRun : public ::testing::Test {
 
   static std::string path(const std::string& name) { return (temp_->path() / name).string(); }
   static std::string world() { return path("world.yaml"); }
-  static std::string checkpoint(const std::string& run = "run") { return path(run) + "/checkpoint.pt"; }
+  static std::string checkpoint(const std::string& run = "run") { return path(run) + "/checkpoint.safetensors"; }
   static std::string test_data() {
     return " --images " + path("data/t10k-images-idx3-ubyte") + " --labels " + path("data/t10k-labels-idx1-ubyte");
   }

@@ -3,7 +3,7 @@
 // norm of the difference over the norm of A's weights (every parameter and buffer as one
 // vector), the largest elementwise difference, 1 when all are equal bit for bit, and the tensor
 // that differs most. SCOUT_COMPARE_VERBOSE=1 lists every tensor on stderr. Usage:
-//   scout_test_compare_weights A/checkpoint.pt B/checkpoint.pt
+//   scout_test_compare_weights A/checkpoint.safetensors B/checkpoint.safetensors
 #include <torch/torch.h>
 
 #include <cmath>

@@ -1,7 +1,7 @@
 // A helper program of tools_tests (which never link LibTorch themselves): sets one classifier
 // weight of a checkpoint to NaN, keeping Adam's state, the config and the schedule, as a diverged
 // step would leave it (tests/learn/test_trainer.cpp does the same in-process). Usage:
-//   scout_test_poison_checkpoint RUN/checkpoint.pt
+//   scout_test_poison_checkpoint RUN/checkpoint.safetensors
 #include <torch/torch.h>
 
 #include <cstdio>

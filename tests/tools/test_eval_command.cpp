@@ -84,7 +84,7 @@ TEST(EvalCommand, TheReferenceReportIsReproducedOnEveryCpu) {
   const fs::path subset = source / "tests/data/mnist-subset";
   auto evaluate = [&](const std::string& name) {
     const fs::path report = temp.path() / (name + ".json"), predictions = temp.path() / (name + ".csv");
-    const CliResult r = run_cli(SCOUT_BINARY, "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.pt").string() +
+    const CliResult r = run_cli(SCOUT_BINARY, "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() +
                                                   " --images " + (subset / "t10k-images-idx3-ubyte").string() +
                                                   " --labels " + (subset / "t10k-labels-idx1-ubyte").string() +
                                                   " --runs 3 --seed 5 --precision fp32 --json " + report.string() +
@@ -219,7 +219,7 @@ TEST_F(EvalRun, EvalUsesThisCpusPrecisionUnlessTold) {
   EXPECT_EQ(bad.output.find('\n'), bad.output.size() - 1) << bad.output;
 }
 
-// A model trained in bf16 (tests/data/mnist-8k-v1.pt) on a CPU without native bf16 (oneDNN capped
+// A model trained in bf16 (tests/data/mnist-8k-v1.safetensors) on a CPU without native bf16 (oneDNN capped
 // to AVX2: the stand-in for one) runs in fp32 and says why. Under the stand-in bf16 cannot run at
 // all (LibTorch sends it to oneDNN, which the cap forbids): asked for, it is refused with one line.
 TEST(EvalCommand, ABf16ModelRunsInFp32WhereBf16IsNotNative) {
@@ -228,7 +228,7 @@ TEST(EvalCommand, ABf16ModelRunsInFp32WhereBf16IsNotNative) {
   const fs::path subset = source / "tests/data/mnist-subset";
   const std::string no_native_bf16 =
       "env ONEDNN_MAX_CPU_ISA=AVX2 ATEN_CPU_CAPABILITY=avx2 " + std::string(SCOUT_BINARY);
-  const std::string args = "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.pt").string() + " --images " +
+  const std::string args = "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() + " --images " +
                            (subset / "t10k-images-idx3-ubyte").string() + " --labels " +
                            (subset / "t10k-labels-idx1-ubyte").string() + " --runs 1 --limit 8 --json ";
   const CliResult automatic = run_cli(no_native_bf16, args + (temp.path() / "auto.json").string());
@@ -270,9 +270,9 @@ TEST_F(EvalRun, EvalRefusesBadInputWithOneLine) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("expected 9 labels"), std::string::npos) << r.output;
 
-  r = scout("eval --checkpoint " + path("missing.pt") + test_data());
+  r = scout("eval --checkpoint " + path("missing.safetensors") + test_data());
   EXPECT_EQ(r.status, 1);
-  EXPECT_EQ(r.output.rfind("scout: error: " + path("missing.pt"), 0), 0u) << r.output;
+  EXPECT_EQ(r.output.rfind("scout: error: " + path("missing.safetensors"), 0), 0u) << r.output;
 
   // A bad command line is a usage error.
   r = scout("eval --checkpoint " + checkpoint() + test_data() + " --runs 0");

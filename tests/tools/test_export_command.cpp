@@ -32,11 +32,11 @@ using namespace scout::testing::train_cli_support;
 
 // scout export: a model file (no optimizer state) that eval reads exactly as it reads the run.
 TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
-  const std::string model = path("model.pt");
+  const std::string model = path("model.safetensors");
   const Result r = run("export " + base() + " --out " + model);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_NE(r.out.find(model), std::string::npos) << r.out;
-  const auto run_size = fs::file_size(base() + "/checkpoint.pt"), model_size = fs::file_size(model);
+  const auto run_size = fs::file_size(base() + "/checkpoint.safetensors"), model_size = fs::file_size(model);
   EXPECT_LT(model_size, run_size);  // Adam's two moments per weight are gone
   // The same figures from the model as from the run (same weights, history and config).
   const std::string data = (temp_->path() / "data").string();
@@ -54,10 +54,10 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
   expect_one_line_error(run("export " + base() + " --out " + model), {"--out", model, "--overwrite"});
   EXPECT_EQ(read_text(model), before);
   EXPECT_EQ(run("export " + base() + " --out " + model + " --overwrite").status, 0);
-  expect_one_line_error(run("export " + base() + " --out " + path("no/such/m.pt")), {"--out", "no/such"});
-  std::ofstream(path("junk.pt")) << "not a checkpoint";
-  expect_one_line_error(run("export " + path("junk.pt") + " --out " + path("m2.pt")), {path("junk.pt")});
-  EXPECT_FALSE(fs::exists(path("m2.pt")));
+  expect_one_line_error(run("export " + base() + " --out " + path("no/such/m.safetensors")), {"--out", "no/such"});
+  std::ofstream(path("junk.safetensors")) << "not a checkpoint";
+  expect_one_line_error(run("export " + path("junk.safetensors") + " --out " + path("m2.safetensors")), {path("junk.safetensors")});
+  EXPECT_FALSE(fs::exists(path("m2.safetensors")));
 }
 
 // A durable write, seen from the kernel's side (strace -f -y): the temporary file's data is synced
@@ -65,15 +65,15 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
 // cut leaves the old file or the whole new one (core/files.hpp). strace is one of the packages
 // scripts/setup.sh installs; where the kernel forbids tracing, the test says so and skips.
 TEST_F(TrainCli, ExportSyncsTheFileRenamesItThenSyncsTheFolder) {
-  const std::string model = path("model.pt"), trace = path("trace.txt");
+  const std::string model = path("model.safetensors"), trace = path("trace.txt");
   const scout::testing::CliResult traced =
       scout::testing::run_cli("strace", "-f -y -qq -e trace=fsync,fdatasync,rename,renameat,renameat2 -o " + trace +
                                             " " + SCOUT_BINARY + " export " + base() + " --out " + model);
   if (traced.status != 0 && traced.output.find("ptrace") != std::string::npos)
     GTEST_SKIP() << "strace cannot trace here: " << traced.output;
   ASSERT_EQ(traced.status, 0) << traced.output;
-  // The lines that name the model: "fsync(5</tmp/.../.model.pt.tmp-...>) = 0",
-  // "rename(\"/tmp/.../.model.pt.tmp-...\", \"/tmp/.../model.pt\") = 0", "fsync(6</tmp/...>) = 0".
+  // The lines that name the model: "fsync(5</tmp/.../.model.safetensors.tmp-...>) = 0",
+  // "rename(\"/tmp/.../.model.safetensors.tmp-...\", \"/tmp/.../model.safetensors\") = 0", "fsync(6</tmp/...>) = 0".
   std::vector<std::string> calls;
   std::istringstream lines(read_text(trace));
   for (std::string line; std::getline(lines, line);) {

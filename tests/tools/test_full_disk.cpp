@@ -48,14 +48,14 @@ void expect_write_error(const Result& r, const std::string& file, const std::str
 
 TEST_F(TrainCli, AFileSizeLimitStopsTrainingWithOneLineAndKeepsTheCheckpoint) {
   const std::string run_dir = copy_of_base("limited");
-  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.pt");
+  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.safetensors");
   // Room for the manifest and metrics.csv, not for the checkpoint.
   const auto small_files = std::max(fs::file_size(run_dir + "/manifest.json"), fs::file_size(run_dir + "/metrics.csv"));
   const rlim_t limit = small_files * 2 + 4096;
   ASSERT_LT(limit, checkpoint_before.size());
   const Result r = run_limited({SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "2,0,0"}, limit, local_.path());
-  expect_write_error(r, run_dir + "/checkpoint.pt", "File too large");
-  EXPECT_EQ(read_text(run_dir + "/checkpoint.pt"), checkpoint_before);
+  expect_write_error(r, run_dir + "/checkpoint.safetensors", "File too large");
+  EXPECT_EQ(read_text(run_dir + "/checkpoint.safetensors"), checkpoint_before);
   EXPECT_EQ(hidden_files(run_dir), 0);
   // With room again, the run goes on from the kept checkpoint.
   const Result resumed = run("train --resume " + run_dir + " --epochs 2,0,0");
@@ -68,7 +68,7 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
   const fs::path mount = local_.path() / "disk";
   fs::create_directories(mount);
   const std::string run_dir = (mount / "run").string();
-  const std::string checkpoint = base() + "/checkpoint.pt";
+  const std::string checkpoint = base() + "/checkpoint.safetensors";
   const auto room = fs::file_size(checkpoint) + fs::file_size(base() + "/manifest.json") + 64 * 1024;
   // A tmpfs just big enough for the run's files plus a filler that leaves too little for a
   // second checkpoint beside the first; then remounted read-only.
@@ -77,7 +77,7 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
       "fill=$(( $(stat -f -c '%a*%S' '{m}') - {keep} )); head -c $fill /dev/zero > '{m}/filler' || true; "
       "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../full.out' 2> '{m}/../full.err' || echo $? > "
       "'{m}/../full.status'; "
-      "cmp '{run}/checkpoint.pt' '{ckpt}' && echo intact > '{m}/../full.intact'; "
+      "cmp '{run}/checkpoint.safetensors' '{ckpt}' && echo intact > '{m}/../full.intact'; "
       "ls -A '{run}' | grep -c '^[.]' > '{m}/../full.hidden' || true; "
       "rm '{m}/filler'; mount -o remount,ro '{m}'; "
       "'{scout}' train --resume '{run}' --epochs 2,0,0 > '{m}/../ro.out' 2> '{m}/../ro.err' || echo $? > "
@@ -90,7 +90,7 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
   ASSERT_EQ(r.status, 0) << r.output;
   const fs::path dir = local_.path();
   EXPECT_EQ(read_text(dir / "full.status"), "1\n") << read_text(dir / "full.err");
-  expect_write_error({1, "", read_text(dir / "full.err")}, run_dir + "/checkpoint.pt", "No space left on device");
+  expect_write_error({1, "", read_text(dir / "full.err")}, run_dir + "/checkpoint.safetensors", "No space left on device");
   EXPECT_EQ(read_text(dir / "full.intact"), "intact\n");
   EXPECT_EQ(read_text(dir / "full.hidden"), "0\n") << "the failed write left a temporary in the run folder";
   EXPECT_EQ(read_text(dir / "ro.status"), "1\n") << read_text(dir / "ro.err");

@@ -127,7 +127,7 @@ TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
   manifest["lineage"] =
       json::array({{{"command_line", {"scout", "train", "first.yaml", "--out", "runs/first"}},
                     {"resumed", {{{"command_line", {"scout", "train", "--resume", "runs/first"}}}}}}});
-  manifest["lineage_note"] = "runs/first was exported to first.pt";
+  manifest["lineage_note"] = "runs/first was exported to first.safetensors";
   std::ofstream(manifest_file, std::ios::binary | std::ios::trunc) << manifest.dump();
   const Result r =
       scout("report " + path("run") + " --out " + path("beside") + test_data() + " --sweep-digits 0 --episodes 0");
@@ -140,7 +140,7 @@ TEST_F(EvalRun, ReportUsesTheEvaluationBesideTheModel) {
   const std::string report = read_text(path("beside") + "/REPORT.md");
   EXPECT_NE(report.find("scout eval --checkpoint " + path("run")), std::string::npos) << report;
   const std::size_t first = report.find(
-      "# runs/first was exported to first.pt\nscout train first.yaml --out runs/first\nscout train --resume "
+      "# runs/first was exported to first.safetensors\nscout train first.yaml --out runs/first\nscout train --resume "
       "runs/first\n");
   const std::size_t own = report.find("scout train " + world());
   ASSERT_NE(first, std::string::npos) << report;

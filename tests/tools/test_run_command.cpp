@@ -352,7 +352,7 @@ TEST_F(EvalRun, RunRefusesCheckpointOptionsThatCannotApply) {
   r = scout("run " + world() + " --out " + path("o3") + " --checkpoint " + checkpoint("run_i") + " --heat-map");
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(r.output.rfind("scout: error: " + checkpoint("run_i") + ": --heat-map: expected", 0), 0u) << r.output;
-  const std::string text = temp_->write("notes.pt", "x").string();
+  const std::string text = temp_->write("notes.safetensors", "x").string();
   r = scout("run " + world() + " --out " + path("o4") + " --checkpoint " + text);
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(r.output.rfind("scout: error: " + text + ": not a Scout checkpoint", 0), 0u) << r.output;

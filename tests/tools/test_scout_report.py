@@ -53,7 +53,7 @@ def report_data():
                          "path": [[10, 10], [12, 10], [12, 12]], "goals": [[12, 10], [20, 20]],
                          "goal_map": (np.ones(784) / 784).tolist(), "goal_map_episode": 4})
     return {
-        "command": "scout report models/x.pt --out r", "cpu": "a test CPU", "seconds": 12.0,
+        "command": "scout report models/x.safetensors --out r", "cpu": "a test CPU", "seconds": 12.0,
         "paper": {"accuracy": 94.61, "ci95": 0.17, "top2": 98.30, "full_image": 94.92, "transfer": 95.19,
                   "revealed_fraction": 0.41,
                   "glimpse_models": [
@@ -61,8 +61,8 @@ def report_data():
                        "revealed_fraction": 256 / 784},
                       {"source": "RAM (Mnih et al. 2014)", "accuracy": 98.88, "glimpses": 6, "side": 8,
                        "revealed_fraction": 384 / 784}]},
-        "model": {"label": "Scout: x.pt", "path": "models/x.pt", "eval": ev, "eval_source": "x-test-eval.json",
-                  "eval_command": "scout eval --checkpoint models/x.pt", "train_commands": ["scout train w.yaml"],
+        "model": {"label": "Scout: x.safetensors", "path": "models/x.safetensors", "eval": ev, "eval_source": "x-test-eval.json",
+                  "eval_command": "scout eval --checkpoint models/x.safetensors", "train_commands": ["scout train w.yaml"],
                   "history": history, "revealed_fraction": 0.42},
         "compare": [{"label": "Paper-faithful run", "eval": dict(ev, accuracy={"mean": 0.93, "ci95": 0.003}),
                      "eval_source": "f.json", "eval_command": "", "train_commands": []}],
@@ -126,7 +126,7 @@ def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
         {"world": "odometry-strong", "file": "worlds/scenarios/odometry-strong.yaml", "accuracy": 0.7142,
          "ci95": 0.012, "revealed_fraction": 0.27}]}
     data["scenario_agents"] = {"digits": 1000, "runs": 5, "seed": 7, "rows": [
-        {"world": "obstacles-random", "agent": "models/obstacles-random.pt", "accuracy": 0.95, "ci95": 0.004,
+        {"world": "obstacles-random", "agent": "models/obstacles-random.safetensors", "accuracy": 0.95, "ci95": 0.004,
          "stalled_moves": 2.25, "model_accuracy": 0.93, "model_ci95": 0.006, "model_stalled_moves": 8.5}]}
     result, out = run(tmp_path, data)
     assert result.returncode == 0, result.stderr
@@ -135,7 +135,7 @@ def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
     assert "first 1000 test digits, 5 stochastic run(s), seed 7" in text
     assert "| the model's world | 96.02 ± 0.45 % |  | 28.5 % |" in text
     assert "| odometry-strong | 71.42 ± 1.20 % | -24.60 points | 27.0 % |" in text
-    assert "| obstacles-random | `models/obstacles-random.pt` | 95.00 ± 0.40 % | 2.25 | 93.00 ± 0.60 % | 8.50 |" in text
+    assert "| obstacles-random | `models/obstacles-random.safetensors` | 95.00 ± 0.40 % | 2.25 | 93.00 ± 0.60 % | 8.50 |" in text
     assert "Robustness" not in run(tmp_path, report_data())[1].joinpath("REPORT.md").read_text()
 
 

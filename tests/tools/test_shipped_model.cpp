@@ -1,4 +1,4 @@
-// The model the project ships (models/mnist.pt, README's main command) still works with this
+// The model the project ships (models/mnist.safetensors, README's main command) still works with this
 // build: it is a small model file of the paper preset's task, it drives `scout run` and draws
 // its pictures, and `scout eval` on the first 1,000 official test digits still finds it far above
 // the i.i.d. baseline (a change to the networks, the state encoding or the camera that breaks it
@@ -20,7 +20,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const fs::path kModel = fs::path(SCOUT_SOURCE_DIR) / "models" / "mnist.pt";
+const fs::path kModel = fs::path(SCOUT_SOURCE_DIR) / "models" / "mnist.safetensors";
 const fs::path kWorld = fs::path(SCOUT_SOURCE_DIR) / "worlds" / "mnist.yaml";
 
 scout::testing::CliResult scout(const std::string& args) { return scout::testing::run_cli(SCOUT_BINARY, args); }
@@ -45,7 +45,7 @@ TEST_F(ShippedModel, IsASmallModelFileOfThePaperPreset) {
   ASSERT_TRUE(fs::is_regular_file(kModel)) << kModel;
   EXPECT_LT(fs::file_size(kModel), 2u << 20) << "a model file holds weights and config only";
   // Re-export: the file round-trips through this build's reader and writer.
-  const auto r = scout("export " + kModel.string() + " --out " + path("again.pt"));
+  const auto r = scout("export " + kModel.string() + " --out " + path("again.safetensors"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("epoch(s) of training"), std::string::npos) << r.output;
   // The observation budget that makes the result comparable with the paper's.

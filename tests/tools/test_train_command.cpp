@@ -39,8 +39,8 @@ TEST_F(TrainCli, ATinyRunWritesCheckpointMetricsAndManifest) {
   EXPECT_NE(r.out.find("(1 LibTorch threads, " + resolved + ";"), std::string::npos) << r.out;
   for (const char* mode : {"mode i   epoch   1:", "mode ii  epoch   1:", "mode iii epoch   1:"})
     EXPECT_NE(r.out.find(mode), std::string::npos) << mode << " in " << r.out;
-  EXPECT_TRUE(fs::is_regular_file(path("run") + "/checkpoint.pt"));
-  EXPECT_GT(fs::file_size(path("run") + "/checkpoint.pt"), 1000u);
+  EXPECT_TRUE(fs::is_regular_file(path("run") + "/checkpoint.safetensors"));
+  EXPECT_GT(fs::file_size(path("run") + "/checkpoint.safetensors"), 1000u);
 
   const std::vector<std::string> rows = lines_of(read_text(path("run") + "/metrics.csv"));
   ASSERT_EQ(rows.size(), 4u);
@@ -99,19 +99,19 @@ TEST_F(TrainCli, InitFromStartsANewRunFromAModelsWeights) {
   const Result r = run("train " + world() + " --out " + path("init") + " --init-from " + base() + frozen + kTiny);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const scout::testing::CliResult same =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.pt' '" + path("init") + "/checkpoint.pt'");
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("init") + "/checkpoint.safetensors'");
   ASSERT_EQ(same.status, 0) << same.output;
   EXPECT_NE(same.output.find(" 1 "), std::string::npos) << "expected identical weights: " << same.output;
   // Without --init-from the same command starts from the seed's initialisation instead.
   ASSERT_EQ(run("train " + world() + " --out " + path("fresh") + frozen + kTiny).status, 0);
   const scout::testing::CliResult fresh =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.pt' '" + path("fresh") + "/checkpoint.pt'");
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("fresh") + "/checkpoint.safetensors'");
   EXPECT_NE(fresh.output.find(" 0 "), std::string::npos) << fresh.output;
 
   std::ifstream in(path("init") + "/manifest.json");
   const json m = json::parse(in);
   ASSERT_TRUE(m.contains("init_from")) << m.dump(2);
-  EXPECT_EQ(fs::path(m["init_from"]["file"].get<std::string>()), fs::absolute(fs::path(base()) / "checkpoint.pt"));
+  EXPECT_EQ(fs::path(m["init_from"]["file"].get<std::string>()), fs::absolute(fs::path(base()) / "checkpoint.safetensors"));
   EXPECT_EQ(m["init_from"]["sha256"].get<std::string>().size(), 64u);
 
   expect_one_line_error(run("train " + world() + " --out " + path("wider") + " --init-from " + base() + frozen + kTiny +
@@ -161,8 +161,8 @@ TEST_F(TrainCli, ControlCSavesACheckpointThatResumeFinishes) {
   EXPECT_EQ(WEXITSTATUS(status), 130) << read_text(err);
   const std::string said = read_text(err);
   EXPECT_NE(said.find("checkpoint saved"), std::string::npos) << said;
-  EXPECT_NE(said.find(run_dir + "/checkpoint.pt"), std::string::npos) << said;
-  ASSERT_TRUE(fs::is_regular_file(run_dir + "/checkpoint.pt"));
+  EXPECT_NE(said.find(run_dir + "/checkpoint.safetensors"), std::string::npos) << said;
+  ASSERT_TRUE(fs::is_regular_file(run_dir + "/checkpoint.safetensors"));
 
   // Epochs of mode (iii) finished before the interrupt; finish the one in progress.
   std::vector<std::string> rows = lines_of(read_text(run_dir + "/metrics.csv"));
@@ -195,31 +195,31 @@ TEST_F(TrainCli, ControlCSavesACheckpointThatResumeFinishes) {
 TEST_F(TrainCli, BadCheckpointsAreRefusedWithOneLine) {
   // Garbage where the checkpoint should be.
   const std::string garbage = copy_of_base("garbage");
-  std::ofstream(garbage + "/checkpoint.pt", std::ios::binary | std::ios::trunc) << "PK\x03\x04 not a checkpoint";
-  expect_one_line_error(run("train --resume " + garbage), {garbage + "/checkpoint.pt"});
+  std::ofstream(garbage + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc) << "PK\x03\x04 not a checkpoint";
+  expect_one_line_error(run("train --resume " + garbage), {garbage + "/checkpoint.safetensors"});
   // A real checkpoint cut short.
   const std::string truncated = copy_of_base("truncated");
-  const std::string bytes = read_text(truncated + "/checkpoint.pt");
-  std::ofstream(truncated + "/checkpoint.pt", std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() / 2);
-  expect_one_line_error(run("train --resume " + truncated), {truncated + "/checkpoint.pt"});
+  const std::string bytes = read_text(truncated + "/checkpoint.safetensors");
+  std::ofstream(truncated + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() / 2);
+  expect_one_line_error(run("train --resume " + truncated), {truncated + "/checkpoint.safetensors"});
   // A folder without one.
   fs::create_directories(path("empty"));
   expect_one_line_error(run("train --resume " + path("empty")), {"--resume", path("empty")});
   // Nothing was written into the refused folders.
-  EXPECT_EQ(read_text(truncated + "/checkpoint.pt"), bytes.substr(0, bytes.size() / 2));
+  EXPECT_EQ(read_text(truncated + "/checkpoint.safetensors"), bytes.substr(0, bytes.size() / 2));
   EXPECT_TRUE(fs::is_empty(path("empty")));
 }
 
 TEST_F(TrainCli, AResumedRunKeepsItsConfig) {
   const std::string copy = copy_of_base("copy");
-  const std::string checkpoint = read_text(copy + "/checkpoint.pt");
+  const std::string checkpoint = read_text(copy + "/checkpoint.safetensors");
   expect_one_line_error(run("train --resume " + copy + " --planner-width 8"), {"--planner-width", copy, "4", "8"});
   // A frozen layer is part of the run's config too (the schema table's resume column).
   expect_one_line_error(run("train --resume " + copy + " --freeze goal"), {"--freeze", copy, "goal"});
   const std::string other = (temp_->path() / "other.yaml").string();
   expect_one_line_error(run("train " + other + " --resume " + copy), {other});
   expect_one_line_error(run("train --resume " + copy + " --out " + path("elsewhere")), {"--out"});
-  EXPECT_EQ(read_text(copy + "/checkpoint.pt"), checkpoint);
+  EXPECT_EQ(read_text(copy + "/checkpoint.safetensors"), checkpoint);
   EXPECT_FALSE(fs::exists(path("elsewhere")));
   // The same world and the same options are accepted (and there is nothing left to train).
   const Result same = run("train " + world() + " --resume " + copy + " --planner-width 4");
@@ -273,10 +273,10 @@ TEST_F(TrainCli, ABf16RunResumedWithoutNativeBf16NeedsPrecision) {
   const Result trained =
       run("train " + world() + " --out " + path("bf16") + " --epochs 1,0,0 --precision bf16" + kTiny);
   ASSERT_EQ(trained.status, 0) << trained.out << trained.err;
-  const std::string checkpoint = read_text(path("bf16") + "/checkpoint.pt");
+  const std::string checkpoint = read_text(path("bf16") + "/checkpoint.safetensors");
   expect_one_line_error(run("train --resume " + path("bf16") + " --epochs 2,0,0", no_native_bf16),
                         {"--precision fp32", "bf16", path("bf16")});
-  EXPECT_EQ(read_text(path("bf16") + "/checkpoint.pt"), checkpoint);
+  EXPECT_EQ(read_text(path("bf16") + "/checkpoint.safetensors"), checkpoint);
   const Result fp32 = run("train --resume " + path("bf16") + " --epochs 2,0,0 --precision fp32", no_native_bf16);
   ASSERT_EQ(fp32.status, 0) << fp32.out << fp32.err;
   EXPECT_NE(fp32.out.find("precision bf16 -> fp32 from the next batch on"), std::string::npos) << fp32.out;
@@ -339,10 +339,10 @@ TEST_F(TrainCli, ResumeRefusesDataThatChanged) {
   ASSERT_EQ(same.status, 0) << same.out << same.err;
   // Other digits under the same names: refused, and the run is untouched.
   write_train_idx(path("data"), 50);
-  const std::string before = read_text(path("run") + "/checkpoint.pt");
+  const std::string before = read_text(path("run") + "/checkpoint.safetensors");
   expect_one_line_error(run("train --resume " + path("run") + " --epochs 3,0,0"),
                         {"train-images-idx3-ubyte", "SHA-256"});
-  EXPECT_EQ(read_text(path("run") + "/checkpoint.pt"), before);
+  EXPECT_EQ(read_text(path("run") + "/checkpoint.safetensors"), before);
 }
 
 // --entropy-bonus end to end: the same tiny run through mode (ii) with and without it trains
@@ -403,7 +403,7 @@ TEST_F(TrainCli, ResumeReadsTheSameDataMovedWithData) {
 // set to NaN in a finished run's checkpoint (by a helper program; LibTorch stays out of this test).
 TEST_F(TrainCli, ANonFiniteLossExitsWithStatusOneAndKeepsTheCheckpoint) {
   const std::string copy = copy_of_base("nan");
-  const std::string checkpoint = copy + "/checkpoint.pt";
+  const std::string checkpoint = copy + "/checkpoint.safetensors";
   const CliResult poisoned = run_cli(POISON_CHECKPOINT, checkpoint);
   ASSERT_EQ(poisoned.status, 0) << poisoned.output;
   const std::string before = read_text(checkpoint), metrics = read_text(copy + "/metrics.csv");
@@ -466,7 +466,7 @@ TEST_F(TrainCli, ASecondTrainOnARunFolderInUseIsRefused) {
   const pid_t first =
       scout::testing::spawn({SCOUT_BINARY, "train", "--resume", run_dir, "--epochs", "100000,0,0"}, out, err);
   ASSERT_TRUE(scout::testing::wait_for_text(first, out, "mode i   epoch", 300)) << read_text(err);  // training
-  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.pt");
+  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.safetensors");
   const Result second = run("train --resume " + run_dir + " --epochs 100000,0,0");
   EXPECT_EQ(second.status, 1) << second.out << second.err;
   EXPECT_EQ(std::count(second.err.begin(), second.err.end(), '\n'), 1) << second.err;
@@ -482,7 +482,7 @@ TEST_F(TrainCli, ASecondTrainOnARunFolderInUseIsRefused) {
   EXPECT_EQ(WEXITSTATUS(status), 130) << read_text(err);
   // The first run's checkpoint is its own (it trained on from the one it resumed), and a resume
   // after it continues from there.
-  EXPECT_NE(read_text(run_dir + "/checkpoint.pt"), checkpoint_before);
+  EXPECT_NE(read_text(run_dir + "/checkpoint.safetensors"), checkpoint_before);
   const std::size_t rows = lines_of(read_text(run_dir + "/metrics.csv")).size();
   const Result after = run("train --resume " + run_dir + " --epochs " + std::to_string(rows) + ",0,0");
   EXPECT_EQ(after.status, 0) << after.out << after.err;
@@ -512,7 +512,7 @@ TEST_F(TrainCli, AnEstimateBeyondTheAvailableMemoryIsRefusedUnlessForced) {
   const Result forced = run("train " + world() + " --out " + path("forced") + " --epochs 1,0,0 --force" + kTiny);
   ::unsetenv("SCOUT_MEMORY_LIMIT");
   EXPECT_EQ(forced.status, 0) << forced.err;
-  EXPECT_TRUE(fs::is_regular_file(path("forced") + "/checkpoint.pt"));
+  EXPECT_TRUE(fs::is_regular_file(path("forced") + "/checkpoint.safetensors"));
 }
 
 }  // namespace scout::testing::train_command_train_cli_tests

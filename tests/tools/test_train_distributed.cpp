@@ -39,7 +39,7 @@ struct Weights {
 
 Weights compare_weights(const std::string& a, const std::string& b) {
   const scout::testing::CliResult r =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + a + "/checkpoint.pt' '" + b + "/checkpoint.pt'");
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + a + "/checkpoint.safetensors' '" + b + "/checkpoint.safetensors'");
   Weights w;
   int identical = 0;
   char worst[256] = {};
@@ -207,7 +207,7 @@ TEST_F(TrainDistributed, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishe
   const Rank r1 = start_rank(1, 2, port, args, local_.path());
   // Kill rank 1 once the first epoch is done (a generous bound, never asserted on).
   ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
-  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.pt");
+  const std::string checkpoint_before = read_text(run_dir + "/checkpoint.safetensors");
   kill(r1.pid, SIGKILL);
   const auto [status, seconds] = wait_rank(r0);
   wait_rank(r1, 5);
@@ -225,7 +225,7 @@ TEST_F(TrainDistributed, ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishe
   ASSERT_EQ(error_lines.size(), 1u) << said;
   EXPECT_NE(error_lines[0].find("rank 0: error: rank 1 was lost"), std::string::npos) << said;
   // The last checkpoint is intact: resuming with two processes finishes the schedule.
-  ASSERT_TRUE(fs::is_regular_file(run_dir + "/checkpoint.pt"));
+  ASSERT_TRUE(fs::is_regular_file(run_dir + "/checkpoint.safetensors"));
   EXPECT_FALSE(checkpoint_before.empty());
   const Result resumed = run("train --resume " + run_dir + " --nproc 2");
   ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
@@ -274,7 +274,7 @@ TEST_F(TrainDistributed, ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint)
   for (const std::string& line : lines_of(said))
     if (line.rfind("scout: ", 0) == 0) lines.push_back(line);
   ASSERT_EQ(lines.size(), 1u) << said;
-  EXPECT_NE(lines[0].find("checkpoint saved: " + run_dir + "/checkpoint.pt"), std::string::npos) << said;
+  EXPECT_NE(lines[0].find("checkpoint saved: " + run_dir + "/checkpoint.safetensors"), std::string::npos) << said;
   // No rank outlives the launcher: nothing is left holding the run's port or files.
   EXPECT_EQ(processes_naming(run_dir), 0);
   const std::vector<std::string> rows = lines_of(read_text(run_dir + "/metrics.csv"));
@@ -375,12 +375,12 @@ TEST_F(TrainDistributed, EvalOverTwoProcessesGivesTheSameReport) {
 }
 
 // The hidden temporaries a writer of a run's checkpoint leaves beside it when killed
-// (".checkpoint.pt.tmp-PID-XXXXXXXX"), with their sizes.
+// (".checkpoint.safetensors.tmp-PID-XXXXXXXX"), with their sizes.
 std::map<std::string, std::uintmax_t> checkpoint_temporaries(const std::string& run_dir) {
   std::map<std::string, std::uintmax_t> found;
   std::error_code ec;
   for (fs::directory_iterator it(run_dir, ec), end; !ec && it != end; it.increment(ec))
-    if (it->path().filename().string().rfind(".checkpoint.pt.tmp-", 0) == 0)
+    if (it->path().filename().string().rfind(".checkpoint.safetensors.tmp-", 0) == 0)
       found[it->path().filename().string()] = fs::file_size(it->path(), ec);
   return found;
 }

@@ -67,7 +67,7 @@ void expect_no_hidden_files(const std::string& folder) {
 void expect_the_same_run(const std::string& reference, const std::string& killed) {
   EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"), metrics_without_timing(reference + "/metrics.csv"));
   const scout::testing::CliResult same =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + reference + "/checkpoint.pt' '" + killed + "/checkpoint.pt'");
+      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + reference + "/checkpoint.safetensors' '" + killed + "/checkpoint.safetensors'");
   ASSERT_EQ(same.status, 0) << same.output;
   EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
   EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;         // bit for bit
@@ -89,7 +89,7 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   const std::string killed = path("killed");
   int kills = 0, fresh_starts = 0, random_mid_work = 0;
   for (const Kill& kill : schedule) {
-    const bool checkpointed = fs::is_regular_file(killed + "/checkpoint.pt");
+    const bool checkpointed = fs::is_regular_file(killed + "/checkpoint.safetensors");
     const double epochs_done =
         checkpointed ? double(lines_of(read_text(killed + "/metrics.csv")).size() - 1) / kEpochs : 0.0;
     // Killed before its first checkpoint, or finished (a random moment after its end): the run
@@ -142,7 +142,7 @@ TEST_F(TrainCli, HardKillsAtRandomAndNamedMomentsLoseNothing) {
   // whole run's, so a late draw may find it finished, but not most of them.
   EXPECT_GE(random_mid_work, 5) << "of 7 random kills, only " << random_mid_work << " landed mid-work";
   // Finish: one more resume (a no-op when the last attempt finished).
-  ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.pt"));
+  ASSERT_TRUE(fs::is_regular_file(killed + "/checkpoint.safetensors"));
   const Result last = run("train --resume " + killed);
   ASSERT_EQ(last.status, 0) << last.out << last.err;
   expect_no_hidden_files(killed);
