@@ -11,8 +11,8 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <span>
 #include <set>
+#include <span>
 #include <sstream>
 
 #include "agent/config.hpp"
@@ -214,7 +214,8 @@ std::string read_checkpoint_file(const fs::path& file) {
     if (fs::exists(legacy, ec))
       throw InputError(file.string() + ": no such checkpoint file; " + legacy.string() +
                        " beside it is of Scout's format 1, which this build does not read; if you trust it, convert "
-                       "it once: scout convert " + legacy.string() + " --trusted");
+                       "it once: scout convert " +
+                       legacy.string() + " --trusted");
     throw InputError(file.string() + ": no such checkpoint file (expected RUN/checkpoint.safetensors or a model file)");
   }
   const core::RegularFile in = core::open_regular_file(file);
@@ -288,23 +289,27 @@ std::int64_t max_batches_per_epoch(const TrainConfig& c, Stage stage) {
   return (images + batch - 1) / batch;
 }
 
-// Where the schedule stands, against the schedule the config gives: a stage with epochs left,
-// at most its epochs done, fewer batches than an epoch can have; a finished run at (done, 0, 0).
+// Where the schedule stands, against the schedule the config gives: at most a stage's epochs done,
+// fewer batches than an epoch can have; a finished run at (done, 0, 0).
 void check_cursor(const CheckpointState& state, const std::string& origin) {
   const ScheduleCursor& c = state.cursor;
   const std::array<int, kTrainingStages> epochs = {state.config.pretrain_epochs, state.config.epochs[0],
                                                    state.config.epochs[1], state.config.epochs[2]};
   const auto refuse = [&](const std::string& expected) {
-    throw InputError(fmt::format("{}: progress: the schedule position (mode {}, epoch {}, batch {}) is outside the "
-                                 "config's schedule ({})",
-                                 origin, to_string(c.stage), c.epoch, c.batch, expected));
+    throw InputError(
+        fmt::format("{}: progress: the schedule position (mode {}, epoch {}, batch {}) is outside the "
+                    "config's schedule ({})",
+                    origin, to_string(c.stage), c.epoch, c.batch, expected));
   };
   if (c.stage == Stage::Done) {
     if (c.epoch != 0 || c.batch != 0) refuse("a finished run stands at epoch 0, batch 0");
     return;
   }
+  // A stage's epochs all done, before the next stage is entered (a new run's cursor, in a stage of no
+  // epochs, until training skips it), is epoch == its count at batch 0.
   const int stage_epochs = epochs[index(c.stage)];
-  if (c.epoch >= stage_epochs) refuse(fmt::format("mode {} has {} epochs", to_string(c.stage), stage_epochs));
+  if (c.epoch > stage_epochs || (c.epoch == stage_epochs && c.batch != 0))
+    refuse(fmt::format("mode {} has {} epochs", to_string(c.stage), stage_epochs));
   if (c.batch >= max_batches_per_epoch(state.config, c.stage))
     refuse(fmt::format("an epoch has at most {} batches", max_batches_per_epoch(state.config, c.stage)));
 }
@@ -359,9 +364,9 @@ CheckpointState check_metadata(const st::File& file, std::size_t file_bytes, con
     throw InputError(origin + ": not a Scout checkpoint (its __metadata__ has no format: " + kFormatName + ")");
   const auto version = file.metadata.find("format_version");
   if (version == file.metadata.end() || version->second != std::to_string(kCheckpointFormat))
-    throw InputError(fmt::format("{}: format_version: this build reads {}, the file has {}", origin,
-                                 kCheckpointFormat,
-                                 version == file.metadata.end() ? std::string("none") : one_line(version->second.substr(0, 20))));
+    throw InputError(
+        fmt::format("{}: format_version: this build reads {}, the file has {}", origin, kCheckpointFormat,
+                    version == file.metadata.end() ? std::string("none") : one_line(version->second.substr(0, 20))));
   CheckpointState state;
   state.config = TrainConfig::from_json(metadata_json(file, "config", kMaxConfigBytes, origin), origin);
   check_network_fits(state.config.network, file_bytes, origin);
@@ -382,8 +387,9 @@ CheckpointState check_metadata(const st::File& file, std::size_t file_bytes, con
 // Each agent tensor's name, dtype and shape against the agent the config describes, and its
 // values finite; a tensor missing, misshapen or of no network is named. Returns the parameters'
 // names and shapes, in the order Adam keeps them.
-std::vector<std::pair<std::string, std::vector<std::int64_t>>> check_agent_tensors(
-    const st::File& file, const agent::NetworkConfig& network, const std::string& origin) {
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> check_agent_tensors(const st::File& file,
+                                                                                   const agent::NetworkConfig& network,
+                                                                                   const std::string& origin) {
   const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
   // Building the reference agent draws initial weights from LibTorch's generator: put its state
   // back, so that checking a file never changes what a later construction draws. (Its size is
@@ -430,7 +436,8 @@ void check_optimizer(const st::File& file, const CheckpointState& state,
   const auto refuse = [&](const std::string& what) { throw InputError(origin + ": " + one_line(what)); };
   const auto options = file.metadata.find("optimizer");
   if (options == file.metadata.end()) {
-    if (!unchecked.empty()) refuse(*unchecked.begin() + ": a tensor Scout's writer does not make (no optimizer in __metadata__)");
+    if (!unchecked.empty())
+      refuse(*unchecked.begin() + ": a tensor Scout's writer does not make (no optimizer in __metadata__)");
     return;  // a model file
   }
   try {
@@ -445,7 +452,8 @@ void check_optimizer(const st::File& file, const CheckpointState& state,
     if (!std::isfinite(lr) || lr <= 0) refuse(fmt::format("optimizer: lr: expected a finite number > 0, got {}", lr));
     if (!std::isfinite(eps) || eps <= 0)
       refuse(fmt::format("optimizer: eps: expected a finite number > 0, got {}", eps));
-    if (weight_decay != 0) refuse(fmt::format("optimizer: weight_decay: expected 0, as Scout's Adam has, got {}", weight_decay));
+    if (weight_decay != 0)
+      refuse(fmt::format("optimizer: weight_decay: expected 0, as Scout's Adam has, got {}", weight_decay));
     const nlohmann::json& betas = o.at("betas");
     const auto beta = [](const nlohmann::json& b) {
       return b.is_number() && std::isfinite(b.get<double>()) && b.get<double>() >= 0 && b.get<double>() < 1;
@@ -471,7 +479,8 @@ void check_optimizer(const st::File& file, const CheckpointState& state,
     }
     unchecked.erase(at + ".step");
     if (step->dtype != st::DType::I64 || !step->shape.empty())
-      refuse(at + ".step: " + st::to_string(step->dtype) + " " + shape_text(step->shape) + ", expected I64 [] (a count)");
+      refuse(at + ".step: " + st::to_string(step->dtype) + " " + shape_text(step->shape) +
+             ", expected I64 [] (a count)");
     std::int64_t steps = 0;
     std::memcpy(&steps, step->bytes.data(), sizeof steps);
     if (steps < 1 || steps > max_steps)
@@ -603,6 +612,38 @@ agent::Agent load_agent(const Checkpoint& checkpoint, CheckpointState* state) {
 
 agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
   return load_agent(open_checkpoint(file), state);
+}
+
+std::vector<LoadedTensor> loaded_tensors(const Checkpoint& checkpoint) {
+  const Checkpoint::Contents& contents = checkpoint.contents();
+  agent::Agent agent(contents.state.config.network);
+  std::unique_ptr<torch::optim::Adam> adam;
+  if (contents.tensors.metadata.count("optimizer"))
+    adam = std::make_unique<torch::optim::Adam>(agent->parameters(),
+                                                torch::optim::AdamOptions(contents.state.config.learning_rate));
+  contents.load_into(*agent, adam.get());
+  std::vector<LoadedTensor> out;
+  const auto add = [&](const std::string& name, const torch::Tensor& value) {
+    const torch::Tensor t = value.detach().contiguous();
+    LoadedTensor loaded{name, t.sizes().vec(), {}, {}};
+    if (t.scalar_type() == torch::kLong)
+      loaded.integers.assign(t.data_ptr<std::int64_t>(), t.data_ptr<std::int64_t>() + t.numel());
+    else
+      loaded.floats.assign(t.data_ptr<float>(), t.data_ptr<float>() + t.numel());
+    out.push_back(std::move(loaded));
+  };
+  for (const auto& p : agent->named_parameters()) add(kAgentPrefix + p.key(), p.value());
+  for (const auto& b : agent->named_buffers()) add(kAgentPrefix + b.key(), b.value());
+  if (adam)
+    for (const auto& p : agent->named_parameters()) {
+      const auto it = adam->state().find(adam_state_key(p.value()));
+      if (it == adam->state().end()) continue;
+      const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
+      add(kOptimizerPrefix + p.key() + ".exp_avg", s.exp_avg());
+      add(kOptimizerPrefix + p.key() + ".exp_avg_sq", s.exp_avg_sq());
+      add(kOptimizerPrefix + p.key() + ".step", torch::tensor(static_cast<std::int64_t>(s.step()), torch::kLong));
+    }
+  return out;
 }
 
 CheckpointInfo export_model(const Checkpoint& checkpoint, const fs::path& model_file) {

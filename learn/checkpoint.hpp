@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "learn/trainer.hpp"
@@ -43,6 +44,19 @@ class Checkpoint {
 /// ranges). Throws InputError with one line naming the file for anything that is not a Scout
 /// checkpoint of this format version.
 Checkpoint open_checkpoint(const std::filesystem::path& path);
+
+/// A tensor of an opened checkpoint as Scout has loaded it, by its name in the file.
+struct LoadedTensor {
+  std::string name;
+  std::vector<std::int64_t> shape;
+  std::vector<float> floats;           ///< an F32 tensor's values
+  std::vector<std::int64_t> integers;  ///< an I64 tensor's values
+};
+
+/// Every tensor of `checkpoint` read back out of LibTorch after Scout's loader put it there: the
+/// networks' parameters and buffers, and for a checkpoint Adam's step and moments (from the
+/// optimizer's own state). What scout.checkpoint_tensors gives Python, to hold against other readers.
+std::vector<LoadedTensor> loaded_tensors(const Checkpoint& checkpoint);
 
 /// The checkpoint file a path names: RUN/checkpoint.safetensors for a run folder, else the path itself.
 std::filesystem::path resolve_checkpoint(const std::filesystem::path& path);

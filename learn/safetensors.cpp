@@ -58,8 +58,8 @@ std::int64_t checked_elements(const std::vector<std::int64_t>& shape, std::int64
 // object, three keys and their values, a shape of max_rank sizes and two offsets; per metadata
 // entry a key and a value.
 std::size_t max_events(const Limits& limits) {
-  return (limits.max_tensors + 1) * (12 + static_cast<std::size_t>(limits.max_rank)) +
-         2 * limits.max_metadata_entries + 16;
+  return (limits.max_tensors + 1) * (12 + static_cast<std::size_t>(limits.max_rank)) + 2 * limits.max_metadata_entries +
+         16;
 }
 
 }  // namespace
@@ -74,8 +74,8 @@ const TensorView* File::find(const std::string& name) const {
 }
 
 bool looks_like_zip(std::span<const std::byte> bytes) {
-  return bytes.size() >= 4 && bytes[0] == std::byte{'P'} && bytes[1] == std::byte{'K'} &&
-         bytes[2] == std::byte{3} && bytes[3] == std::byte{4};
+  return bytes.size() >= 4 && bytes[0] == std::byte{'P'} && bytes[1] == std::byte{'K'} && bytes[2] == std::byte{3} &&
+         bytes[3] == std::byte{4};
 }
 
 std::string write(const std::vector<TensorBytes>& tensors, const std::map<std::string, std::string>& metadata,
@@ -106,9 +106,8 @@ std::string write(const std::vector<TensorBytes>& tensors, const std::map<std::s
   std::string text = header.dump();
   text.append((8 - text.size() % 8) % 8, ' ');
   if (text.size() > limits.max_header_bytes)
-    throw std::invalid_argument(
-        fmt::format("safetensors: a header of {} bytes, more than the {} a reader takes", text.size(),
-                    limits.max_header_bytes));
+    throw std::invalid_argument(fmt::format("safetensors: a header of {} bytes, more than the {} a reader takes",
+                                            text.size(), limits.max_header_bytes));
   std::string out;
   out.reserve(kLengthBytes + text.size() + offset);
   append_le64(out, text.size());
@@ -150,7 +149,7 @@ class Parser {
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
-    throw InputError(origin_ + ": not a safetensors file Scout reads: " + one_line(what));
+    throw InputError(origin_ + ": not a Scout checkpoint (safetensors): " + one_line(what));
   }
 
   // The header as JSON: nesting, the number of values and duplicate names are refused from the
@@ -242,10 +241,11 @@ class Parser {
     for (const TensorView& t : file.tensors) {
       const auto begin = static_cast<std::uint64_t>(t.bytes.data() - data_.data());
       if (begin != expected)
-        fail(fmt::format("tensor '{}' starts at byte {} of the data, where {} (the tensors follow each other "
-                         "without gap or overlap)",
-                         t.name.substr(0, 80), begin,
-                         expected == 0 ? std::string("the data begins") : "the one before it ends at " + std::to_string(expected)));
+        fail(fmt::format(
+            "tensor '{}' starts at byte {} of the data, where {} (the tensors follow each other "
+            "without gap or overlap)",
+            t.name.substr(0, 80), begin,
+            expected == 0 ? std::string("the data begins") : "the one before it ends at " + std::to_string(expected)));
       expected = begin + t.bytes.size();
     }
     if (expected != data_.size())

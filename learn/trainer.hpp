@@ -85,7 +85,7 @@ struct ScheduleCursor {
 
 /// The files of a run folder.
 inline constexpr const char* kCheckpointFile = "checkpoint.safetensors";  ///< weights, Adam, config, schedule
-inline constexpr const char* kMetricsFile = "metrics.csv";       ///< one row per epoch
+inline constexpr const char* kMetricsFile = "metrics.csv";                ///< one row per epoch
 
 /// What `Trainer::resume` may change; an unset field keeps the run's own.
 struct ResumeOptions {

@@ -18,6 +18,7 @@
 
 #include "core/error.hpp"
 #include "env/protocol.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/rollout.hpp"
 #include "learn/trained_agent.hpp"
 #include "learn/trainer.hpp"
@@ -235,6 +236,26 @@ class AgentCore {
   std::vector<grid::Axis> axes_;
 };
 
+// Every tensor of a model or checkpoint as Scout loads it (learn::loaded_tensors): name -> NumPy
+// array (float32 or int64), for holding Scout's reading against the safetensors package's.
+py::dict checkpoint_tensors(const std::string& path) {
+  std::vector<learn::LoadedTensor> tensors;
+  {
+    py::gil_scoped_release release;
+    tensors = learn::loaded_tensors(learn::open_checkpoint(path));
+  }
+  py::dict out;
+  for (const learn::LoadedTensor& t : tensors) {
+    if (t.integers.empty() && !t.floats.empty())
+      out[py::str(t.name)] = py::array_t<float>(t.shape, t.floats.data());
+    else if (t.floats.empty() && !t.integers.empty())
+      out[py::str(t.name)] = py::array_t<std::int64_t>(t.shape, t.integers.data());
+    else
+      out[py::str(t.name)] = py::array_t<float>(t.shape);  // no elements
+  }
+  return out;
+}
+
 }  // namespace
 }  // namespace scout::python
 
@@ -254,4 +275,5 @@ PYBIND11_MODULE(_scout_agent, m) {
            py::arg("occupied") = py::none(), py::arg("wide_revealed") = py::none(), py::arg("wide_seen") = py::none())
       .def("classify", &AgentCore::classify, py::arg("pose"), py::arg("seen"), py::arg("revealed"),
            py::arg("patch_px"));
+  m.def("checkpoint_tensors", &checkpoint_tensors, py::arg("path"));
 }

@@ -48,12 +48,14 @@ std::string manifest_beside(const fs::path& legacy) {
 void convert_command(const ConvertOptions& o) {
   std::error_code ec;
   const fs::path legacy = fs::is_directory(o.legacy, ec) ? fs::path(o.legacy) / "checkpoint.pt" : fs::path(o.legacy);
-  if (!fs::exists(legacy, ec)) throw InputError(legacy.string() + ": no such file (expected a .pt checkpoint or model)");
+  if (!fs::exists(legacy, ec))
+    throw InputError(legacy.string() + ": no such file (expected a .pt checkpoint or model)");
   if (!o.trusted)
     throw InputError(legacy.string() +
                      ": reading a .pt file runs LibTorch's unpickler, which trusts its input (a crafted file can "
                      "crash it or run code); add --trusted if you made this file or trust who did");
-  const fs::path out = o.out.empty() ? fs::path(legacy).replace_extension(learn::kCheckpointExtension) : fs::path(o.out);
+  const fs::path out =
+      o.out.empty() ? fs::path(legacy).replace_extension(learn::kCheckpointExtension) : fs::path(o.out);
   if (fs::exists(out, ec)) {
     if (fs::is_directory(out, ec)) throw InputError("--out: " + out.string() + " is a folder, expected a file name");
     if (!o.overwrite) throw InputError("--out: " + out.string() + " exists (add --overwrite to replace it)");
@@ -65,8 +67,8 @@ void convert_command(const ConvertOptions& o) {
     throw InputError("--out: " + out.string() + ": the folder " + parent.string() + " does not exist");
   const std::string manifest = manifest_beside(legacy);
   const learn::CheckpointInfo info = learn::convert_legacy_checkpoint(legacy, out, manifest);
-  fmt::print("converted: {} -> {} ({} bytes, format {}; {} epoch(s) of training{}{})\n", legacy.string(),
-             out.string(), fs::file_size(out), info.format_version, info.history.size(),
+  fmt::print("converted: {} -> {} ({} bytes, format {}; {} epoch(s) of training{}{})\n", legacy.string(), out.string(),
+             fs::file_size(out), info.format_version, info.history.size(),
              info.cursor.stage == learn::Stage::Done ? "" : ", resumable",
              manifest.empty() ? "" : ", with its manifest");
 }

@@ -798,7 +798,8 @@ void add_report_command(CLI::App& app, const Context& context) {
       "accuracy against epochs with both baselines, the confusion matrix, test episodes and accuracy against the "
       "observation budget (figures drawn by matplotlib on the project's Python, .venv/bin/python; SCOUT_PYTHON "
       "names another).");
-  cmd->add_option("model", opt->model, "A model file (models/mnist.safetensors) or a run folder (RUN/checkpoint.safetensors)")
+  cmd->add_option("model", opt->model,
+                  "A model file (models/mnist.safetensors) or a run folder (RUN/checkpoint.safetensors)")
       ->required();
   cmd->add_option("--out", opt->out, "Report folder to create (must not exist unless --overwrite)")->required();
   cmd->add_option("--eval", opt->eval_file,

@@ -256,7 +256,8 @@ void check_batch_split(int batch_images, int world_size) {
 std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::path& run, int threads, int world_size) {
   if (!o.resume.empty()) {
     if (!fs::is_regular_file(run / learn::kCheckpointFile))
-      throw InputError("--resume: " + o.resume + " holds no checkpoint.safetensors (expected a folder written by scout train)");
+      throw InputError("--resume: " + o.resume +
+                       " holds no checkpoint.safetensors (expected a folder written by scout train)");
     if (!core::take_folder_for_this_process(run))
       throw InputError("--resume: " + o.resume +
                        ": another scout train is writing this run; resume it once that one has ended");
@@ -446,7 +447,8 @@ void add_train_command(CLI::App& app, const Context& context) {
   auto* cmd = app.add_subcommand(
       "train",
       "Train the agent (METHOD.md): optional full-image pretraining, then modes (i) -> (ii) -> (iii), with the "
-      "physics and the camera in the loop. Writes RUN/checkpoint.safetensors every epoch, RUN/metrics.csv, RUN/manifest.json.");
+      "physics and the camera in the loop. Writes RUN/checkpoint.safetensors every epoch, RUN/metrics.csv, "
+      "RUN/manifest.json.");
   cmd->add_option("world", o->world, "World file (YAML), e.g. worlds/mnist.yaml (omit with --resume)");
   cmd->add_option("--out", o->out, "Run folder to create (must not exist)");
   cmd->add_option("--resume", o->resume, "Continue the run in this folder from its checkpoint.safetensors");

@@ -36,9 +36,9 @@ struct CheckpointState {
   TrainConfig config;
   ScheduleCursor cursor;
   std::vector<EpochMetrics> history;
-  EpochSums partial;   ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
-  int world_size = 1;  ///< processes the run trained with (1 in files written before data-parallel runs)
-  int threads = 0;     ///< LibTorch threads per process it trained with (0: not recorded)
+  EpochSums partial;     ///< of the epoch in progress (after a stop), so that a resumed epoch reports the same
+  int world_size = 1;    ///< processes the run trained with (1 in files written before data-parallel runs)
+  int threads = 0;       ///< LibTorch threads per process it trained with (0: not recorded)
   std::string manifest;  ///< the run's manifest.json (JSON text; empty where none was given)
 };
 

@@ -34,7 +34,7 @@ except ImportError:  # Gymnasium is optional: the package works the same without
     gymnasium = None
     AutoresetMode = None
 
-__all__ = ["make_vec", "VectorEnv", "Env", "Agent", "Box", "Dict", "Discrete", "MultiDiscrete", "WORLDS",
+__all__ = ["make_vec", "VectorEnv", "Env", "Agent", "checkpoint_tensors", "Box", "Dict", "Discrete", "MultiDiscrete", "WORLDS",
            "__version__"]
 
 #: The registered ids (scout/<name>) and their world files in the source tree's worlds/. The
@@ -280,6 +280,22 @@ def _register():
 
 if gymnasium is not None:
     _register()
+
+
+def checkpoint_tensors(path):
+    """Every tensor of a Scout model or checkpoint (.safetensors; a run folder: its checkpoint) as
+    Scout's own reader loads it, read back out of its networks and its optimizer: a dict of NumPy
+    arrays (float32, or int64 for counts) by the names the file gives them. The file itself is a
+    plain safetensors file; the `safetensors` package reads it too:
+
+        from safetensors.numpy import load_file
+        weights = load_file("models/mnist.safetensors")   # the same names and values
+
+    LibTorch is loaded with it (the scout._scout_agent module)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a path to a model file or run folder, got {path!r}")
+    from . import _scout_agent  # LibTorch comes with it
+    return _scout_agent.checkpoint_tensors(os.fspath(path))
 
 
 class Agent:

@@ -20,11 +20,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
-#include <limits>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -32,8 +32,8 @@
 
 #include "core/error.hpp"
 #include "learn/internal/checkpoint.hpp"
-#include "tests/support/safetensors_edit.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/safetensors_edit.hpp"
 #include "tests/support/training_fixture.hpp"
 
 namespace scout::learn {
@@ -201,9 +201,7 @@ struct HostileCase {
 std::vector<HostileCase> layout_cases() {
   return {
       {"a header length larger than the file",
-       [](const std::string& real) {
-         return scout::testing::length_prefix(real.size()) + real.substr(8);
-       },
+       [](const std::string& real) { return scout::testing::length_prefix(real.size()) + real.substr(8); },
        "the header length says"},
       {"a header length of 2^63",
        [](const std::string& real) { return scout::testing::length_prefix(std::uint64_t{1} << 63) + real.substr(8); },
@@ -275,7 +273,8 @@ std::vector<HostileCase> layout_cases() {
            if (name == "__metadata__") continue;
            auto& offsets = entry["data_offsets"];
            for (auto& o : offsets)
-             if (o.get<std::uint64_t>() >= cut && !(&entry == &parts.header.begin().value())) o = o.get<std::uint64_t>() + 64;
+             if (o.get<std::uint64_t>() >= cut && !(&entry == &parts.header.begin().value()))
+               o = o.get<std::uint64_t>() + 64;
          }
          return join(parts);
        },
@@ -325,7 +324,8 @@ std::vector<HostileCase> content_cases() {
       {"a missing weight",
        [](const std::string& real) {
          return with_tensors(real, [](std::vector<TensorEntry>& t) {
-           t.erase(std::find_if(t.begin(), t.end(), [](const TensorEntry& e) { return e.name.rfind("agent.", 0) == 0; }));
+           t.erase(
+               std::find_if(t.begin(), t.end(), [](const TensorEntry& e) { return e.name.rfind("agent.", 0) == 0; }));
          });
        },
        "is missing"},
@@ -384,7 +384,9 @@ std::vector<HostileCase> content_cases() {
        },
        "config: arrays and objects nested more than 16 deep"},
       {"ResNet-18 width 512 config in a small file",
-       [](const std::string& real) { return with_metadata(real, "config", [](nlohmann::ordered_json& c) { resnet_512(c); }); },
+       [](const std::string& real) {
+         return with_metadata(real, "config", [](nlohmann::ordered_json& c) { resnet_512(c); });
+       },
        "config: the network has"},
       {"a 0-d Adam moment",
        [](const std::string& real) {
@@ -533,7 +535,9 @@ class HostileCommands : public HostileCheckpoints {
     return {{"eval",
              {"eval", "--checkpoint", file.string(), "--images", images, "--labels", labels, "--runs", "1"},
              file.string()},
-            {"export", {"export", file.string(), "--out", (out / "model.safetensors").string(), "--overwrite"}, file.string()},
+            {"export",
+             {"export", file.string(), "--out", (out / "model.safetensors").string(), "--overwrite"},
+             file.string()},
             {"run --checkpoint",
              {"run", (temp_.path() / "world.yaml").string(), "--checkpoint", file.string(), "--out",
               (out / "run").string(), "--no-images", "--overwrite"},

@@ -1,7 +1,5 @@
 // The safetensors format (learn/internal/safetensors.hpp): what Scout writes reads back bit for bit, and
 // every malformed file is refused in one line naming the part, without allocating beyond it.
-#include "learn/internal/safetensors.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -10,6 +8,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "learn/internal/safetensors.hpp"
 
 namespace scout::learn::safetensors {
 namespace {
@@ -86,11 +85,14 @@ TEST(Safetensors, MalformedFilesAreRefusedInOneLineNamingThePart) {
       {"deep nesting", file_with_header(std::string(100000, '['), 0), "nests deeper than 3 levels"},
       {"deep nesting in an object", file_with_header("{\"a\":{\"b\":{\"c\":{\"d\":1}}}}", 0), "nests deeper"},
       {"a duplicate name",
-       file_with_header(R"({"a":{"dtype":"F32","shape":[1],"data_offsets":[0,4]},"a":{"dtype":"F32","shape":[1],"data_offsets":[4,8]}})", 8),
+       file_with_header(
+           R"({"a":{"dtype":"F32","shape":[1],"data_offsets":[0,4]},"a":{"dtype":"F32","shape":[1],"data_offsets":[4,8]}})",
+           8),
        "names 'a' twice"},
       {"a bf16 tensor", file_with_header(R"({"a":{"dtype":"BF16","shape":[4],"data_offsets":[0,8]}})", 8),
        "Scout stores F32 and I64 only"},
-      {"bytes that do not match the shape", file_with_header(R"({"a":{"dtype":"F32","shape":[3],"data_offsets":[0,8]}})", 8),
+      {"bytes that do not match the shape",
+       file_with_header(R"({"a":{"dtype":"F32","shape":[3],"data_offsets":[0,8]}})", 8),
        "takes 12 bytes, data_offsets give 8"},
       {"offsets past the end", file_with_header(R"({"a":{"dtype":"F32","shape":[4],"data_offsets":[0,16]}})", 8),
        "data_offsets [0, 16], the data after the header is 8 bytes"},
@@ -98,7 +100,9 @@ TEST(Safetensors, MalformedFilesAreRefusedInOneLineNamingThePart) {
        "data_offsets [8, 0] run backwards"},
       {"a gap", file_with_header(R"({"a":{"dtype":"F32","shape":[1],"data_offsets":[4,8]}})", 8), "starts at byte 4"},
       {"overlapping tensors",
-       file_with_header(R"({"a":{"dtype":"F32","shape":[2],"data_offsets":[0,8]},"b":{"dtype":"F32","shape":[2],"data_offsets":[4,12]}})", 12),
+       file_with_header(
+           R"({"a":{"dtype":"F32","shape":[2],"data_offsets":[0,8]},"b":{"dtype":"F32","shape":[2],"data_offsets":[4,12]}})",
+           12),
        "starts at byte 4 of the data, where the one before it ends at 8"},
       {"bytes after the last tensor", file_with_header(ok, 12), "4 bytes before the file does"},
       {"a shape that overflows",
@@ -106,9 +110,9 @@ TEST(Safetensors, MalformedFilesAreRefusedInOneLineNamingThePart) {
        "more than 2^60 elements"},
       {"a negative size", file_with_header(R"({"a":{"dtype":"F32","shape":[-2],"data_offsets":[0,8]}})", 8),
        "not a whole number >= 0"},
-      {"a metadata number", file_with_header(R"({"__metadata__":{"step":5}})", 0), "__metadata__: step is not a string"},
-      {"an extra field",
-       file_with_header(R"({"a":{"dtype":"F32","shape":[2],"data_offsets":[0,8],"x":1}})", 8),
+      {"a metadata number", file_with_header(R"({"__metadata__":{"step":5}})", 0),
+       "__metadata__: step is not a string"},
+      {"an extra field", file_with_header(R"({"a":{"dtype":"F32","shape":[2],"data_offsets":[0,8],"x":1}})", 8),
        "expected exactly dtype, shape and data_offsets"},
   };
   for (const auto& c : cases) {

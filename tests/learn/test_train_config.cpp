@@ -176,7 +176,8 @@ TEST(TrainSettings, ACheckpointsBadValueIsNamedByItsKey) {
   const std::string width = refusal(with_value(text, "planner_width", "0"));
   EXPECT_EQ(width, "RUN/checkpoint.safetensors: config: network.planner_width: expected an integer in [1, 512], got 0");
   const std::string baseline = refusal(with_value(with_value(text, "rollouts", "1"), "leave_one_out", "true"));
-  EXPECT_EQ(baseline, "RUN/checkpoint.safetensors: config: leave_one_out: the leave-one-out baseline needs rollouts >= 2");
+  EXPECT_EQ(baseline,
+            "RUN/checkpoint.safetensors: config: leave_one_out: the leave-one-out baseline needs rollouts >= 2");
   for (const std::string& what : {rollouts, lr, width, baseline}) EXPECT_EQ(what.find("--"), std::string::npos) << what;
 }
 

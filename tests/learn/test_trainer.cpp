@@ -633,7 +633,9 @@ TEST_F(Resume, ANonFiniteLossStopsAndKeepsTheLastGoodCheckpoint) {
   }
   const fs::path file = run / kCheckpointFile;
   {
-    // The same checkpoint with one classifier weight NaN (optimizer state and schedule kept).
+    // The same checkpoint with the first classifier layer's weights at the largest float, finite but
+    // overflowing to a non-finite loss (optimizer state and schedule kept; a NaN weight would be
+    // refused when the file is read).
     const Checkpoint checkpoint = open_checkpoint(file);
     CheckpointState state = checkpoint.contents().state;
     agent::Agent agent(state.config.network);
@@ -641,7 +643,7 @@ TEST_F(Resume, ANonFiniteLossStopsAndKeepsTheLastGoodCheckpoint) {
     checkpoint.contents().load_into(*agent, &adam);
     {
       torch::NoGradGuard no_grad;
-      agent->classifier->parameters().front().view(-1)[0].fill_(std::numeric_limits<float>::quiet_NaN());
+      agent->classifier->parameters().front().fill_(std::numeric_limits<float>::max());
     }
     save_checkpoint(file, *agent, &adam, state);
   }

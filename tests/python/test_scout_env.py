@@ -697,3 +697,54 @@ def test_the_wider_view_is_observed_and_a_wide_view_agent_reads_it_as_scout_run_
     assert not np.array_equal(agent.act(obs, info)["goal"], agent.act(blind, info)["goal"])
     with pytest.raises(ValueError, match=r"planners read the wider view \(--wide-view\): expected obs\['wide_revealed'\]"):
         agent.act({k: v for k, v in obs.items() if not k.startswith("wide_")}, info)
+
+
+def test_models_and_checkpoints_are_safetensors_files_both_ways(tmp_path):
+    """Scout's files open with the `safetensors` package (NumPy side) with the names, shapes and
+    values Scout's own reader loads; a model edited and written by that package loads in Scout and
+    drives with the edit."""
+    from safetensors import safe_open
+    from safetensors.numpy import load_file, save_file
+    run = tmp_path / "run"
+    subprocess.run([BINARY, "train", WORLD, "--out", str(run), "--init-from", MODEL, "--epochs", "0,0,1",
+                    "--train-limit", "40", "--validation-limit", "20", "--batch", "20", "--threads", "1"],
+                   check=True, capture_output=True)
+    checkpoint = run / "checkpoint.safetensors"
+    for path, with_adam in [(MODEL, False), (os.path.join(SOURCE, "models", "mnist.safetensors"), False),
+                            (checkpoint, True)]:
+        theirs, ours = load_file(str(path)), scout.checkpoint_tensors(path)
+        assert sorted(theirs) == sorted(ours), path
+        for name, value in theirs.items():
+            assert value.dtype == ours[name].dtype and value.shape == ours[name].shape, name
+            assert np.array_equal(value, ours[name]), name
+        assert any(name.endswith(".exp_avg_sq") for name in theirs) == with_adam, path
+        with safe_open(str(path), "np") as f:
+            metadata = f.metadata()
+        assert metadata["format"] == "scout-checkpoint" and metadata["format_version"] == "2"
+        assert json.loads(metadata["config"])["network"]["classes"] == 10
+    assert json.loads(metadata["progress"])["history"], "the checkpoint's epochs"
+    assert all(v >= 1 for k, v in theirs.items() if k.endswith(".step"))
+
+    # Edited in Python: the classifier's last bias made to favour class 3 by far. Scout reads the
+    # edit, and the agent then calls every digit a 3.
+    weights = load_file(MODEL)
+    with safe_open(MODEL, "np") as f:
+        metadata = f.metadata()
+    biases = [name for name in weights if name.startswith("agent.classifier.") and name.endswith(".bias")]
+    last = max(biases, key=lambda name: list(weights).index(name))
+    assert weights[last].shape == (10,)
+    weights[last] = weights[last].copy()
+    weights[last][3] += 1000.0
+    edited = tmp_path / "edited.safetensors"
+    save_file(weights, str(edited), metadata=metadata)
+    assert np.array_equal(scout.checkpoint_tensors(edited)[last], weights[last])
+    envs = scout.make_vec(WORLD, 16, seed=3)
+    edited_logits = drive(envs, scout.Agent(edited), 3)[3]
+    logits = drive(envs, scout.Agent(MODEL), 3)[3]
+    assert (edited_logits.argmax(axis=1) == 3).all()
+    assert (logits.argmax(axis=1) != 3).any()
+    # A tensor dropped in Python: one clear error naming the file and the tensor.
+    del weights[last]
+    save_file(weights, str(tmp_path / "short.safetensors"), metadata=metadata)
+    with pytest.raises(Exception, match=r"short\.safetensors.*" + last.replace(".", r"\.") + " is missing"):
+        scout.checkpoint_tensors(tmp_path / "short.safetensors")

@@ -4,10 +4,10 @@
 // the parser's (learn/internal/safetensors.hpp).
 #include <algorithm>
 #include <cstdint>
-#include <vector>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace scout::testing {
 

@@ -1,6 +1,7 @@
-// A helper program of tools_tests (which never link LibTorch themselves): sets one classifier
-// weight of a checkpoint to NaN, keeping Adam's state, the config and the schedule, as a diverged
-// step would leave it (tests/learn/test_trainer.cpp does the same in-process). Usage:
+// A helper program of tools_tests (which never link LibTorch themselves): sets the first classifier
+// layer's weights to the largest float, keeping Adam's state, the config and the schedule, so that
+// the next step's loss is not finite, as after a diverged step (a NaN weight itself is refused when
+// the file is read) (tests/learn/test_trainer.cpp does the same in-process). Usage:
 //   scout_test_poison_checkpoint RUN/checkpoint.safetensors
 #include <torch/torch.h>
 
@@ -25,7 +26,7 @@ int main(int argc, char** argv) {
     checkpoint.contents().load_into(*agent, &adam);
     {
       torch::NoGradGuard no_grad;
-      agent->classifier->parameters().front().view(-1)[0].fill_(std::numeric_limits<float>::quiet_NaN());
+      agent->classifier->parameters().front().fill_(std::numeric_limits<float>::max());
     }
     scout::learn::save_checkpoint(file, *agent, &adam, state);
   } catch (const std::exception& e) {

@@ -84,11 +84,11 @@ TEST(EvalCommand, TheReferenceReportIsReproducedOnEveryCpu) {
   const fs::path subset = source / "tests/data/mnist-subset";
   auto evaluate = [&](const std::string& name) {
     const fs::path report = temp.path() / (name + ".json"), predictions = temp.path() / (name + ".csv");
-    const CliResult r = run_cli(SCOUT_BINARY, "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() +
-                                                  " --images " + (subset / "t10k-images-idx3-ubyte").string() +
-                                                  " --labels " + (subset / "t10k-labels-idx1-ubyte").string() +
-                                                  " --runs 3 --seed 5 --precision fp32 --json " + report.string() +
-                                                  " --predictions " + predictions.string());
+    const CliResult r = run_cli(
+        SCOUT_BINARY, "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() + " --images " +
+                          (subset / "t10k-images-idx3-ubyte").string() + " --labels " +
+                          (subset / "t10k-labels-idx1-ubyte").string() + " --runs 3 --seed 5 --precision fp32 --json " +
+                          report.string() + " --predictions " + predictions.string());
     EXPECT_EQ(r.status, 0) << r.output;
     json got = json::parse(read_text(report));
     // What depends on the machine, the clock or the paths is not compared.
@@ -228,8 +228,8 @@ TEST(EvalCommand, ABf16ModelRunsInFp32WhereBf16IsNotNative) {
   const fs::path subset = source / "tests/data/mnist-subset";
   const std::string no_native_bf16 =
       "env ONEDNN_MAX_CPU_ISA=AVX2 ATEN_CPU_CAPABILITY=avx2 " + std::string(SCOUT_BINARY);
-  const std::string args = "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() + " --images " +
-                           (subset / "t10k-images-idx3-ubyte").string() + " --labels " +
+  const std::string args = "eval --checkpoint " + (source / "tests/data/mnist-8k-v1.safetensors").string() +
+                           " --images " + (subset / "t10k-images-idx3-ubyte").string() + " --labels " +
                            (subset / "t10k-labels-idx1-ubyte").string() + " --runs 1 --limit 8 --json ";
   const CliResult automatic = run_cli(no_native_bf16, args + (temp.path() / "auto.json").string());
   ASSERT_EQ(automatic.status, 0) << automatic.output;

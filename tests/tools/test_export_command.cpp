@@ -56,7 +56,8 @@ TEST_F(TrainCli, ExportWritesASmallModelThatEvalReadsLikeTheRun) {
   EXPECT_EQ(run("export " + base() + " --out " + model + " --overwrite").status, 0);
   expect_one_line_error(run("export " + base() + " --out " + path("no/such/m.safetensors")), {"--out", "no/such"});
   std::ofstream(path("junk.safetensors")) << "not a checkpoint";
-  expect_one_line_error(run("export " + path("junk.safetensors") + " --out " + path("m2.safetensors")), {path("junk.safetensors")});
+  expect_one_line_error(run("export " + path("junk.safetensors") + " --out " + path("m2.safetensors")),
+                        {path("junk.safetensors")});
   EXPECT_FALSE(fs::exists(path("m2.safetensors")));
 }
 

@@ -90,7 +90,8 @@ TEST_F(TrainCli, AFullDiskAndAReadOnlyFolderStopTrainingWithOneLineAndKeepTheChe
   ASSERT_EQ(r.status, 0) << r.output;
   const fs::path dir = local_.path();
   EXPECT_EQ(read_text(dir / "full.status"), "1\n") << read_text(dir / "full.err");
-  expect_write_error({1, "", read_text(dir / "full.err")}, run_dir + "/checkpoint.safetensors", "No space left on device");
+  expect_write_error({1, "", read_text(dir / "full.err")}, run_dir + "/checkpoint.safetensors",
+                     "No space left on device");
   EXPECT_EQ(read_text(dir / "full.intact"), "intact\n");
   EXPECT_EQ(read_text(dir / "full.hidden"), "0\n") << "the failed write left a temporary in the run folder";
   EXPECT_EQ(read_text(dir / "ro.status"), "1\n") << read_text(dir / "ro.err");

@@ -98,20 +98,21 @@ TEST_F(TrainCli, InitFromStartsANewRunFromAModelsWeights) {
   const std::string frozen = " --epochs 1,0,0 --freeze goal,action,classifier --seed 3";
   const Result r = run("train " + world() + " --out " + path("init") + " --init-from " + base() + frozen + kTiny);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  const scout::testing::CliResult same =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("init") + "/checkpoint.safetensors'");
+  const scout::testing::CliResult same = scout::testing::run_cli(
+      COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("init") + "/checkpoint.safetensors'");
   ASSERT_EQ(same.status, 0) << same.output;
   EXPECT_NE(same.output.find(" 1 "), std::string::npos) << "expected identical weights: " << same.output;
   // Without --init-from the same command starts from the seed's initialisation instead.
   ASSERT_EQ(run("train " + world() + " --out " + path("fresh") + frozen + kTiny).status, 0);
-  const scout::testing::CliResult fresh =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("fresh") + "/checkpoint.safetensors'");
+  const scout::testing::CliResult fresh = scout::testing::run_cli(
+      COMPARE_WEIGHTS, "'" + base() + "/checkpoint.safetensors' '" + path("fresh") + "/checkpoint.safetensors'");
   EXPECT_NE(fresh.output.find(" 0 "), std::string::npos) << fresh.output;
 
   std::ifstream in(path("init") + "/manifest.json");
   const json m = json::parse(in);
   ASSERT_TRUE(m.contains("init_from")) << m.dump(2);
-  EXPECT_EQ(fs::path(m["init_from"]["file"].get<std::string>()), fs::absolute(fs::path(base()) / "checkpoint.safetensors"));
+  EXPECT_EQ(fs::path(m["init_from"]["file"].get<std::string>()),
+            fs::absolute(fs::path(base()) / "checkpoint.safetensors"));
   EXPECT_EQ(m["init_from"]["sha256"].get<std::string>().size(), 64u);
 
   expect_one_line_error(run("train " + world() + " --out " + path("wider") + " --init-from " + base() + frozen + kTiny +
@@ -195,12 +196,14 @@ TEST_F(TrainCli, ControlCSavesACheckpointThatResumeFinishes) {
 TEST_F(TrainCli, BadCheckpointsAreRefusedWithOneLine) {
   // Garbage where the checkpoint should be.
   const std::string garbage = copy_of_base("garbage");
-  std::ofstream(garbage + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc) << "PK\x03\x04 not a checkpoint";
+  std::ofstream(garbage + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc)
+      << "PK\x03\x04 not a checkpoint";
   expect_one_line_error(run("train --resume " + garbage), {garbage + "/checkpoint.safetensors"});
   // A real checkpoint cut short.
   const std::string truncated = copy_of_base("truncated");
   const std::string bytes = read_text(truncated + "/checkpoint.safetensors");
-  std::ofstream(truncated + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() / 2);
+  std::ofstream(truncated + "/checkpoint.safetensors", std::ios::binary | std::ios::trunc)
+      << bytes.substr(0, bytes.size() / 2);
   expect_one_line_error(run("train --resume " + truncated), {truncated + "/checkpoint.safetensors"});
   // A folder without one.
   fs::create_directories(path("empty"));

@@ -66,8 +66,8 @@ void expect_no_hidden_files(const std::string& folder) {
 // the same weights bit for bit.
 void expect_the_same_run(const std::string& reference, const std::string& killed) {
   EXPECT_EQ(metrics_without_timing(killed + "/metrics.csv"), metrics_without_timing(reference + "/metrics.csv"));
-  const scout::testing::CliResult same =
-      scout::testing::run_cli(COMPARE_WEIGHTS, "'" + reference + "/checkpoint.safetensors' '" + killed + "/checkpoint.safetensors'");
+  const scout::testing::CliResult same = scout::testing::run_cli(
+      COMPARE_WEIGHTS, "'" + reference + "/checkpoint.safetensors' '" + killed + "/checkpoint.safetensors'");
   ASSERT_EQ(same.status, 0) << same.output;
   EXPECT_EQ(same.output.substr(0, same.output.find(' ')), "0") << same.output;  // relative difference 0
   EXPECT_NE(same.output.find(" 1 "), std::string::npos) << same.output;         // bit for bit
