@@ -7,13 +7,10 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <random>
 #include <set>
 #include <span>
-#include <sstream>
 
 #include "agent/config.hpp"
 #include "core/error.hpp"
@@ -57,15 +54,29 @@ json history_json(const std::vector<EpochMetrics>& history) {
   return rows;
 }
 
+// A whole number in [lo, hi] (nlohmann's get<int>() would wrap 2^32 + 1 to 1 and take 1e300).
+std::int64_t whole(const nlohmann::json& value, std::int64_t lo, std::int64_t hi, const char* what) {
+  if (!value.is_number_integer()) throw std::runtime_error(fmt::format("{}: expected a whole number", what));
+  const std::int64_t v = value.is_number_unsigned() && value.get<std::uint64_t>() > std::uint64_t{INT64_MAX}
+                             ? INT64_MAX
+                             : value.get<std::int64_t>();
+  if (v < lo || v > hi) throw std::runtime_error(fmt::format("{}: expected {} to {}, got {}", what, lo, hi, v));
+  return v;
+}
+
 // `learning_rate`: the run's configured rate, for rows written before epochs recorded their own.
-std::vector<EpochMetrics> history_from(const json& rows, double learning_rate) {
+// Rows are in the schedule's order, at most kMaxEpochs of a stage.
+std::vector<EpochMetrics> history_from(const nlohmann::json& rows, double learning_rate) {
+  if (!rows.is_array()) throw std::runtime_error("history: expected a list of epochs");
+  if (rows.size() > static_cast<std::size_t>(kTrainingStages) * kMaxEpochs)
+    throw std::runtime_error(fmt::format("history: {} epochs, more than a schedule has", rows.size()));
   std::vector<EpochMetrics> history;
-  for (const json& r : rows) {
+  for (const nlohmann::json& r : rows) {
     EpochMetrics m;
-    const int stage = r.at("stage").get<int>();
-    if (stage < 0 || stage >= kTrainingStages) throw std::out_of_range("stage");
-    m.stage = static_cast<Stage>(stage);
-    m.epoch = r.at("epoch").get<int>();
+    m.stage = static_cast<Stage>(whole(r.at("stage"), 0, kTrainingStages - 1, "history: stage"));
+    if (!history.empty() && index(m.stage) < index(history.back().stage))
+      throw std::runtime_error("history: a stage before the one of the epoch above it");
+    m.epoch = static_cast<int>(whole(r.at("epoch"), 1, kMaxEpochs, "history: epoch"));
     m.reward = r.at("reward").get<double>();
     m.loss = r.at("loss").get<double>();
     m.train_accuracy = r.at("train_accuracy").get<double>();
@@ -171,6 +182,12 @@ std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* o
                                                  {"config", state.config.to_json()},
                                                  {"progress", progress_json(state)}};
   if (!state.manifest.empty()) metadata["manifest"] = state.manifest;
+  // What the reader takes (check_metadata): a run whose history outgrows it is told so, and the
+  // previous checkpoint stays (about 7,000 epochs).
+  for (const auto& [key, limit] : {std::pair{"progress", kMaxProgressBytes}, std::pair{"manifest", kMaxManifestBytes}})
+    if (metadata.count(key) && metadata[key].size() > limit)
+      throw InputError(fmt::format("checkpoint: its {} takes {} bytes, more than the {} a checkpoint stores", key,
+                                   metadata[key].size(), core::format_bytes(limit)));
   if (optimizer) {
     auto& adam = dynamic_cast<torch::optim::Adam&>(*optimizer);
     metadata["optimizer"] =
@@ -203,8 +220,6 @@ void save_checkpoint(const fs::path& file, agent::AgentImpl& agent, torch::optim
 
 namespace {
 
-namespace st = safetensors;
-
 // The file's bytes; a checkpoint is read whole and checked before a tensor is made from it. Its
 // size is bounded before a byte is read, and a FIFO or a device is refused without blocking.
 std::string read_checkpoint_file(const fs::path& file) {
@@ -236,39 +251,49 @@ std::string read_checkpoint_file(const fs::path& file) {
 }  // namespace
 
 void read_progress(const std::string& text, const std::string& origin, CheckpointState& state) {
-  int stage = 0;
-  if (const std::optional<std::size_t> at = json_nested_beyond(text, kMaxJsonNesting))
-    throw InputError(
-        fmt::format("{}: progress: arrays and objects nested more than {} deep (at byte {}; Scout's "
-                    "writer nests 3)",
-                    origin, kMaxJsonNesting, *at));
+  // Every number in its range: a count as a whole number >= 0, the processes and threads within
+  // what the command line allows (a resume starts that many threads).
+  constexpr std::int64_t kCount = std::int64_t{1} << 50;
   try {
-    const json p = json::parse(text);
-    stage = p.at("stage").get<int>();
-    state.cursor = {Stage::Done, p.at("epoch").get<int>(), p.at("batch").get<int>()};
-    const json& q = p.at("partial");
+    // The writer's history rows take about 13 bytes per parse event (a key, a value, a bracket): a
+    // budget of one per 8 bytes holds them, and bounds a crafted list of zeros (2 bytes a value)
+    // to a tree of about twice the text's size.
+    const nlohmann::json p = parse_json_bounded(text, std::max<std::size_t>(1024, text.size() / 8));
+    state.cursor = {static_cast<Stage>(whole(p.at("stage"), 0, index(Stage::Done), "stage")),
+                    static_cast<int>(whole(p.at("epoch"), 0, kMaxEpochs, "epoch")),
+                    static_cast<int>(whole(p.at("batch"), 0, INT32_MAX, "batch"))};
+    const nlohmann::json& q = p.at("partial");
     state.partial = {.reward = q.at("reward").get<double>(),
                      .loss = q.at("loss").get<double>(),
                      .train_seconds = q.at("train_seconds").get<double>(),
-                     .correct = q.at("correct").get<long>(),
-                     .rollouts = q.at("robots").get<long>(),
-                     .images = q.at("images").get<long>(),
-                     .batches = q.at("batches").get<long>(),
+                     .correct = whole(q.at("correct"), 0, kCount, "partial: correct"),
+                     .rollouts = whole(q.at("robots"), 0, kCount, "partial: robots"),
+                     .images = whole(q.at("images"), 0, kCount, "partial: images"),
+                     .batches = whole(q.at("batches"), 0, kCount, "partial: batches"),
                      // Absent from files written before the gradient norm was measured.
                      .gradient_norm = q.value("gradient_norm", 0.0),
-                     .gradient_steps = q.value("gradient_steps", 0L)};
+                     .gradient_steps = q.contains("gradient_steps")
+                                           ? whole(q.at("gradient_steps"), 0, kCount, "partial: gradient_steps")
+                                           : 0};
     state.history = history_from(p.at("history"), state.config.learning_rate);
-    state.world_size = p.contains("world_size") ? p.at("world_size").get<int>() : 1;
-    state.threads = p.contains("threads") ? p.at("threads").get<int>() : 0;
+    state.world_size =
+        p.contains("world_size") ? static_cast<int>(whole(p.at("world_size"), 1, kMaxProcesses, "world_size")) : 1;
+    state.threads = p.contains("threads") ? static_cast<int>(whole(p.at("threads"), 0, kMaxThreads, "threads")) : 0;
   } catch (const std::exception& e) {
-    throw InputError(origin + ": progress: unreadable (" + one_line(e.what()) + ")");
+    throw InputError(origin + ": progress: " + first_line(e.what()));
   }
-  if (stage < 0 || stage > index(Stage::Done) || state.cursor.epoch < 0 || state.cursor.batch < 0)
-    throw InputError(origin + ": progress: the schedule position is out of range");
-  state.cursor.stage = static_cast<Stage>(stage);
 }
 
 namespace {
+
+// Building an agent to hold a file's weights draws initial weights from LibTorch's generator: put
+// its state back, so that reading a file never changes what a later construction draws (the
+// Python package shares the generator with PyTorch).
+struct GeneratorRestore {
+  at::Generator generator = at::detail::getDefaultCPUGenerator();
+  at::Tensor state = generator.get_state();
+  ~GeneratorRestore() { generator.set_state(state); }
+};
 
 // The config's networks against the file's size, before anything is built from the config: a
 // config that declares a billion parameters in a file of a megabyte is refused in microseconds.
@@ -354,11 +379,6 @@ const std::string& metadata_json(const st::File& file, const std::string& key, s
 // The parts of a checkpoint besides its tensors: the format, the config, the progress, the
 // manifest, and which metadata keys may appear at all.
 CheckpointState check_metadata(const st::File& file, std::size_t file_bytes, const std::string& origin) {
-  for (const auto& [key, value] : file.metadata)
-    if (key != "format" && key != "format_version" && key != "config" && key != "progress" && key != "manifest" &&
-        key != "optimizer")
-      throw InputError(origin + ": __metadata__: " + one_line(key.substr(0, 80)) +
-                       " is not an entry Scout's writer stores");
   const auto format = file.metadata.find("format");
   if (format == file.metadata.end() || format->second != kFormatName)
     throw InputError(origin + ": not a Scout checkpoint (its __metadata__ has no format: " + kFormatName + ")");
@@ -367,19 +387,25 @@ CheckpointState check_metadata(const st::File& file, std::size_t file_bytes, con
     throw InputError(
         fmt::format("{}: format_version: this build reads {}, the file has {}", origin, kCheckpointFormat,
                     version == file.metadata.end() ? std::string("none") : one_line(version->second.substr(0, 20))));
+  for (const auto& [key, value] : file.metadata)
+    if (key != "format" && key != "format_version" && key != "config" && key != "progress" && key != "manifest" &&
+        key != "optimizer")
+      throw InputError(origin + ": __metadata__: " + one_line(key.substr(0, 80)) +
+                       " is not an entry Scout's writer stores");
   CheckpointState state;
   state.config = TrainConfig::from_json(metadata_json(file, "config", kMaxConfigBytes, origin), origin);
   check_network_fits(state.config.network, file_bytes, origin);
   read_progress(metadata_json(file, "progress", kMaxProgressBytes, origin), origin, state);
   check_cursor(state, origin);
-  if (const auto manifest = file.metadata.find("manifest"); manifest != file.metadata.end()) {
+  if (file.metadata.count("manifest")) {
+    const std::string& manifest = metadata_json(file, "manifest", kMaxManifestBytes, origin);
     try {
-      if (!nlohmann::json::parse(metadata_json(file, "manifest", kMaxProgressBytes, origin)).is_object())
+      if (!parse_json_bounded(manifest, std::max<std::size_t>(1024, manifest.size() / 8)).is_object())
         throw std::runtime_error("not an object");
     } catch (const std::exception& e) {
       throw InputError(origin + ": manifest: expected a JSON object (" + first_line(e.what()) + ")");
     }
-    state.manifest = manifest->second;
+    state.manifest = manifest;
   }
   return state;
 }
@@ -391,14 +417,9 @@ std::vector<std::pair<std::string, std::vector<std::int64_t>>> check_agent_tenso
                                                                                    const agent::NetworkConfig& network,
                                                                                    const std::string& origin) {
   const std::string mismatch = ": agent: the weights do not match the checkpoint's network config (";
-  // Building the reference agent draws initial weights from LibTorch's generator: put its state
-  // back, so that checking a file never changes what a later construction draws. (Its size is
-  // bounded by the file's: check_network_fits.)
-  struct GeneratorRestore {
-    at::Generator generator = at::detail::getDefaultCPUGenerator();
-    at::Tensor state = generator.get_state();
-    ~GeneratorRestore() { generator.set_state(state); }
-  } restore;
+  // Building the reference agent draws initial weights from LibTorch's generator: its state is put
+  // back. (Its size is bounded by the file's: check_network_fits.)
+  const GeneratorRestore restore;
   agent::Agent reference(network);
   std::vector<std::pair<std::string, std::vector<std::int64_t>>> parameter_shapes;
   std::set<std::string> expected;
@@ -440,8 +461,9 @@ void check_optimizer(const st::File& file, const CheckpointState& state,
       refuse(*unchecked.begin() + ": a tensor Scout's writer does not make (no optimizer in __metadata__)");
     return;  // a model file
   }
+  const std::string& text = metadata_json(file, "optimizer", kMaxOptimizerBytes, origin);
   try {
-    const nlohmann::json o = nlohmann::json::parse(metadata_json(file, "optimizer", 4096, origin));
+    const nlohmann::json o = parse_json_bounded(text, 64);
     const auto number = [&](const char* key) {
       const nlohmann::json& v = o.at(key);
       if (!v.is_number()) throw std::runtime_error(std::string(key) + " is not a number");
@@ -462,11 +484,10 @@ void check_optimizer(const st::File& file, const CheckpointState& state,
       refuse("optimizer: betas: expected two numbers in [0, 1), got " + betas.dump().substr(0, 60));
     if (o.at("amsgrad") != false) refuse("optimizer: amsgrad: expected false, as Scout's Adam has");
     if (o.size() != 6) refuse("optimizer: expected exactly type, lr, betas, eps, weight_decay and amsgrad");
-  } catch (const nlohmann::json::exception& e) {
-    refuse(std::string("optimizer: unreadable (") + e.what() + ")");
-  } catch (const std::runtime_error& e) {
-    if (dynamic_cast<const InputError*>(&e)) throw;
-    refuse(std::string("optimizer: ") + e.what());
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    refuse("optimizer: unreadable (" + first_line(e.what()) + ")");
   }
   const std::int64_t max_steps = max_training_steps(state.config);
   for (const auto& [name, shape] : parameters) {
@@ -513,23 +534,29 @@ CheckpointState check_checkpoint(const st::File& file, std::size_t file_bytes, c
   return state;
 }
 
-// Copies a checked tensor's bytes into `into` (same dtype and element count).
-void copy_into(const st::TensorView& from, torch::Tensor& into) {
+// Copies a checked tensor's bytes into `into`, which must be a contiguous CPU tensor of its dtype
+// and shape (a caller's bug otherwise, never the file's: the file was checked against the config).
+void copy_into(const st::TensorView* from, torch::Tensor& into, const std::string& name) {
+  const auto dtype = from && from->dtype == st::DType::I64 ? torch::kLong : torch::kFloat;
+  if (!from || into.sizes().vec() != from->shape || into.scalar_type() != dtype || !into.is_contiguous() ||
+      !into.device().is_cpu() || static_cast<std::size_t>(into.nbytes()) != from->bytes.size())
+    throw std::logic_error("checkpoint: " + name + " does not fit the tensor it is loaded into");
   torch::NoGradGuard no_grad;
-  std::memcpy(into.data_ptr(), from.bytes.data(), from.bytes.size());
+  std::memcpy(into.data_ptr(), from->bytes.data(), from->bytes.size());
 }
 
-torch::Tensor tensor_from(const st::TensorView& from) {
-  torch::Tensor t = torch::empty(from.shape, from.dtype == st::DType::I64 ? torch::kLong : torch::kFloat);
-  copy_into(from, t);
+torch::Tensor tensor_from(const st::TensorView* from, const std::string& name) {
+  if (!from) throw std::logic_error("checkpoint: " + name + " is missing");
+  torch::Tensor t = torch::empty(from->shape, from->dtype == st::DType::I64 ? torch::kLong : torch::kFloat);
+  copy_into(from, t, name);
   return t;
 }
 
 void load_weights(const st::File& file, const std::string& origin, agent::AgentImpl& agent,
                   torch::optim::Optimizer* optimizer) {
   // The agent was built from the checked config: each tensor is there, of its shape and dtype.
-  for (auto& p : agent.named_parameters()) copy_into(*file.find(kAgentPrefix + p.key()), p.value());
-  for (auto& b : agent.named_buffers()) copy_into(*file.find(kAgentPrefix + b.key()), b.value());
+  for (auto& p : agent.named_parameters()) copy_into(file.find(kAgentPrefix + p.key()), p.value(), p.key());
+  for (auto& b : agent.named_buffers()) copy_into(file.find(kAgentPrefix + b.key()), b.value(), b.key());
   if (!optimizer) return;
   const auto options = file.metadata.find("optimizer");
   if (options == file.metadata.end())
@@ -551,8 +578,8 @@ void load_weights(const st::File& file, const std::string& origin, agent::AgentI
     std::int64_t steps = 0;
     std::memcpy(&steps, step->bytes.data(), sizeof steps);
     state->step(steps);
-    state->exp_avg(tensor_from(*file.find(at + ".exp_avg")));
-    state->exp_avg_sq(tensor_from(*file.find(at + ".exp_avg_sq")));
+    state->exp_avg(tensor_from(file.find(at + ".exp_avg"), at + ".exp_avg"));
+    state->exp_avg_sq(tensor_from(file.find(at + ".exp_avg_sq"), at + ".exp_avg_sq"));
     adam.state()[adam_state_key(p.value())] = std::move(state);
   }
 }
@@ -574,15 +601,21 @@ Checkpoint open_checkpoint_bytes(std::string bytes, const std::string& origin) {
   contents->bytes = std::move(bytes);
   const std::span<const std::byte> view(reinterpret_cast<const std::byte*>(contents->bytes.data()),
                                         contents->bytes.size());
-  if (st::looks_like_zip(view))
+  if (st::looks_like_zip(view)) {
+    // A .pt file is most likely Scout's format 1; say how to convert it (only there: the
+    // converter runs LibTorch's unpickler, which is for files the user trusts).
+    if (fs::path(origin).extension() == ".pt")
+      throw InputError(origin +
+                       ": a checkpoint of Scout's format 1 (LibTorch's zip and pickles), which this build does not "
+                       "read; if you made it or trust who did, convert it once: scout convert " +
+                       origin + " --trusted");
     throw InputError(origin +
-                     ": a checkpoint of Scout's format 1 (LibTorch's zip and pickles), which this build does not "
-                     "read; if you trust the file, convert it once: scout convert " +
-                     origin + " --trusted");
+                     ": a zip archive, not a safetensors file (Scout's models and checkpoints are .safetensors)");
+  }
   contents->tensors = st::parse(view, origin);
   contents->state = check_checkpoint(contents->tensors, contents->bytes.size(), origin);
   const CheckpointState& s = contents->state;
-  contents->info = {kCheckpointFormat, s.config, s.cursor, s.history, s.world_size};
+  contents->info = {kCheckpointFormat, s.manifest, s.config, s.cursor, s.history, s.world_size};
   return Checkpoint(std::move(contents));
 }
 
@@ -616,6 +649,7 @@ agent::Agent load_agent(const fs::path& file, CheckpointState* state) {
 
 std::vector<LoadedTensor> loaded_tensors(const Checkpoint& checkpoint) {
   const Checkpoint::Contents& contents = checkpoint.contents();
+  const GeneratorRestore restore;
   agent::Agent agent(contents.state.config.network);
   std::unique_ptr<torch::optim::Adam> adam;
   if (contents.tensors.metadata.count("optimizer"))
@@ -625,8 +659,8 @@ std::vector<LoadedTensor> loaded_tensors(const Checkpoint& checkpoint) {
   std::vector<LoadedTensor> out;
   const auto add = [&](const std::string& name, const torch::Tensor& value) {
     const torch::Tensor t = value.detach().contiguous();
-    LoadedTensor loaded{name, t.sizes().vec(), {}, {}};
-    if (t.scalar_type() == torch::kLong)
+    LoadedTensor loaded{name, t.scalar_type() == torch::kLong, t.sizes().vec(), {}, {}};
+    if (loaded.integer)
       loaded.integers.assign(t.data_ptr<std::int64_t>(), t.data_ptr<std::int64_t>() + t.numel());
     else
       loaded.floats.assign(t.data_ptr<float>(), t.data_ptr<float>() + t.numel());

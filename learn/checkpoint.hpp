@@ -15,6 +15,7 @@ namespace scout::learn {
 /// What a checkpoint file says about itself.
 struct CheckpointInfo {
   int format_version = 0;
+  std::string manifest;  ///< the manifest it carries (JSON text; empty where none)
   TrainConfig config;
   ScheduleCursor cursor;
   std::vector<EpochMetrics> history;
@@ -26,7 +27,7 @@ struct CheckpointInfo {
 /// share the one opened file. Torch-free: its contents are learn/internal/checkpoint.hpp's.
 class Checkpoint {
  public:
-  struct Contents;  ///< learn/internal/checkpoint.hpp: the state, the parsed archive, the networks
+  struct Contents;  ///< learn/internal/checkpoint.hpp: the state, the parsed file, the networks
   explicit Checkpoint(std::shared_ptr<const Contents> contents);
   /// The file, as messages name it.
   const std::filesystem::path& file() const;
@@ -48,6 +49,7 @@ Checkpoint open_checkpoint(const std::filesystem::path& path);
 /// A tensor of an opened checkpoint as Scout has loaded it, by its name in the file.
 struct LoadedTensor {
   std::string name;
+  bool integer = false;  ///< I64 (else F32)
   std::vector<std::int64_t> shape;
   std::vector<float> floats;           ///< an F32 tensor's values
   std::vector<std::int64_t> integers;  ///< an I64 tensor's values
@@ -74,8 +76,10 @@ inline constexpr int kCheckpointFormat = 2;
 inline constexpr const char* kCheckpointExtension = ".safetensors";
 
 /// Converts a checkpoint or model file of format 1 (`.pt`: LibTorch's zip of pickles) to format 2
-/// at `out`, with `manifest` (JSON text, may be empty) as its manifest: the same weights, Adam's
-/// state and schedule, so that a converted checkpoint resumes as the old one did. Reads `legacy`
+/// at `out`, with `manifest` (JSON text, may be empty) as its manifest plus "converted_from" (the
+/// .pt file's path and SHA-256): the same weights, Adam's state and schedule, so that a converted
+/// checkpoint resumes as the old one did. Nothing is written unless the result passes every check
+/// open_checkpoint makes. Reads `legacy`
 /// with LibTorch's own unpickler, which trusts its input: only for files the user trusts. Returns
 /// what the new file holds (opened again with every check).
 CheckpointInfo convert_legacy_checkpoint(const std::filesystem::path& legacy, const std::filesystem::path& out,

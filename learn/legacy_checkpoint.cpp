@@ -5,8 +5,12 @@
 // says they trust (`scout convert --trusted`).
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include "agent/config.hpp"
+#include "core/digest.hpp"
 #include "core/error.hpp"
+#include "core/files.hpp"
 #include "core/input_file.hpp"
 #include "core/memory.hpp"
 #include "learn/internal/checkpoint.hpp"
@@ -63,10 +67,20 @@ CheckpointInfo convert_legacy_checkpoint(const fs::path& legacy, const fs::path&
   } catch (const std::exception& e) {
     throw InputError(origin + ": not readable as a Scout checkpoint of format 1 (" + first_line(e.what()) + ")");
   }
-  state.manifest = manifest;
-  save_checkpoint(out, *agent, adam.get(), state);
-  // What was written passes every check a format-2 reader makes.
-  return open_checkpoint(out).info();
+  // The manifest, with where the weights came from: an evaluation of the .pt file names that
+  // file's SHA-256 (scout report accepts it for the converted model).
+  nlohmann::ordered_json record =
+      manifest.empty() ? nlohmann::ordered_json::object() : nlohmann::ordered_json::parse(manifest, nullptr, false);
+  if (!record.is_object()) throw InputError(origin + ": its manifest is not a JSON object");
+  record["converted_from"] = {
+      {"file", legacy.string()}, {"sha256", core::sha256_hex(legacy)}, {"format", kLegacyFormat}};
+  state.manifest = record.dump();
+  // Checked as every reader checks it before a byte is written: a file LibTorch loads but Scout
+  // would refuse (NaN weights, a cursor outside the schedule) never replaces anything at `out`.
+  std::string bytes = checkpoint_bytes(*agent, adam.get(), state);
+  const CheckpointInfo info = open_checkpoint_bytes(bytes, out.string()).info();
+  core::write_file_atomic(out, bytes);
+  return info;
 }
 
 }  // namespace scout::learn

@@ -54,11 +54,12 @@ std::int64_t checked_elements(const std::vector<std::int64_t>& shape, std::int64
   return n <= limit ? n : -1;
 }
 
-// Parse events (keys, values, brackets) a header of `limits` can need: per tensor its name, its
-// object, three keys and their values, a shape of max_rank sizes and two offsets; per metadata
-// entry a key and a value.
+// Parse events (each key, value and bracket is one) a header of `limits` can need: per tensor its
+// name, its object's start and end, the dtype's key and value, the shape's key, start, end and up
+// to max_rank sizes, and data_offsets' key, start, end and two values (13 + max_rank); per metadata
+// entry a key and a value; the brackets around them.
 std::size_t max_events(const Limits& limits) {
-  return (limits.max_tensors + 1) * (12 + static_cast<std::size_t>(limits.max_rank)) + 2 * limits.max_metadata_entries +
+  return (limits.max_tensors + 1) * (13 + static_cast<std::size_t>(limits.max_rank)) + 2 * limits.max_metadata_entries +
          16;
 }
 
@@ -87,10 +88,13 @@ std::string write(const std::vector<TensorBytes>& tensors, const std::map<std::s
   if (tensors.size() > limits.max_tensors)
     throw std::invalid_argument(fmt::format("safetensors: {} tensors, at most {}", tensors.size(), limits.max_tensors));
   if (metadata.size() > limits.max_metadata_entries)
-    throw std::invalid_argument(fmt::format("safetensors: {} metadata entries", metadata.size()));
+    throw std::invalid_argument(
+        fmt::format("safetensors: {} metadata entries, at most {}", metadata.size(), limits.max_metadata_entries));
   for (const TensorBytes& t : tensors) {
     if (t.name.empty() || t.name == "__metadata__" || t.name.size() > limits.max_name_bytes)
-      throw std::invalid_argument("safetensors: a tensor needs a name other than '' and __metadata__: " + t.name);
+      throw std::invalid_argument(
+          fmt::format("safetensors: a tensor name of 1 to {} bytes other than __metadata__, got '{}'",
+                      limits.max_name_bytes, t.name.substr(0, 80)));
     if (!names.insert(t.name).second) throw std::invalid_argument("safetensors: tensor " + t.name + " twice");
     if (t.shape.size() > static_cast<std::size_t>(limits.max_rank))
       throw std::invalid_argument("safetensors: tensor " + t.name + " has too many dimensions");
@@ -149,7 +153,7 @@ class Parser {
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
-    throw InputError(origin_ + ": not a Scout checkpoint (safetensors): " + one_line(what));
+    throw InputError(origin_ + ": not a valid safetensors file: " + one_line(what));
   }
 
   // The header as JSON: nesting, the number of values and duplicate names are refused from the
@@ -175,7 +179,7 @@ class Parser {
     try {
       header = json::parse(text, check);
     } catch (const json::exception& e) {
-      fail(std::string("the header is not JSON (") + e.what() + ")");
+      fail("the header is not JSON (" + first_line(e.what()) + ")");
     }
     if (!header.is_object()) fail("the header is not a JSON object");
     return header;

@@ -28,7 +28,6 @@ namespace fs = std::filesystem;
 namespace {
 
 // Upper bounds that catch typos before hours are spent, not research limits.
-constexpr int kMaxEpochs = 100000;
 constexpr int kMaxRollouts = 64;
 constexpr int kMaxBatchImages = 4096;
 

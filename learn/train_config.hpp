@@ -33,6 +33,11 @@ using SettingName = std::string (*)(const TrainSetting& setting);
 
 /// The most digits a data set may have (train_limit and validation_limit are at most this).
 inline constexpr int kMaxDigits = 100000000;
+/// The most epochs of one stage (pretraining, or a mode).
+inline constexpr int kMaxEpochs = 100000;
+/// The most processes of one run (WORLD_SIZE) and LibTorch threads per process (--threads).
+inline constexpr int kMaxProcesses = 4096;
+inline constexpr int kMaxThreads = 256;
 
 /// Everything that determines a training run (stored in every checkpoint).
 struct TrainConfig {

@@ -246,12 +246,10 @@ py::dict checkpoint_tensors(const std::string& path) {
   }
   py::dict out;
   for (const learn::LoadedTensor& t : tensors) {
-    if (t.integers.empty() && !t.floats.empty())
-      out[py::str(t.name)] = py::array_t<float>(t.shape, t.floats.data());
-    else if (t.floats.empty() && !t.integers.empty())
+    if (t.integer)
       out[py::str(t.name)] = py::array_t<std::int64_t>(t.shape, t.integers.data());
     else
-      out[py::str(t.name)] = py::array_t<float>(t.shape);  // no elements
+      out[py::str(t.name)] = py::array_t<float>(t.shape, t.floats.data());
   }
   return out;
 }

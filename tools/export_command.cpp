@@ -31,6 +31,8 @@ void export_command(const ExportOptions& o) {
     if (!o.overwrite) throw InputError("--out: " + o.out + " exists (add --overwrite to replace it)");
     if (fs::equivalent(o.out, source, ec)) throw InputError("--out: " + o.out + " is the checkpoint itself");
   }
+  if (fs::path(o.out).extension() != learn::kCheckpointExtension)
+    throw InputError("--out: " + o.out + ": expected a file name ending in " + learn::kCheckpointExtension);
   const fs::path parent = fs::path(o.out).parent_path();
   if (!parent.empty() && !fs::is_directory(parent, ec))
     throw InputError("--out: " + o.out + ": the folder " + parent.string() + " does not exist");

@@ -475,9 +475,24 @@ fs::path evaluated_model(const json& eval, const fs::path& eval_file) {
   if (!eval.contains("checkpoint") || !eval["checkpoint"].is_string()) return {};
   const fs::path given = eval["checkpoint"].get<std::string>();
   std::error_code ec;
-  if (fs::exists(given, ec)) return given;
-  const fs::path beside = eval_file.parent_path() / given.filename();
-  return fs::exists(beside, ec) ? beside : fs::path();
+  // A model evaluated as X.pt (Scout's format 1) is found as the X.safetensors it was converted to.
+  for (const fs::path& name : {given, fs::path(given).replace_extension(learn::kCheckpointExtension)}) {
+    if (fs::exists(name, ec)) return name;
+    const fs::path beside = eval_file.parent_path() / name.filename();
+    if (fs::exists(beside, ec)) return beside;
+  }
+  return {};
+}
+
+// The SHA-256s an evaluation of `checkpoint` may name: the file's own, and that of the .pt file it
+// was converted from (its manifest's converted_from), whose evaluation holds for the same weights.
+std::vector<std::string> checkpoint_digests(const fs::path& checkpoint, const learn::Checkpoint& opened) {
+  std::vector<std::string> digests = {core::sha256_hex(checkpoint)};
+  const json manifest = json::parse(opened.info().manifest.empty() ? "{}" : opened.info().manifest, nullptr, false);
+  if (manifest.is_object() && manifest.contains("converted_from") && manifest["converted_from"].is_object() &&
+      manifest["converted_from"].contains("sha256") && manifest["converted_from"]["sha256"].is_string())
+    digests.push_back(manifest["converted_from"]["sha256"].get<std::string>());
+  return digests;
 }
 
 // Everything a report reads, read and checked before minutes of work.
@@ -538,8 +553,9 @@ void read_model_eval(const ReportOptions& opt, ReportInputs& in) {
   json& eval = in.eval;
   eval = read_json_file(eval_file, "--eval");
   check_eval_json(eval, eval_file);
+  const std::vector<std::string> digests = checkpoint_digests(in.checkpoint, in.opened);
   if (eval.contains("manifest") && eval["manifest"].is_object() && eval["manifest"].contains("checkpoint_sha256") &&
-      eval["manifest"]["checkpoint_sha256"] != in.checkpoint_sha)
+      std::find(digests.begin(), digests.end(), eval["manifest"]["checkpoint_sha256"]) == digests.end())
     throw InputError(fmt::format("--eval: {}: manifest.checkpoint_sha256: expected {} (the SHA-256 of {}), got {}",
                                  eval_file.string(), in.checkpoint_sha, in.checkpoint.string(),
                                  eval["manifest"]["checkpoint_sha256"].dump()));

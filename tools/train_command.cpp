@@ -255,9 +255,15 @@ void check_batch_split(int batch_images, int world_size) {
 // Rank 0's (or a lone process's) trainer: a new run in a new folder, or the run resumed.
 std::unique_ptr<learn::Trainer> open_trainer(const TrainOptions& o, const fs::path& run, int threads, int world_size) {
   if (!o.resume.empty()) {
-    if (!fs::is_regular_file(run / learn::kCheckpointFile))
+    if (!fs::is_regular_file(run / learn::kCheckpointFile)) {
+      if (fs::is_regular_file(run / "checkpoint.pt"))
+        throw InputError("--resume: " + o.resume +
+                         " holds a checkpoint.pt of Scout's older format; if you trust it, convert it once (scout "
+                         "convert " +
+                         o.resume + " --trusted), then resume");
       throw InputError("--resume: " + o.resume +
                        " holds no checkpoint.safetensors (expected a folder written by scout train)");
+    }
     if (!core::take_folder_for_this_process(run))
       throw InputError("--resume: " + o.resume +
                        ": another scout train is writing this run; resume it once that one has ended");

@@ -48,10 +48,13 @@ struct CheckpointState {
 inline const std::string kAgentPrefix = "agent.";
 inline const std::string kOptimizerPrefix = "optimizer.";
 
-/// The largest config and progress (or manifest) metadata entries read: Scout writes configs of
-/// about 2 KB, and a progress of about 400 bytes per epoch trained.
+/// The largest metadata entries read (and written: a longer one is refused before the file is):
+/// Scout writes configs of about 2 KB, a progress of about 450 bytes per epoch trained (so about
+/// 7,000 epochs fit), manifests of 4-30 KB, and Adam's options in 150 bytes.
 inline constexpr std::size_t kMaxConfigBytes = std::size_t{64} << 10;
 inline constexpr std::size_t kMaxProgressBytes = std::size_t{3} << 20;
+inline constexpr std::size_t kMaxManifestBytes = std::size_t{512} << 10;
+inline constexpr std::size_t kMaxOptimizerBytes = 4096;
 
 /// The key under which LibTorch's optimizer keeps a parameter's state: its TensorImpl's address
 /// as text in LibTorch 1.x, the pointer itself in 2.x. (A template, so that only the branch of
@@ -77,8 +80,13 @@ void save_checkpoint(const std::filesystem::path& file, agent::AgentImpl& agent,
 /// progress, the manifest and Adam's options as JSON text.
 std::string checkpoint_bytes(agent::AgentImpl& agent, torch::optim::Optimizer* optimizer, const CheckpointState& state);
 
-/// An opened checkpoint (open_checkpoint): read, parsed and checked once.
+/// An opened checkpoint (open_checkpoint): read, parsed and checked once. Not copied or moved:
+/// `tensors` views its own `bytes`.
 struct Checkpoint::Contents {
+  Contents() = default;
+  Contents(const Contents&) = delete;
+  Contents& operator=(const Contents&) = delete;
+
   std::filesystem::path file;  ///< as messages name it
   std::string bytes;           ///< the whole file
   safetensors::File tensors;   ///< views into `bytes`, checked against the config

@@ -45,8 +45,9 @@ struct Limits {
 };
 
 /// The whole file in memory: the header (tensors in the order given, then "__metadata__"),
-/// padded with spaces to a multiple of 8 bytes as the reference writer does, so that every
-/// tensor starts 8-byte aligned; then the tensors' bytes back to back. Throws
+/// padded with spaces to a multiple of 8 bytes as the reference writer does, so that the data
+/// starts 8-byte aligned; then the tensors' bytes back to back (a tensor after one of an odd
+/// number of F32 values starts 4-byte aligned: readers copy, as Scout's does). Throws
 /// std::invalid_argument for a duplicate or empty name, the name "__metadata__", bytes that do
 /// not match the shape, or a file parse() would refuse under `limits`.
 std::string write(const std::vector<TensorBytes>& tensors, const std::map<std::string, std::string>& metadata,

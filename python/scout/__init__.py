@@ -34,8 +34,8 @@ except ImportError:  # Gymnasium is optional: the package works the same without
     gymnasium = None
     AutoresetMode = None
 
-__all__ = ["make_vec", "VectorEnv", "Env", "Agent", "checkpoint_tensors", "Box", "Dict", "Discrete", "MultiDiscrete", "WORLDS",
-           "__version__"]
+__all__ = ["make_vec", "VectorEnv", "Env", "Agent", "checkpoint_tensors", "Box", "Dict", "Discrete", "MultiDiscrete",
+           "WORLDS", "__version__"]
 
 #: The registered ids (scout/<name>) and their world files in the source tree's worlds/. The
 #: translated and cluttered ones put the digit at a random place on a larger floor (worlds/README.md
@@ -299,8 +299,8 @@ def checkpoint_tensors(path):
 
 
 class Agent:
-    """Scout's trained agent (a model file or RUN/checkpoint.safetensors): its goal planner, action planner
-    (where it has one: models/mnist.safetensors draws its axes i.i.d.) and classifier, driven from
+    """Scout's trained agent (a model file or RUN/checkpoint.safetensors): its goal planner, action
+    planner (where it has one: models/mnist.safetensors draws its axes i.i.d.) and classifier, driven from
     observations. With make_vec's arrays it chooses exactly what
     `scout run --checkpoint` chooses for the same seed:
 

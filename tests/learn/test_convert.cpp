@@ -7,9 +7,12 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
+#include "core/digest.hpp"
 #include "core/error.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/internal/checkpoint.hpp"
@@ -58,7 +61,10 @@ TEST_F(Resume, AConvertedCheckpointHoldsTheSameStateAndResumesBitForBit) {
   EXPECT_EQ(a.data, b.data);
   for (const char* key : {"format", "format_version", "config", "progress", "optimizer"})
     EXPECT_EQ(a.header["__metadata__"][key], b.header["__metadata__"][key]) << key;
-  EXPECT_EQ(b.header["__metadata__"]["manifest"], "{\"a\": 1}");
+  // The manifest given, and where the weights came from.
+  const nlohmann::json manifest = nlohmann::json::parse(b.header["__metadata__"]["manifest"].get<std::string>());
+  EXPECT_EQ(manifest["a"], 1);
+  EXPECT_EQ(manifest["converted_from"]["sha256"], core::sha256_hex(legacy));
   EXPECT_GT(a.header.size(), 3 * agent::Agent(info.config.network)->parameters().size());  // Adam's state is there
 
   // Both resumed for one more epoch of mode ii: the same weights and Adam state, bit for bit.
@@ -84,6 +90,33 @@ TEST(Convert, TheOldModelConvertsToTheWeightsLibTorchReads) {
   reference->load(weights);
   expect_same_weights(*reference, *converted);
   EXPECT_EQ(split(read_bytes(out)).data, split(read_bytes(source / "mnist-8k-v1.safetensors")).data);
+
+  // A format-1 file LibTorch reads but Scout refuses (a NaN weight): nothing is written, and a file
+  // already at the output stays.
+  {
+    const CheckpointInfo model = open_checkpoint(out).info();
+    agent::Agent poisoned = load_agent(out);
+    {
+      torch::NoGradGuard no_grad;
+      poisoned->parameters().front().view(-1)[0].fill_(std::numeric_limits<float>::quiet_NaN());
+    }
+    torch::serialize::OutputArchive legacy;
+    legacy.write("scout_checkpoint_format", c10::IValue(static_cast<int64_t>(1)));
+    legacy.write("config", c10::IValue(model.config.to_json()));
+    legacy.write("progress", c10::IValue(split(read_bytes(out)).header["__metadata__"]["progress"].get<std::string>()));
+    torch::serialize::OutputArchive weights_out;
+    poisoned->save(weights_out);
+    legacy.write("agent", weights_out);
+    legacy.save_to((temp.path() / "nan.pt").string());
+    const std::string before = read_bytes(out);
+    try {
+      convert_legacy_checkpoint(temp.path() / "nan.pt", out, "");
+      ADD_FAILURE() << "a NaN weight was converted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("not finite"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(read_bytes(out), before);
+  }
 
   // Not a Scout file of format 1, or not there: one line naming it; nothing written.
   const fs::path junk = temp.write("junk.pt", "not a zip");

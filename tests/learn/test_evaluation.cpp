@@ -321,7 +321,7 @@ TEST_F(Evaluation, BadInputIsOneLineNamingTheFile) {
   c = config(1, 1);
   c.checkpoint = text;
   why = refusal(c);
-  EXPECT_EQ(why.rfind(text.string() + ": not a Scout checkpoint", 0), 0u) << why;
+  EXPECT_EQ(why.rfind(text.string() + ": not a valid safetensors file", 0), 0u) << why;
   c = config(1, 1);
   c.images = dir / "missing";
   why = refusal(c);

@@ -2,8 +2,8 @@
 // own writer makes in the test (weights, Adam's state, the schedule), with its safetensors layout
 // edited (lengths, offsets, dtypes, shapes, a deep or huge header, a name twice) or what it says
 // edited (a missing or misshapen tensor, NaN, a cursor at INT_MAX, Adam's step at INT64_MAX, a
-// padded config), and the shipped models/mnist.safetensors. Each is refused with one line naming
-// the file; each case runs in a forked child whose peak resident
+// padded config), with models/mnist.safetensors loaded beside them as valid. Each is refused with
+// one line naming the file; each case runs in a forked child whose peak resident
 // size above its start is measured (VmHWM, reset through /proc/self/clear_refs; the input,
 // already in memory, is not counted) and printed, and held to kRefusalSlackKiB. A few kinds also go through the real
 // `scout eval`, `export`, `run --checkpoint` and `train --resume`: exit status 1, one line.
@@ -351,7 +351,35 @@ std::vector<HostileCase> content_cases() {
            p["epoch"] = std::numeric_limits<int>::max();
          });
        },
-       "outside the config's schedule"},
+       "progress: epoch: expected 0 to 100000, got 2147483647"},
+      {"a progress cursor past the config's schedule (mode i, epoch 50 of 1)",
+       [](const std::string& real) {
+         return with_metadata(real, "progress", [](nlohmann::ordered_json& p) {
+           p["stage"] = 1;
+           p["epoch"] = 50;
+         });
+       },
+       "outside the config's schedule (mode i has 1 epochs)"},
+      {"a cursor epoch of 2^32 + 1 (what get<int> reads as 1)",
+       [](const std::string& real) {
+         return with_metadata(real, "progress",
+                              [](nlohmann::ordered_json& p) { p["epoch"] = (std::uint64_t{1} << 32) + 1; });
+       },
+       "progress: epoch: expected 0 to 100000"},
+      {"a resume's threads at INT_MAX",
+       [](const std::string& real) {
+         return with_metadata(real, "progress",
+                              [](nlohmann::ordered_json& p) { p["threads"] = std::numeric_limits<int>::max(); });
+       },
+       "progress: threads: expected 0 to 256"},
+      {"a history of 1,000,000 zeros (2 MB of JSON, 16 MB as a tree)",
+       [](const std::string& real) {
+         return with_metadata(real, "progress", [](nlohmann::ordered_json& p) {
+           p["history"] = nlohmann::ordered_json::array();
+           for (int i = 0; i < 1000000; ++i) p["history"].push_back(0);
+         });
+       },
+       "progress: more than"},
       {"Adam's step at INT64_MAX",
        [](const std::string& real) {
          return with_tensors(real, [](std::vector<TensorEntry>& t) {
@@ -568,8 +596,13 @@ TEST_F(HostileCommands, EveryCommandRefusesHostileCheckpointsInOneLine) {
   ASSERT_EQ(baseline.status, 0) << baseline.err;
   std::printf("%-52s %7ld KiB peak %6.0f ms\n", "export of the valid checkpoint", baseline.peak_kib,
               baseline.seconds * 1000);
-  const std::vector<HostileCase> layouts = layout_cases(), contents = content_cases();
-  const std::vector<HostileCase> kinds = {layouts[4], contents[5], contents[9]};
+  std::vector<HostileCase> all = layout_cases(), contents = content_cases();
+  all.insert(all.end(), contents.begin(), contents.end());
+  const auto case_named = [&](const std::string& name) {
+    return *std::find_if(all.begin(), all.end(), [&](const HostileCase& c) { return c.kind.rfind(name, 0) == 0; });
+  };
+  const std::vector<HostileCase> kinds = {case_named("a 400,000-deep JSON header"),
+                                          case_named("Adam's step at INT64_MAX"), case_named("ResNet-18 width 512")};
   std::vector<std::pair<std::string, fs::path>> files;
   for (const HostileCase& c : kinds)
     files.emplace_back(c.kind, temp_.write(c.kind.substr(0, 12) + ".safetensors", c.make(real_)));

@@ -217,7 +217,7 @@ def agent_and_robots():
     ({"model": 123}, TypeError, "model: expected a path to a model file or run folder, got 123"),
     ({"model": "/no/such.safetensors"}, ValueError, "/no/such.safetensors: no such checkpoint file"),
     ({"model": os.path.join(SOURCE, "README.md")}, ValueError,
-     f"{os.path.join(SOURCE, 'README.md')}: not a Scout checkpoint"),
+     f"{os.path.join(SOURCE, 'README.md')}: not a valid safetensors file"),
     ({"greedy": "no"}, TypeError, "greedy: expected True or False, got 'no'"),
     ({"greedy": None}, TypeError, "greedy: expected True or False, got None"),
     ({"threads": -1}, ValueError, "threads: expected an integer in 0..256 (0: one per core), got -1"),
@@ -730,8 +730,7 @@ def test_models_and_checkpoints_are_safetensors_files_both_ways(tmp_path):
     weights = load_file(MODEL)
     with safe_open(MODEL, "np") as f:
         metadata = f.metadata()
-    biases = [name for name in weights if name.startswith("agent.classifier.") and name.endswith(".bias")]
-    last = max(biases, key=lambda name: list(weights).index(name))
+    last = "agent.classifier.head.bias"  # the classifier's output layer: one bias per class
     assert weights[last].shape == (10,)
     weights[last] = weights[last].copy()
     weights[last][3] += 1000.0
@@ -746,5 +745,5 @@ def test_models_and_checkpoints_are_safetensors_files_both_ways(tmp_path):
     # A tensor dropped in Python: one clear error naming the file and the tensor.
     del weights[last]
     save_file(weights, str(tmp_path / "short.safetensors"), metadata=metadata)
-    with pytest.raises(Exception, match=r"short\.safetensors.*" + last.replace(".", r"\.") + " is missing"):
+    with pytest.raises(ValueError, match=r"short\.safetensors.*" + last.replace(".", r"\.") + " is missing"):
         scout.checkpoint_tensors(tmp_path / "short.safetensors")

@@ -255,7 +255,7 @@ TEST_F(EvalRun, EvalRefusesBadInputWithOneLine) {
   const std::string text = temp_->write("notes.txt", "not a checkpoint\n").string();
   Result r = scout("eval --checkpoint " + text + test_data() + " --json " + path("r.json"));
   EXPECT_EQ(r.status, 1);
-  EXPECT_EQ(r.output.rfind("scout: error: " + text + ": not a Scout checkpoint", 0), 0u) << r.output;
+  EXPECT_EQ(r.output.rfind("scout: error: " + text + ": not a valid safetensors file", 0), 0u) << r.output;
   EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
   EXPECT_FALSE(fs::exists(path("r.json")));
 
