@@ -197,7 +197,7 @@ struct HostileCase {
   std::string expected;                                      // in the refusal
 };
 
-// The layout: the parser's checks against the file's own length.
+// The header: its length, size and JSON against the file and the parser's bounds.
 std::vector<HostileCase> layout_cases() {
   return {
       {"a header length larger than the file",
@@ -239,6 +239,12 @@ std::vector<HostileCase> layout_cases() {
          return join_text(text, parts.data);
        },
        "twice"},
+  };
+}
+
+// The tensors' byte ranges and dtypes against the file's length and each other.
+std::vector<HostileCase> range_cases() {
+  return {
       {"offsets past the end",
        [](const std::string& real) {
          return with_header(real, [](nlohmann::ordered_json& h) {
@@ -305,8 +311,8 @@ std::vector<HostileCase> layout_cases() {
   };
 }
 
-// What the file says against what Scout's writer makes and the config's networks.
-std::vector<HostileCase> content_cases() {
+// The tensors against the networks the config describes.
+std::vector<HostileCase> tensor_cases() {
   return {
       {"a misshapen weight (its dimensions swapped)",
        [](const std::string& real) {
@@ -344,6 +350,12 @@ std::vector<HostileCase> content_cases() {
          });
        },
        "not finite"},
+  };
+}
+
+// The progress's numbers and Adam's step against the schedule and their ranges.
+std::vector<HostileCase> progress_cases() {
+  return {
       {"a progress cursor at INT_MAX",
        [](const std::string& real) {
          return with_metadata(real, "progress", [](nlohmann::ordered_json& p) {
@@ -388,6 +400,12 @@ std::vector<HostileCase> content_cases() {
          });
        },
        "Adam steps, expected 1 to"},
+  };
+}
+
+// The config, Adam's options and the metadata entries against what the writer stores.
+std::vector<HostileCase> metadata_cases() {
+  return {
       {"a config padded to 16 MB",
        [](const std::string& real) {
          return with_header(real, [](nlohmann::ordered_json& h) {
@@ -453,6 +471,15 @@ std::vector<HostileCase> content_cases() {
   };
 }
 
+// Every kind of the layout (the parser's checks) and of the contents (what Scout's writer makes).
+std::vector<HostileCase> joined(std::initializer_list<std::vector<HostileCase>> parts) {
+  std::vector<HostileCase> all;
+  for (const std::vector<HostileCase>& part : parts) all.insert(all.end(), part.begin(), part.end());
+  return all;
+}
+std::vector<HostileCase> all_layout_cases() { return joined({layout_cases(), range_cases()}); }
+std::vector<HostileCase> content_cases() { return joined({tensor_cases(), progress_cases(), metadata_cases()}); }
+
 class HostileCheckpoints : public Resume {
  protected:
   void SetUp() override {
@@ -493,7 +520,7 @@ TEST_F(HostileCheckpoints, TheWritersOwnFilesLoad) {
   }
 }
 
-TEST_F(HostileCheckpoints, LayoutsThatDisagreeWithTheFileAreRefused) { run_cases(layout_cases()); }
+TEST_F(HostileCheckpoints, LayoutsThatDisagreeWithTheFileAreRefused) { run_cases(all_layout_cases()); }
 
 TEST_F(HostileCheckpoints, ContentsOtherThanTheWritersAreRefused) { run_cases(content_cases()); }
 
@@ -596,7 +623,7 @@ TEST_F(HostileCommands, EveryCommandRefusesHostileCheckpointsInOneLine) {
   ASSERT_EQ(baseline.status, 0) << baseline.err;
   std::printf("%-52s %7ld KiB peak %6.0f ms\n", "export of the valid checkpoint", baseline.peak_kib,
               baseline.seconds * 1000);
-  std::vector<HostileCase> all = layout_cases(), contents = content_cases();
+  std::vector<HostileCase> all = all_layout_cases(), contents = content_cases();
   all.insert(all.end(), contents.begin(), contents.end());
   const auto case_named = [&](const std::string& name) {
     return *std::find_if(all.begin(), all.end(), [&](const HostileCase& c) { return c.kind.rfind(name, 0) == 0; });
