@@ -3,13 +3,6 @@
 // explains the choices (point sprites, texture array, R8, LP_NUM_THREADS=0).
 #include "render/camera.hpp"
 
-#include "worlds/floors.hpp"
-
-#define GL_GLEXT_PROTOTYPES
-#include <GL/gl.h>
-#include <GL/glext.h>
-#include <GL/osmesa.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -20,8 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "render/internal/gl_context.hpp"
+#include "worlds/floors.hpp"
+
 namespace scout::render {
 namespace {
+
+using internal::GlFunctions;
 
 constexpr int kMaxPatchPx = 64;
 constexpr int kMaxFloorPx = 512;
@@ -275,37 +273,37 @@ float wide_grey(int wide_robot, int floors_per_layer) {
 #endif
 )";
 
-std::string shader_log(GLuint shader) {
+std::string shader_log(const GlFunctions& gl, GLuint shader) {
   GLint length = 0;
-  glGetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
+  gl.GetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
   std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
-  glGetShaderInfoLog(shader, length, nullptr, log.data());
+  gl.GetShaderInfoLog(shader, length, nullptr, log.data());
   return log.c_str();
 }
 
-std::string program_log(GLuint program) {
+std::string program_log(const GlFunctions& gl, GLuint program) {
   GLint length = 0;
-  glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+  gl.GetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
   std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
-  glGetProgramInfoLog(program, length, nullptr, log.data());
+  gl.GetProgramInfoLog(program, length, nullptr, log.data());
   return log.c_str();
 }
 
 // A shader's source: the version, its defines, `extensions`, the wider view's part, then `body`.
-GLuint compile_shader(GLenum kind, const char* body, bool stacked_floors, bool wide_view, const char* name,
-                      const char* extensions = "") {
-  GLuint shader = glCreateShader(kind);
+GLuint compile_shader(const GlFunctions& gl, GLenum kind, const char* body, bool stacked_floors, bool wide_view,
+                      const char* name, const char* extensions = "") {
+  GLuint shader = gl.CreateShader(kind);
   const char* stacked = stacked_floors ? "#define STACKED_FLOORS 1\n" : "#define STACKED_FLOORS 0\n";
   const char* wide = wide_view ? "#define WIDE_VIEW 1\n" : "#define WIDE_VIEW 0\n";
   const char* wide_part = kind == GL_VERTEX_SHADER ? kWideVertexPart : kWideFragmentPart;
   const char* sources[] = {kVersion, stacked, wide, extensions, wide_part, body};
-  glShaderSource(shader, 6, sources, nullptr);
-  glCompileShader(shader);
+  gl.ShaderSource(shader, 6, sources, nullptr);
+  gl.CompileShader(shader);
   GLint ok = GL_FALSE;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
   if (ok != GL_TRUE) {
-    std::string log = shader_log(shader);
-    glDeleteShader(shader);
+    std::string log = shader_log(gl, shader);
+    gl.DeleteShader(shader);
     throw std::runtime_error(std::string("PatchCamera: the ") + name + " shader does not compile: " + log);
   }
   return shader;
@@ -339,9 +337,9 @@ struct PatchCamera::Impl {
   int framebuffer_height_px = 0;
   int floors_loaded = 0;
 
-  OSMesaContext context = nullptr;
-  // OSMesa needs a default colour buffer to make a context current; all drawing goes to the FBO.
-  std::array<std::uint8_t, 4> default_buffer{};
+  // The back end's context (OSMesa or EGL) and the GL entry points it gave.
+  std::unique_ptr<internal::GlContext> context;
+  internal::GlFunctions gl;
   GLuint vertex_array = 0;
   GLuint pose_buffer = 0;
   GLuint floor_texture = 0;
@@ -364,85 +362,60 @@ struct PatchCamera::Impl {
   std::vector<std::uint8_t> read_back;  // the tile grid, framebuffer_width_px wide
   std::string description;
 
-  void make_current() {
-    if (OSMesaGetCurrentContext() == context) return;
-    if (!OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
-      throw std::runtime_error("PatchCamera: OSMesaMakeCurrent failed");
-    }
-  }
+  void make_current() { context->make_current(); }
 
-  void create_context() {
+  void create_context(CameraBackend backend) {
     // llvmpipe reads LP_NUM_THREADS when its screen is created; 0 (render on the calling thread)
     // is fastest for frames this small. A user's own setting wins.
     setenv("LP_NUM_THREADS", "0", 0);
-    const int attributes[] = {OSMESA_FORMAT,
-                              OSMESA_RGBA,
-                              OSMESA_DEPTH_BITS,
-                              0,
-                              OSMESA_STENCIL_BITS,
-                              0,
-                              OSMESA_ACCUM_BITS,
-                              0,
-                              OSMESA_PROFILE,
-                              OSMESA_CORE_PROFILE,
-                              OSMESA_CONTEXT_MAJOR_VERSION,
-                              3,
-                              OSMESA_CONTEXT_MINOR_VERSION,
-                              3,
-                              0};
-    context = OSMesaCreateContextAttribs(attributes, nullptr);
-    if (context == nullptr) {
-      throw std::runtime_error(
-          "PatchCamera: OSMesaCreateContextAttribs failed (an OpenGL 3.3 core context is needed; "
-          "is libOSMesa with llvmpipe installed?)");
-    }
-    make_current();
-    description = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + "; " +
-                  reinterpret_cast<const char*>(glGetString(GL_VERSION));
+    context = internal::make_gl_context(backend);
+    gl = context->gl();
+    description = context->description();
   }
 
   GLuint link_program(const char* vertex_body, const char* fragment_body, const char* fragment_extensions = "") {
     const bool stacked = floors_per_layer > 1;
     const bool wide_view = wide.px > 0;
-    GLuint vertex = compile_shader(GL_VERTEX_SHADER, vertex_body, stacked, wide_view, "vertex");
+    GLuint vertex = compile_shader(gl, GL_VERTEX_SHADER, vertex_body, stacked, wide_view, "vertex");
     GLuint fragment = 0;
     try {
-      fragment = compile_shader(GL_FRAGMENT_SHADER, fragment_body, stacked, wide_view, "fragment", fragment_extensions);
+      fragment =
+          compile_shader(gl, GL_FRAGMENT_SHADER, fragment_body, stacked, wide_view, "fragment", fragment_extensions);
     } catch (...) {
-      glDeleteShader(vertex);
+      gl.DeleteShader(vertex);
       throw;
     }
-    GLuint linked = glCreateProgram();
-    glAttachShader(linked, vertex);
-    glAttachShader(linked, fragment);
-    glLinkProgram(linked);
-    glDeleteShader(vertex);
-    glDeleteShader(fragment);
+    GLuint linked = gl.CreateProgram();
+    gl.AttachShader(linked, vertex);
+    gl.AttachShader(linked, fragment);
+    gl.LinkProgram(linked);
+    gl.DeleteShader(vertex);
+    gl.DeleteShader(fragment);
     GLint ok = GL_FALSE;
-    glGetProgramiv(linked, GL_LINK_STATUS, &ok);
+    gl.GetProgramiv(linked, GL_LINK_STATUS, &ok);
     if (ok != GL_TRUE) {
-      std::string log = program_log(linked);
-      glDeleteProgram(linked);
+      std::string log = program_log(gl, linked);
+      gl.DeleteProgram(linked);
       throw std::runtime_error("PatchCamera: the shader program does not link: " + log);
     }
-    glUseProgram(linked);
-    glUniform1i(glGetUniformLocation(linked, "tile_columns"), tile_columns);
-    glUniform1i(glGetUniformLocation(linked, "patch_px"), patch_px);
-    glUniform1i(glGetUniformLocation(linked, "tile_px"), tile_px);
-    glUniform2f(glGetUniformLocation(linked, "framebuffer_px"), static_cast<float>(framebuffer_width_px),
-                static_cast<float>(framebuffer_height_px));
+    gl.UseProgram(linked);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "tile_columns"), tile_columns);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "patch_px"), patch_px);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "tile_px"), tile_px);
+    gl.Uniform2f(gl.GetUniformLocation(linked, "framebuffer_px"), static_cast<float>(framebuffer_width_px),
+                 static_cast<float>(framebuffer_height_px));
     // Unused uniforms are optimised away; glUniform* at location -1 is a no-op.
-    glUniform2i(glGetUniformLocation(linked, "floor_px"), floor_width_px, floor_height_px);
-    glUniform2f(glGetUniformLocation(linked, "inverse_floor_px"), 1.0f / static_cast<float>(floor_width_px),
-                1.0f / static_cast<float>(floor_height_px));
-    glUniform1i(glGetUniformLocation(linked, "floors_per_layer"), floors_per_layer);
-    glUniform1i(glGetUniformLocation(linked, "floors"), 0);
-    glUniform1i(glGetUniformLocation(linked, "block_means"), 1);
-    glUniform2i(glGetUniformLocation(linked, "block_means_px"), block_means_width_px(), block_means_height_px());
-    glUniform2f(glGetUniformLocation(linked, "inverse_block_means_px"),
-                1.0f / static_cast<float>(block_means_width_px()), 1.0f / static_cast<float>(block_means_height_px()));
-    glUniform1i(glGetUniformLocation(linked, "wide_px"), wide.px);
-    glUniform1i(glGetUniformLocation(linked, "wide_scale"), wide.scale);
+    gl.Uniform2i(gl.GetUniformLocation(linked, "floor_px"), floor_width_px, floor_height_px);
+    gl.Uniform2f(gl.GetUniformLocation(linked, "inverse_floor_px"), 1.0f / static_cast<float>(floor_width_px),
+                 1.0f / static_cast<float>(floor_height_px));
+    gl.Uniform1i(gl.GetUniformLocation(linked, "floors_per_layer"), floors_per_layer);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "floors"), 0);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "block_means"), 1);
+    gl.Uniform2i(gl.GetUniformLocation(linked, "block_means_px"), block_means_width_px(), block_means_height_px());
+    gl.Uniform2f(gl.GetUniformLocation(linked, "inverse_block_means_px"),
+                 1.0f / static_cast<float>(block_means_width_px()), 1.0f / static_cast<float>(block_means_height_px()));
+    gl.Uniform1i(gl.GetUniformLocation(linked, "wide_px"), wide.px);
+    gl.Uniform1i(gl.GetUniformLocation(linked, "wide_scale"), wide.scale);
     return linked;
   }
 
@@ -454,22 +427,22 @@ struct PatchCamera::Impl {
   }
 
   // One draw for the batch: a point per robot.
-  void draw(int robots) { glDrawArrays(GL_POINTS, 0, robots); }
+  void draw(int robots) { gl.DrawArrays(GL_POINTS, 0, robots); }
 
   // capture() and capture_at() each bind their program and vertex array only when the other
   // one drew last, so a run of capture() calls makes no extra GL calls. pose_buffer stays bound
   // to GL_ARRAY_BUFFER throughout (that binding is not vertex-array state).
   void bind_crop() {
-    glUseProgram(program);
-    glBindVertexArray(vertex_array);
+    gl.UseProgram(program);
+    gl.BindVertexArray(vertex_array);
     bilinear_bound = false;
   }
 
   void bind_bilinear() {
     if (bilinear_program == 0)
       bilinear_program = link_program(kBilinearVertexShader, kBilinearFragmentShader, kGatherExtension);
-    glUseProgram(bilinear_program);
-    glBindVertexArray(centre_vertex_array);
+    gl.UseProgram(bilinear_program);
+    gl.BindVertexArray(centre_vertex_array);
     bilinear_bound = true;
   }
 
@@ -481,38 +454,38 @@ struct PatchCamera::Impl {
       throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " wider views' tables of " +
                                std::to_string(block_means_height_px()) + " rows do not fit the GL texture limits");
     }
-    glActiveTexture(GL_TEXTURE1);
-    glGenTextures(1, &block_means_texture);
-    glBindTexture(GL_TEXTURE_2D_ARRAY, block_means_texture);
-    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, block_means_width_px(), block_means_height_px() * floors_per_layer,
-                   layers);
+    gl.ActiveTexture(GL_TEXTURE1);
+    gl.GenTextures(1, &block_means_texture);
+    gl.BindTexture(GL_TEXTURE_2D_ARRAY, block_means_texture);
+    gl.TexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, block_means_width_px(), block_means_height_px() * floors_per_layer,
+                    layers);
     // As the floors: nearest at texel centres, and the zero border for blocks off the floor.
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
-    glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
-    glActiveTexture(GL_TEXTURE0);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+    gl.TexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
+    gl.ActiveTexture(GL_TEXTURE0);
   }
 
   void create_buffers() {
-    glGenVertexArrays(1, &vertex_array);
-    glBindVertexArray(vertex_array);
-    glGenBuffers(1, &pose_buffer);
-    glBindBuffer(GL_ARRAY_BUFFER, pose_buffer);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose), nullptr, GL_STREAM_DRAW);
-    glEnableVertexAttribArray(0);
-    glVertexAttribIPointer(0, 2, GL_INT, sizeof(PixelPose), nullptr);
-    glGenVertexArrays(1, &centre_vertex_array);
-    glBindVertexArray(centre_vertex_array);
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, sizeof(FloorPoint), nullptr);
-    glBindVertexArray(vertex_array);
+    gl.GenVertexArrays(1, &vertex_array);
+    gl.BindVertexArray(vertex_array);
+    gl.GenBuffers(1, &pose_buffer);
+    gl.BindBuffer(GL_ARRAY_BUFFER, pose_buffer);
+    gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(max_robots) * sizeof(PixelPose), nullptr, GL_STREAM_DRAW);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribIPointer(0, 2, GL_INT, sizeof(PixelPose), nullptr);
+    gl.GenVertexArrays(1, &centre_vertex_array);
+    gl.BindVertexArray(centre_vertex_array);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, sizeof(FloorPoint), nullptr);
+    gl.BindVertexArray(vertex_array);
 
     GLint max_layers = 0;
     GLint max_texture_px = 0;
-    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
-    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture_px);
+    gl.GetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
+    gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture_px);
     max_layers = std::max(max_layers, 1);
     floors_per_layer = (max_robots + max_layers - 1) / max_layers;
     layers = (max_robots + floors_per_layer - 1) / floors_per_layer;
@@ -520,45 +493,46 @@ struct PatchCamera::Impl {
       throw std::runtime_error("PatchCamera: " + std::to_string(max_robots) + " floors of " +
                                std::to_string(floor_height_px) + " rows do not fit the GL texture limits");
     }
-    glActiveTexture(GL_TEXTURE0);
-    glGenTextures(1, &floor_texture);
-    glBindTexture(GL_TEXTURE_2D_ARRAY, floor_texture);
-    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, floor_width_px, floor_height_px * floors_per_layer, layers);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.GenTextures(1, &floor_texture);
+    gl.BindTexture(GL_TEXTURE_2D_ARRAY, floor_texture);
+    gl.TexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R8, floor_width_px, floor_height_px * floors_per_layer, layers);
     // Nearest at texel centres is the exact crop; the zero border is the off-floor black.
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
-    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+    gl.TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
     const GLfloat border[] = {0.0f, 0.0f, 0.0f, 0.0f};
-    glTexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
+    gl.TexParameterfv(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_BORDER_COLOR, border);
     if (wide.px > 0) create_block_means_texture(max_texture_px, border);
 
     GLint max_renderbuffer_px = 0;
-    glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
+    gl.GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer_px);
     if (framebuffer_width_px > max_renderbuffer_px || framebuffer_height_px > max_renderbuffer_px) {
       throw std::runtime_error("PatchCamera: a tile grid of " + std::to_string(framebuffer_width_px) + " x " +
                                std::to_string(framebuffer_height_px) + " px exceeds the GL renderbuffer limit");
     }
-    glGenRenderbuffers(1, &colour_buffer);
-    glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
-    glRenderbufferStorage(GL_RENDERBUFFER, channels == 2 ? GL_RG8 : GL_R8, framebuffer_width_px, framebuffer_height_px);
-    glGenFramebuffers(1, &framebuffer);
-    glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+    gl.GenRenderbuffers(1, &colour_buffer);
+    gl.BindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
+    gl.RenderbufferStorage(GL_RENDERBUFFER, channels == 2 ? GL_RG8 : GL_R8, framebuffer_width_px,
+                           framebuffer_height_px);
+    gl.GenFramebuffers(1, &framebuffer);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
+    if (gl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
       throw std::runtime_error("PatchCamera: the R8/RG8 framebuffer is incomplete");
     }
-    glReadBuffer(GL_COLOR_ATTACHMENT0);
-    glViewport(0, 0, framebuffer_width_px, framebuffer_height_px);
+    gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl.Viewport(0, 0, framebuffer_width_px, framebuffer_height_px);
 
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glEnable(GL_PROGRAM_POINT_SIZE);
-    glDisable(GL_DEPTH_TEST);
-    glDisable(GL_BLEND);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl.Enable(GL_PROGRAM_POINT_SIZE);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.Disable(GL_BLEND);
     // The shader works from gl_FragCoord, not gl_PointCoord; the origin is set anyway so that
     // sprite coordinates, if ever used, run the same way as framebuffer rows.
-    glPointParameteri(GL_POINT_SPRITE_COORD_ORIGIN, GL_LOWER_LEFT);
+    gl.PointParameteri(GL_POINT_SPRITE_COORD_ORIGIN, GL_LOWER_LEFT);
 
     read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px * channels, 0);
   }
@@ -615,20 +589,20 @@ struct PatchCamera::Impl {
           out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
       }
     }
-    glActiveTexture(GL_TEXTURE1);
+    gl.ActiveTexture(GL_TEXTURE1);
     const int whole_layers = count / floors_per_layer;
     const int rest = count % floors_per_layer;
     if (whole_layers > 0) {
-      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh * floors_per_layer, whole_layers, GL_RED,
-                      GL_UNSIGNED_BYTE, block_means_upload.data());
+      gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, mw, mh * floors_per_layer, whole_layers, GL_RED,
+                       GL_UNSIGNED_BYTE, block_means_upload.data());
     }
     if (rest > 0) {
       const std::size_t offset =
           table * static_cast<std::size_t>(whole_layers) * static_cast<std::size_t>(floors_per_layer);
-      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, mw, mh * rest, 1, GL_RED, GL_UNSIGNED_BYTE,
-                      block_means_upload.data() + offset);
+      gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, mw, mh * rest, 1, GL_RED, GL_UNSIGNED_BYTE,
+                       block_means_upload.data() + offset);
     }
-    glActiveTexture(GL_TEXTURE0);
+    gl.ActiveTexture(GL_TEXTURE0);
   }
 
   // capture()'s and capture_at()'s argument checks; `what` names the call, `items` its points.
@@ -664,8 +638,8 @@ struct PatchCamera::Impl {
     // Only the tile rows that hold drawn tiles are read.
     const int used_tile_rows = (robots + tile_columns - 1) / tile_columns;
     const std::size_t row_bytes = static_cast<std::size_t>(framebuffer_width_px) * channels;
-    glReadPixels(0, 0, framebuffer_width_px, used_tile_rows * tile_px, channels == 2 ? GL_RG : GL_RED, GL_UNSIGNED_BYTE,
-                 read_back.data());
+    gl.ReadPixels(0, 0, framebuffer_width_px, used_tile_rows * tile_px, channels == 2 ? GL_RG : GL_RED,
+                  GL_UNSIGNED_BYTE, read_back.data());
     // Channel `channel` of a side x side corner of each robot's tile.
     const auto copy_out = [&](std::uint8_t* to, int side, int channel) {
       const std::size_t t = static_cast<std::size_t>(tile_px);
@@ -690,24 +664,26 @@ struct PatchCamera::Impl {
 
   void release() noexcept {
     if (context == nullptr) return;
-    if (OSMesaGetCurrentContext() == context ||
-        OSMesaMakeCurrent(context, default_buffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
-      if (program != 0) glDeleteProgram(program);
-      if (bilinear_program != 0) glDeleteProgram(bilinear_program);
-      if (framebuffer != 0) glDeleteFramebuffers(1, &framebuffer);
-      if (colour_buffer != 0) glDeleteRenderbuffers(1, &colour_buffer);
-      if (floor_texture != 0) glDeleteTextures(1, &floor_texture);
-      if (block_means_texture != 0) glDeleteTextures(1, &block_means_texture);
-      if (pose_buffer != 0) glDeleteBuffers(1, &pose_buffer);
-      if (vertex_array != 0) glDeleteVertexArrays(1, &vertex_array);
-      if (centre_vertex_array != 0) glDeleteVertexArrays(1, &centre_vertex_array);
+    try {
+      make_current();
+      if (program != 0) gl.DeleteProgram(program);
+      if (bilinear_program != 0) gl.DeleteProgram(bilinear_program);
+      if (framebuffer != 0) gl.DeleteFramebuffers(1, &framebuffer);
+      if (colour_buffer != 0) gl.DeleteRenderbuffers(1, &colour_buffer);
+      if (floor_texture != 0) gl.DeleteTextures(1, &floor_texture);
+      if (block_means_texture != 0) gl.DeleteTextures(1, &block_means_texture);
+      if (pose_buffer != 0) gl.DeleteBuffers(1, &pose_buffer);
+      if (vertex_array != 0) gl.DeleteVertexArrays(1, &vertex_array);
+      if (centre_vertex_array != 0) gl.DeleteVertexArrays(1, &centre_vertex_array);
+    } catch (const std::exception&) {
+      // The context cannot be bound: destroying it frees what it holds all the same.
     }
-    OSMesaDestroyContext(context);
-    context = nullptr;
+    context.reset();
   }
 };
 
-PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide)
+PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide,
+                         CameraBackend backend)
     : impl_(std::make_unique<Impl>()) {
   require(floor_width_px > 0 && floor_width_px <= kMaxFloorPx,
           "floor width must be 1.." + std::to_string(kMaxFloorPx) + " px, got " + std::to_string(floor_width_px));
@@ -736,11 +712,11 @@ PatchCamera::PatchCamera(int floor_width_px, int floor_height_px, int patch_px, 
   impl.framebuffer_width_px = impl.tile_columns * impl.tile_px;
   impl.framebuffer_height_px = impl.tile_rows * impl.tile_px;
   try {
-    impl.create_context();
+    impl.create_context(backend);
     // Buffers first: they settle floors_per_layer, which the programs' uniforms need.
     impl.create_buffers();
     impl.create_programs();
-    if (GLenum error = glGetError(); error != GL_NO_ERROR) {
+    if (GLenum error = impl.gl.GetError(); error != GL_NO_ERROR) {
       throw std::runtime_error("PatchCamera: GL error " + std::to_string(error) + " while setting up");
     }
   } catch (...) {
@@ -770,14 +746,15 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
   const int whole_layers = count / impl.floors_per_layer;
   const int rest = count % impl.floors_per_layer;
   if (whole_layers > 0) {
-    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, impl.floor_width_px, impl.floor_height_px * impl.floors_per_layer,
-                    whole_layers, GL_RED, GL_UNSIGNED_BYTE, floors.data());
+    impl.gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, impl.floor_width_px,
+                          impl.floor_height_px * impl.floors_per_layer, whole_layers, GL_RED, GL_UNSIGNED_BYTE,
+                          floors.data());
   }
   if (rest > 0) {
     const std::size_t offset =
         floor_bytes * static_cast<std::size_t>(whole_layers) * static_cast<std::size_t>(impl.floors_per_layer);
-    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest, 1,
-                    GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
+    impl.gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest,
+                          1, GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
   }
   if (impl.wide.px > 0) impl.load_block_means(floors, count);
   impl.floors_loaded = count;
@@ -793,7 +770,7 @@ void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8
   if (impl.bilinear_bound) impl.bind_crop();
 
   const int robots = static_cast<int>(poses.size());
-  glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
+  impl.gl.BufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(poses.size_bytes()), poses.data());
   impl.draw(robots);
   const bool wide = !wide_patches.empty();
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
@@ -814,7 +791,7 @@ void PatchCamera::capture_at(std::span<const FloorPoint> centres, std::span<std:
   if (!impl.bilinear_bound) impl.bind_bilinear();
 
   const int robots = static_cast<int>(centres.size());
-  glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(centres.size_bytes()), centres.data());
+  impl.gl.BufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(centres.size_bytes()), centres.data());
   impl.draw(robots);
   const bool wide = !wide_patches.empty();
   impl.read_tiles(robots, patches.data(), wide ? wide_patches.data() : nullptr);
@@ -827,6 +804,8 @@ WideView PatchCamera::wide_view() const { return impl_->wide; }
 int PatchCamera::max_robots() const { return impl_->max_robots; }
 
 std::string PatchCamera::gl_description() const { return impl_->description; }
+
+CameraBackend PatchCamera::backend() const { return impl_->context->backend(); }
 
 void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, int patch_px, PixelPose pose,
                 std::uint8_t* patch_out) {

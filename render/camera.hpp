@@ -1,11 +1,14 @@
 #pragma once
-/// The downward camera: an offscreen OpenGL (OSMesa, llvmpipe) renderer that produces the m x m
-/// floor patches seen by a batch of robots in one draw and one read-back (METHOD.md § Camera
-/// window). No display and no X are needed. GL stays behind this header.
+/// The downward camera: an offscreen OpenGL renderer (OSMesa or EGL; llvmpipe, or a GPU through
+/// EGL) that produces the m x m floor patches seen by a batch of robots in one draw and one
+/// read-back (METHOD.md § Camera window). No display and no X are needed. GL stays behind this
+/// header.
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "render/limits.hpp"
 
@@ -36,13 +39,33 @@ struct WideView {
   int scale = 1;
 };
 
+/// Which library makes the camera's GL context (render/README.md § Back ends). `automatic` takes
+/// the back end named by the environment variable SCOUT_CAMERA_BACKEND (auto, osmesa or egl) and,
+/// where that is unset or auto, OSMesa where this build has it and it works, else EGL.
+enum class CameraBackend { automatic, osmesa, egl };
+
+/// The environment variable `automatic` reads (the CLI's --camera-backend sets it, so that the
+/// processes a run starts choose the same).
+inline constexpr const char* kCameraBackendVariable = "SCOUT_CAMERA_BACKEND";
+
+/// "auto", "osmesa" or "egl".
+const char* camera_backend_name(CameraBackend backend);
+/// The inverse of camera_backend_name; std::invalid_argument naming the three otherwise.
+CameraBackend parse_camera_backend(std::string_view name);
+/// The back ends this build has (its libraries were found when it was configured), in
+/// `automatic`'s order of preference.
+std::vector<CameraBackend> built_camera_backends();
+
 /// Renders the camera patches of up to `max_robots` robots, each over its own floor.
 class PatchCamera {
  public:
   /// Creates the GL context and buffers. Floors are width x height 8-bit images; the camera
   /// sees patch_px x patch_px windows, and with `wide` a wider view as well (px 0..64, scale
-  /// 1..kMaxWideScale). Throws std::runtime_error if no GL context can be made.
-  PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide = {});
+  /// 1..kMaxWideScale). `backend` makes the GL context (automatic: see CameraBackend). Throws
+  /// std::runtime_error saying why if the back end cannot make a context, std::invalid_argument
+  /// for bad sizes or a bad SCOUT_CAMERA_BACKEND.
+  PatchCamera(int floor_width_px, int floor_height_px, int patch_px, int max_robots, WideView wide = {},
+              CameraBackend backend = CameraBackend::automatic);
   ~PatchCamera();
   PatchCamera(const PatchCamera&) = delete;
   PatchCamera& operator=(const PatchCamera&) = delete;
@@ -74,8 +97,11 @@ class PatchCamera {
   int patch_px() const;
   WideView wide_view() const;
   int max_robots() const;
-  /// The GL renderer and version strings, e.g. "llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6".
+  /// The back end, the GL renderer and the version, e.g.
+  /// "OSMesa: llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6".
   std::string gl_description() const;
+  /// The back end that made the context (never `automatic`).
+  CameraBackend backend() const;
 
  private:
   struct Impl;

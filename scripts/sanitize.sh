@@ -82,7 +82,8 @@ ASAN_CI_LABELS='^(core|grid|worlds|sim|render|env|agent|learn|python)$'
 # tools tests' own programs only start `scout` and read what it wrote, so the Release build's run
 # them, against this tree's instrumented `scout` (SCOUT_TEST_PROGRAM: tests/support/cli.hpp),
 # instead of a second build of their 23 files.
-ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests env_tests agent_tests learn_tests
+ASAN_CI_TARGETS=(core_tests grid_tests worlds_tests sim_tests render_tests render_camera_tests render_backend_tests env_tests
+                 agent_tests learn_tests
                  scout_python scout_python_agent scout)
 # The `scout` program's own code (tools/) under ASan, in a few of its end-to-end tests: the command
 # line and its refusals, the output folder and --overwrite, a run's pictures, a training run with
@@ -95,13 +96,13 @@ ASAN_CI_TOOLS_TESTS=(Cli.HelpVersionAndUsageErrors Cli.AnExistingOutputFolderIsR
   EvalRun.ReportEvaluatesAndDrawsTheTableAndFigures EvalRun.ReportRefusesBadInputsWithOneLine
   TrainDistributed.TwoProcessesTrainTheSameWeightsAsOne)
 SLOW_UNDER_ASAN='^(Training\.(LearnedGoalsFindTheCornerThatIidGoalsMiss|ResNet18LearnsSyntheticDigits)|EstimatorGradient\.(TwoEpisodesModeIII.*|ModeIIIMatchesExactGradient)|TrainerGradientHook\..*|Precision\.Bf16AccumulatesThePlannersGradientsOverMovesLikeFp32|Python\.test_examples)$'
-TSAN_TESTS='^(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
-TSAN_CI_TESTS='^((WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
+TSAN_TESTS='^(osmesa\.)?(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest|TrainDistributed)\.'
+TSAN_CI_TESTS='^((osmesa\.)?(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
 # The multi-process tests run from the Release build's tools_process_tests against this tree's
 # instrumented `scout`, as the ASan subset's tools tests do.
-TSAN_TARGETS=(sim_tests render_tests env_tests scout)
+TSAN_TARGETS=(sim_tests render_camera_tests env_tests scout)
 # What each of those regexes must still find (a renamed test would otherwise drop out unseen).
-TSAN_FAMILIES=('^WorkerPool\.' '^RobotBatch\.' '^PatchCamera\.' '^CropPatch\.' '^BatchEnv\.' '^VectorEnvTest\.')
+TSAN_FAMILIES=('^WorkerPool\.' '^RobotBatch\.' '^osmesa\.PatchCamera\.' '^osmesa\.CropPatch\.' '^BatchEnv\.' '^VectorEnvTest\.')
 TSAN_CI_NAMED=('^TrainDistributed\.TwoProcessesTrainTheSameWeightsAsOne$'
   '^TrainDistributed\.ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes$'
   '^TrainDistributed\.ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint$'

@@ -10,7 +10,8 @@ cd "$(dirname "$0")/.."
 packages=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   libbox2d-dev            # physics (sim/)
-  libosmesa6-dev libgl-dev  # offscreen OpenGL camera (render/)
+  libosmesa6-dev libgl-dev  # offscreen OpenGL camera (render/): the OSMesa back end
+  libegl-dev libegl-mesa0 libgl1-mesa-dri  # its EGL back end (surfaceless; llvmpipe or a GPU)
   libopencv-dev           # trajectory images, PNG floors, MP4 videos
   libgif-dev              # GIF videos (scout run --video)
   libgloo-dev             # Gloo's headers for c10d (data-parallel training, learn/distributed.cpp;

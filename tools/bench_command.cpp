@@ -147,6 +147,14 @@ struct SimFigures {
   long ticks = 0, driven_moves = 0, all_moves = 0;
   double peak_speed = 0;
   std::string camera_description;
+  // Camera alone under each back end this build has, the chosen one first: seconds per batch, or
+  // why the back end could not make a context; and whether its patches equal the chosen one's.
+  struct Backend {
+    std::string name, unavailable;
+    double seconds = 0;
+    bool same_patches = false;
+  };
+  std::vector<Backend> backends;
 };
 
 void count_moves(const std::vector<learn::RolloutRecord>& recorded, SimFigures& f) {
@@ -186,24 +194,49 @@ void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vecto
     for (int i = 0; i < n; ++i) robots.place(i, b.starts[i], b.motion_seeds[i]);
     for (int m = 0; m < moves; ++m) robots.move(commands[m], results);
   }));
-  // Camera alone: the recorded poses rendered and read back (with the world's wider view).
+  // Camera alone: the recorded poses rendered and read back (with the world's wider view), under
+  // the back end the run chose (--camera-backend, SCOUT_CAMERA_BACKEND, else auto) and then each
+  // other one this build has, for the figures side by side.
   const int patch = b.world.camera.patch_px;
   const render::WideView wide{b.world.camera.wide_px, b.world.camera.wide_scale};
-  render::PatchCamera camera(b.frame.width_px, b.frame.height_px, patch, n, wide);
-  camera.load_floors(b.floor_pixels, n);
-  std::vector<std::uint8_t> patches(static_cast<std::size_t>(n) * patch * patch);
-  std::vector<std::uint8_t> wide_patches(static_cast<std::size_t>(n) * wide.px * wide.px);
+  const std::size_t patch_bytes = static_cast<std::size_t>(n) * patch * patch;
+  const std::size_t wide_bytes = static_cast<std::size_t>(n) * wide.px * wide.px;
+  std::vector<std::uint8_t> patches(patch_bytes), wide_patches(wide_bytes);
+  std::vector<std::uint8_t> chosen_patches, chosen_wide;  // the chosen back end's last move
   // As the environment does: crops at grid poses where moves land on cells, else the floor sampled
   // at the true centres.
   const bool exact = b.world.ideal_motion();
-  f.camera = median(time_repeats(opt.repeats, [&](int) {
-    for (int m = 0; m < moves; ++m) {
-      if (exact)
-        camera.capture(poses[m], patches, wide_patches);
-      else
-        camera.capture_at(centres[m], patches, wide_patches);
+  const auto time_camera = [&](render::CameraBackend backend) {
+    render::PatchCamera camera(b.frame.width_px, b.frame.height_px, patch, n, wide, backend);
+    camera.load_floors(b.floor_pixels, n);
+    SimFigures::Backend figure{render::camera_backend_name(camera.backend()), {}, 0, true};
+    figure.seconds = median(time_repeats(opt.repeats, [&](int) {
+      for (int m = 0; m < moves; ++m) {
+        if (exact)
+          camera.capture(poses[m], patches, wide_patches);
+        else
+          camera.capture_at(centres[m], patches, wide_patches);
+      }
+    }));
+    if (chosen_patches.empty()) {
+      chosen_patches = patches;
+      chosen_wide = wide_patches;
+    } else {
+      figure.same_patches = patches == chosen_patches && wide_patches == chosen_wide;
     }
-  }));
+    return std::pair{figure, camera.backend()};
+  };
+  const auto [chosen, chosen_backend] = time_camera(render::CameraBackend::automatic);
+  f.camera = chosen.seconds;
+  f.backends = {chosen};
+  for (const render::CameraBackend other : render::built_camera_backends()) {
+    if (other == chosen_backend) continue;
+    try {
+      f.backends.push_back(time_camera(other).first);
+    } catch (const std::runtime_error& e) {
+      f.backends.push_back({render::camera_backend_name(other), one_line(e.what()), 0, false});
+    }
+  }
   f.threads = robots.threads();
   // The CPU crop of the same windows: the floor any renderer is measured against.
   f.crop = median(time_repeats(opt.repeats, [&](int) {
@@ -252,8 +285,19 @@ void print_sim(const BenchOptions& opt, const SimBatch& b, const SimFigures& f) 
   fmt::print("  {:<22} {:>10} {:>18}\n", "median per batch", "ms", "agent-steps/s");
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics + camera", f.together * 1e3, steps / f.together);
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}\n", "physics alone", f.physics * 1e3, steps / f.physics);
-  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s{})\n", "camera alone", f.camera * 1e3, steps / f.camera,
-             steps / f.camera, world.ideal_motion() ? "" : ", sampled at the true centres");
+  fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.0f} patches/s{})\n", "camera alone, " + f.backends[0].name,
+             f.camera * 1e3, steps / f.camera, steps / f.camera,
+             world.ideal_motion() ? "" : ", sampled at the true centres");
+  for (std::size_t i = 1; i < f.backends.size(); ++i) {
+    const SimFigures::Backend& other = f.backends[i];
+    const std::string label = "camera alone, " + other.name;
+    if (!other.unavailable.empty())
+      fmt::print("  {:<22} {:>10} {:>18}   (unavailable: {})\n", label, "-", "-", other.unavailable);
+    else
+      fmt::print("  {:<22} {:>10.2f} {:>18.0f}   ({:.2f} x {}'s speed; patches {} {}'s)\n", label, other.seconds * 1e3,
+                 steps / other.seconds, f.camera / other.seconds, f.backends[0].name,
+                 other.same_patches ? "equal to" : "DIFFER from", f.backends[0].name);
+  }
   fmt::print("  {:<22} {:>10.2f} {:>18.0f}   (reference: the same patches cropped on the CPU)\n", "CPU crop",
              f.crop * 1e3, steps / f.crop);
   fmt::print("  ticks per move: {:.2f} over all moves, {:.2f} over moves that drive ({} of {} moves are no-ops)\n",
@@ -287,6 +331,17 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
   j["agent_steps_per_s"] = {
       {"physics_and_camera", steps / f.together}, {"physics", steps / f.physics}, {"camera", steps / f.camera}};
   j["patches_per_s"] = steps / f.camera;
+  // Camera alone per back end, the chosen one first.
+  nlohmann::ordered_json backends = nlohmann::ordered_json::object();
+  for (const SimFigures::Backend& backend : f.backends) {
+    if (!backend.unavailable.empty())
+      backends[backend.name] = {{"unavailable", backend.unavailable}};
+    else
+      backends[backend.name] = {{"median_ms", backend.seconds * 1e3},
+                                {"patches_per_s", steps / backend.seconds},
+                                {"patches_equal_to_chosen", backend.same_patches}};
+  }
+  j["camera_backends"] = backends;
   j["ticks_per_move"] = double(f.ticks) / f.all_moves;
   j["ticks_per_driving_move"] = f.driven_moves ? double(f.ticks) / f.driven_moves : 0.0;
   j["peak_speed_mps"] = f.peak_speed;
@@ -535,6 +590,7 @@ void add_bench_command(CLI::App& app, const Context& context) {
                    "images' size), e.g. 28,60,100, each beside the first")
       ->delimiter(',')
       ->check(CLI::Range(1, 512));
+  add_camera_backend_option(*sim_cmd);
   sim_cmd->callback([opt, &context] {
     install_interrupt_handler();
     bench_sim(*opt, context);
@@ -570,6 +626,7 @@ void add_bench_command(CLI::App& app, const Context& context) {
       ->check(decimal_in(0, 256));
   train_cmd->add_option("--json", topt->json_out, "Also write the figures to this JSON file");
   add_group_options(*train_cmd, topt->group);
+  add_camera_backend_option(*train_cmd);
   train_cmd->callback([topt, &context] {
     install_interrupt_handler();
     if (const std::optional<int> status = launch_local_group(topt->group, context)) throw ExitStatus{*status};

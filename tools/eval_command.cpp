@@ -192,6 +192,7 @@ void add_eval_command(CLI::App& app, const Context& context) {
   cmd->add_option("--predictions", opt->predictions_out,
                   "Also write a CSV: index,label,p0,...: each image's class probabilities averaged over the runs");
   add_group_options(*cmd, opt->group);
+  add_camera_backend_option(*cmd);
   cmd->callback([opt, &context] {
     install_interrupt_handler();
     if (const std::optional<int> status = launch_local_group(opt->group, context)) throw ExitStatus{*status};

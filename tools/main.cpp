@@ -5,11 +5,13 @@
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <string>
 
 #include "core/error.hpp"
 #include "core/memory.hpp"
+#include "render/camera.hpp"
 #include "tools/commands.hpp"
 #include "tools/group.hpp"
 #include "tools/output.hpp"
@@ -57,6 +59,12 @@ int main(int argc, char** argv) {
     return rank ? fmt::format("rank {}: ", *rank) : std::string();
   };
   try {
+    // A bad SCOUT_CAMERA_BACKEND is the user's input: one line, exit 1, before any work starts.
+    if (const char* backend = std::getenv(scout::render::kCameraBackendVariable); backend != nullptr && *backend) try {
+        scout::render::parse_camera_backend(backend);
+      } catch (const std::invalid_argument& e) {
+        throw scout::InputError(std::string(scout::render::kCameraBackendVariable) + ": " + e.what());
+      }
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;

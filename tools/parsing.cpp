@@ -2,6 +2,9 @@
 
 #include <CLI/CLI.hpp>
 #include <charconv>
+#include <cstdlib>
+
+#include "render/camera.hpp"
 
 namespace scout::tools {
 
@@ -25,6 +28,15 @@ CLI::Validator seed_validator() {
         }
       },
       "UINT64");
+}
+
+void add_camera_backend_option(CLI::App& command) {
+  command
+      .add_option_function<std::string>(
+          "--camera-backend", [](const std::string& name) { setenv(render::kCameraBackendVariable, name.c_str(), 1); },
+          "The camera's GL back end: auto (OSMesa where it works, else EGL), osmesa or egl (default: "
+          "$SCOUT_CAMERA_BACKEND, else auto)")
+      ->check(one_of(render::parse_camera_backend, "auto, osmesa, egl", "BACKEND"));
 }
 
 CLI::Validator decimal_in(long long lo, long long hi) {

@@ -55,6 +55,10 @@ CLI::Validator one_of(Parse parse, const std::string& choices, const std::string
       name);
 }
 
+/// --camera-backend auto|osmesa|egl on a command that renders: sets SCOUT_CAMERA_BACKEND for this
+/// process and the ones it starts (the ranks of --nproc), which every camera then reads.
+void add_camera_backend_option(CLI::App& command);
+
 /// CLI11 reports a mistyped command as "A subcommand is required"; this names the word instead.
 /// Returns the one-line message for a word of the command line that is not a command, or "" when
 /// all are.

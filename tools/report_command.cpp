@@ -856,6 +856,7 @@ void add_report_command(CLI::App& app, const Context& context) {
       ->check(seed_validator());
   add_model_precision_option(*cmd, opt->precision);
   cmd->add_flag("--overwrite", opt->overwrite, "Replace an existing report folder");
+  add_camera_backend_option(*cmd);
   cmd->callback([opt, &context] { report_command(*opt, context); });
 }
 

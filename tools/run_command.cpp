@@ -500,6 +500,7 @@ void add_run_command(CLI::App& app, const Context& context) {
                   "Video frames per second (one frame per 1/60 s physics tick: 30 plays at half speed)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 100.0));
+  add_camera_backend_option(*cmd);
   cmd->callback([opt, &context] {
     install_interrupt_handler();
     run_command(*opt, context);

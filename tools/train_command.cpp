@@ -484,6 +484,7 @@ void add_train_command(CLI::App& app, const Context& context) {
                 "the cgroup limit and $SCOUT_MEMORY_LIMIT)");
   cmd->add_flag("--allow-nproc-change", o->allow_nproc_change,
                 "Resume a run with another number of processes (not bit-identical to an uninterrupted run)");
+  add_camera_backend_option(*cmd);
   cmd->callback([o, &context] {
     install_interrupt_handler();
     if (const std::optional<int> status = launch_local_group(o->group, context)) throw ExitStatus{*status};

@@ -28,18 +28,26 @@ SHARD_TIMEOUT_S = 1800
 
 
 def listed_tests(folder, selection):
-    """The selected tests as ctest lists them: (number, name, command, working folder)."""
+    """The selected tests as ctest lists them: (number, name, command, working folder, environment:
+    the variables the test's ENVIRONMENT property sets, as a sorted tuple of NAME=VALUE)."""
     out = subprocess.run(["ctest", "--test-dir", folder, "-N", "-V", *selection], check=True,
                          capture_output=True, text=True).stdout
-    commands, folders, tests = {}, {}, []
+    commands, folders, environments, tests = {}, {}, {}, []
+    in_environment = None
     for line in out.splitlines():
         if m := re.match(r"^(\d+): Test command: (.*)$", line):
             commands[int(m[1])] = m[2]
         elif m := re.match(r"^(\d+): Working Directory: (.*)$", line):
             folders[int(m[1])] = m[2]
+        elif m := re.match(r"^(\d+): Environment variables:", line):
+            in_environment = int(m[1])
+            environments[in_environment] = []
+        elif (m := re.match(r"^(\d+):  (\S+?=.*)$", line)) and int(m[1]) == in_environment:
+            environments[in_environment].append(m[2])
         elif m := re.match(r"^\s*Test\s+#(\d+): (\S+)", line):
             n = int(m[1])
-            tests.append((n, m[2], commands[n], folders.get(n, folder)))
+            in_environment = None
+            tests.append((n, m[2], commands[n], folders.get(n, folder), tuple(sorted(environments.get(n, [])))))
     return tests
 
 
@@ -69,26 +77,31 @@ def main():
         sys.exit(f"run_grouped: {folder}: not a configured build folder (no CTestTestfile.cmake)")
     costs = read_costs(cost_files)
     start = time.monotonic()
-    programs = {}  # (program, folder) -> gtest names
+    # (program, folder, environment) -> gtest names: a program that ctest runs with two environments
+    # (the camera's tests, once per back end) runs once per environment here too.
+    programs = {}
     program_costs = {}
     others = []  # ctest names of tests that are not GoogleTest programs
-    for _, name, command, cwd in listed_tests(folder, selection):
+    for _, name, command, cwd, environment in listed_tests(folder, selection):
         m = re.match(r'^(\S+) "--gtest_filter=([^"]+)"', command)
         if m:
-            programs.setdefault((m[1], cwd), []).append(m[2])
-            program_costs[(m[1], cwd)] = program_costs.get((m[1], cwd), 0.0) + costs.get(name, 1.0)
+            key = (m[1], cwd, environment)
+            programs.setdefault(key, []).append(m[2])
+            program_costs[key] = program_costs.get(key, 0.0) + costs.get(name, 1.0)
         else:
             others.append(name)
     if not programs and not others:
         sys.exit(f"run_grouped: no test in {folder} matches {' '.join(selection)}")
 
     runs = []  # (expected cost, label, argv, cwd, environment, tests it must run)
-    for (program, cwd), names in programs.items():
+    for (program, cwd, environment), names in programs.items():
         shards = min(2 * jobs, len(names))
         for index in range(shards):
             env = dict(os.environ, GTEST_TOTAL_SHARDS=str(shards), GTEST_SHARD_INDEX=str(index))
-            runs.append((program_costs[(program, cwd)] / shards,
-                         f"{os.path.basename(program)} shard {index + 1}/{shards} of {len(names)} tests",
+            env.update(entry.split("=", 1) for entry in environment)
+            shown = f" ({' '.join(environment)})" if environment else ""
+            runs.append((program_costs[(program, cwd, environment)] / shards,
+                         f"{os.path.basename(program)}{shown} shard {index + 1}/{shards} of {len(names)} tests",
                          [program, "--gtest_filter=" + ":".join(names), "--gtest_also_run_disabled_tests"], cwd, env,
                          len(range(index, len(names), shards))))
     for name in others:

@@ -1,5 +1,6 @@
 // The GL patch camera against the CPU crop, bit for bit, and its sub-pixel capture_at against the
-// bilinear CPU reference, on real OSMesa.
+// bilinear CPU reference, on real Mesa: ctest runs these once per back end this build has
+// (SCOUT_CAMERA_BACKEND=osmesa, then egl; tests/render/CMakeLists.txt).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -346,6 +347,11 @@ TEST(PatchCamera, ReportsItsSizesAndRenderer) {
   EXPECT_EQ(camera.patch_px(), 6);
   EXPECT_EQ(camera.max_robots(), 240);
   const std::string description = camera.gl_description();
+  // The back end ctest named is the one that drew (auto where none is named).
+  if (const char* named = std::getenv(kCameraBackendVariable); named != nullptr && std::string(named) != "auto")
+    EXPECT_EQ(camera_backend_name(camera.backend()), std::string(named));
+  const std::string backend = camera.backend() == CameraBackend::egl ? "EGL: " : "OSMesa: ";
+  EXPECT_EQ(description.rfind(backend, 0), 0u) << description;
   const std::size_t separator = description.find("; ");
   ASSERT_NE(separator, std::string::npos) << description;
   EXPECT_GT(separator, 0u) << description;

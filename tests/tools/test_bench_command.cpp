@@ -23,6 +23,7 @@
 
 #include "agent/config.hpp"
 #include "learn/auto_precision.hpp"
+#include "render/camera.hpp"
 #include "tests/support/cli_fixture.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
@@ -71,6 +72,32 @@ TEST_F(Cli, BenchReportsItsFiguresAsJson) {
   EXPECT_NE(r.output.find("memory: peak resident"), std::string::npos) << r.output;
   EXPECT_GT(b["peak_resident_bytes"].get<double>(), 20e6);
   EXPECT_LT(b["peak_resident_bytes"].get<double>(), 1e9);
+}
+
+// The camera alone under every back end this build has, the one --camera-backend names first,
+// side by side, with their patches equal; a back end that is not one is a usage error.
+TEST_F(Cli, BenchSimTimesTheCameraUnderEachBackEndSideBySide) {
+  const std::vector<render::CameraBackend> built = render::built_camera_backends();
+  const std::string first = render::camera_backend_name(built.back());
+  const Result r = scout("bench sim --world " + world("fashion.yaml") + " --robots 8 --repeats 2 --camera-backend " +
+                         first + " --json " + path("b.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const json b = read_json(path("b.json"));
+  ASSERT_EQ(b["camera_backends"].size(), built.size()) << b["camera_backends"].dump();
+  EXPECT_EQ(b["camera_backends"].begin().key(), first);  // the chosen one, first
+  for (render::CameraBackend backend : built) {
+    const json& figure = b["camera_backends"][render::camera_backend_name(backend)];
+    EXPECT_GT(figure["patches_per_s"].get<double>(), 0.0) << figure.dump();
+    EXPECT_TRUE(figure["patches_equal_to_chosen"].get<bool>()) << figure.dump();
+    EXPECT_NE(r.output.find(std::string("camera alone, ") + render::camera_backend_name(backend)), std::string::npos)
+        << r.output;
+  }
+  EXPECT_EQ(b["manifest"]["libraries"]["gl"].get<std::string>().rfind(first == "egl" ? "EGL: " : "OSMesa: ", 0), 0u)
+      << b["manifest"]["libraries"].dump();
+  const Result bad = scout("bench sim --world " + world("fashion.yaml") + " --camera-backend vulkan");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.output.find("--camera-backend: expected one of auto, osmesa, egl, got 'vulkan'"), std::string::npos)
+      << bad.output;
 }
 
 // --floor-sizes: the same task on larger floors in one process, a row each beside the first; a
