@@ -17,6 +17,8 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <future>
+#include <memory>
 #include <thread>
 #include <torch/csrc/distributed/c10d/PrefixStore.hpp>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
@@ -102,21 +104,34 @@ struct ProcessGroup::Impl {
 
   // Which ranks still answer: each survivor of a failed collective says so in the store and
   // waits a little for the others. A rank that cannot reach the store has lost rank 0, its host.
+  // The store's client has no time limit of its own on set() and check(): where a host's link went
+  // down, its recv() would wait forever (no reset ever arrives). So the question is asked on a
+  // thread of its own, which holds the store alive, and given up after the same bound plus a
+  // second: rank 0, the store's host, is then the lost one. The thread is left behind, blocked,
+  // in a process that is about to report the error and exit.
   std::vector<int> lost_ranks() {
-    try {
-      store->set(fmt::format("scout/alive/{}", options.rank), std::vector<std::uint8_t>{1});
-      const auto deadline = core::Clock::now() + std::min<milliseconds>(options.timeout, std::chrono::seconds(10));
-      std::vector<int> silent;
-      while (true) {
-        silent.clear();
-        for (int r = 0; r < options.world_size; ++r)
-          if (!store->check({fmt::format("scout/alive/{}", r)})) silent.push_back(r);
-        if (silent.empty() || core::Clock::now() > deadline) return silent;
-        std::this_thread::sleep_for(milliseconds(50));
+    const milliseconds bound = std::min<milliseconds>(options.timeout, std::chrono::seconds(10));
+    auto answer = std::make_shared<std::promise<std::vector<int>>>();
+    std::future<std::vector<int>> silent_ranks = answer->get_future();
+    std::thread([store = store, rank = options.rank, world_size = options.world_size, bound, answer] {
+      try {
+        store->set(fmt::format("scout/alive/{}", rank), std::vector<std::uint8_t>{1});
+        const auto deadline = core::Clock::now() + bound;
+        std::vector<int> silent;
+        while (true) {
+          silent.clear();
+          for (int r = 0; r < world_size; ++r)
+            if (!store->check({fmt::format("scout/alive/{}", r)})) silent.push_back(r);
+          if (silent.empty() || core::Clock::now() > deadline) break;
+          std::this_thread::sleep_for(milliseconds(50));
+        }
+        answer->set_value(silent);
+      } catch (const std::exception&) {
+        answer->set_value({0});
       }
-    } catch (const std::exception&) {
-      return {0};
-    }
+    }).detach();
+    if (silent_ranks.wait_for(bound + std::chrono::seconds(1)) == std::future_status::ready) return silent_ranks.get();
+    return {0};
   }
 
   [[noreturn]] void fail(const char* collective, const std::exception& e) {

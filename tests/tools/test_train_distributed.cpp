@@ -4,8 +4,10 @@
 #include <chrono>
 #include <map>
 #include <thread>
+#include <tuple>
 
 #include "core/process.hpp"
+#include "tests/support/network_namespaces.hpp"
 #include "tests/support/train_cli_fixture.hpp"
 
 namespace {
@@ -83,6 +85,51 @@ Rank start_rank(int rank, int world_size, int port, const std::string& args, con
   for (std::string w; words >> w;) argv.push_back(w);
   r.pid = scout::testing::spawn(argv, r.out, r.err);
   return r;
+}
+
+// One rank started inside network namespace `ns` (ip netns exec), as on a host of its own: rank 0's
+// store at `master`, and Gloo bound to the namespace's interface.
+Rank start_rank_in(const scout::testing::NetworkNamespaces& hosts, int rank, int port, const std::string& args,
+                   const fs::path& dir) {
+  Rank r;
+  r.out = dir / ("rank" + std::to_string(rank) + ".out");
+  r.err = dir / ("rank" + std::to_string(rank) + ".err");
+  std::vector<std::string> argv = {"/usr/bin/env",
+                                   "PATH=/usr/sbin:/usr/bin:/sbin:/bin",
+                                   "ip",
+                                   "netns",
+                                   "exec",
+                                   hosts.name(rank),
+                                   "/usr/bin/env",
+                                   "RANK=" + std::to_string(rank),
+                                   "WORLD_SIZE=2",
+                                   "MASTER_ADDR=" + hosts.address(0),
+                                   "MASTER_PORT=" + std::to_string(port),
+                                   "GLOO_SOCKET_IFNAME=" + hosts.link(rank),
+                                   SCOUT_BINARY};
+  std::istringstream words(args);
+  for (std::string w; words >> w;) argv.push_back(w);
+  r.pid = scout::testing::spawn(argv, r.out, r.err);
+  return r;
+}
+
+// The namespaces, or the test skips with their one-line reason; CI (CI=true) runs every test, so
+// there it fails instead (as the Gymnasium tests do).
+#define REQUIRE_NAMESPACES(hosts)                                                                            \
+  do {                                                                                                       \
+    if (!(hosts).available()) {                                                                              \
+      const char* ci = std::getenv("CI");                                                                    \
+      if (ci != nullptr && std::string(ci) == "true") FAIL() << (hosts).why() << ", and CI runs every test"; \
+      GTEST_SKIP() << (hosts).why();                                                                         \
+    }                                                                                                        \
+  } while (false)
+
+// The lines a rank wrote that begin with "scout: " (its errors; progress lines begin otherwise).
+std::vector<std::string> error_lines(const std::string& said) {
+  std::vector<std::string> out;
+  for (const std::string& line : lines_of(said))
+    if (line.rfind("scout: ", 0) == 0) out.push_back(line);
+  return out;
 }
 
 // Waits for a rank to exit (a generous bound against hanging forever); returns its exit status
@@ -473,6 +520,103 @@ TEST_F(TrainDistributed, TrainingOverANamedInterfaceTrainsTheSameWeights) {
     EXPECT_NE(line.find("nosuch0"), std::string::npos) << line;
   }
   EXPECT_FALSE(fs::exists(path("bad")));
+}
+
+// Across hosts, as a cluster sees the run: one rank in each of two network namespaces joined by a
+// veth pair, each with its own address, MASTER_ADDR on the first, Gloo bound to each namespace's
+// interface. The same training as two processes on one host, bit for bit (the all-reduce adds
+// the same shares in the same order; TrainingOverANamedInterfaceTrainsTheSameWeights shows the
+// interface does not enter the sums), over the pair: its counters grew by the run's traffic.
+TEST_F(TrainDistributed, RanksInTwoNetworkNamespacesTrainTheSameWeightsAsOneHost) {
+  scout::testing::NetworkNamespaces hosts;
+  REQUIRE_NAMESPACES(hosts);
+  const std::string schedule =
+      " --epochs 1,1,1 --train-limit 10 --timeout 20" + kExact + scout::testing::train_cli_support::kTiny;
+  const Result one_host = run("train " + world() + " --out " + path("one-host") + schedule + " --nproc 2");
+  ASSERT_EQ(one_host.status, 0) << one_host.out << one_host.err;
+  const long long sent_before = hosts.sent_bytes(1);
+  const int port = free_port();
+  const std::string args = "train " + world() + " --out " + path("hosts") + schedule;
+  const Rank r0 = start_rank_in(hosts, 0, port, args, local_.path());
+  const Rank r1 = start_rank_in(hosts, 1, port, args, local_.path());
+  const auto [status0, seconds0] = wait_rank(r0);
+  const auto [status1, seconds1] = wait_rank(r1, 60);
+  ASSERT_EQ(status0, 0) << read_text(r0.out) << read_text(r0.err);
+  ASSERT_EQ(status1, 0) << read_text(r1.err);
+  std::printf("[ measured ] two namespaces: rank 0 took %.1f s; rank 1 sent %lld bytes over the veth pair\n", seconds0,
+              hosts.sent_bytes(1) - sent_before);
+  EXPECT_NE(read_text(r0.out).find("2 processes x 1 LibTorch threads"), std::string::npos) << read_text(r0.out);
+  // Rank 1's gradients crossed the pair: at least its share of every all-reduce.
+  EXPECT_GT(hosts.sent_bytes(1) - sent_before, 10'000);
+  const Weights w = compare_weights(path("one-host"), path("hosts"));
+  EXPECT_TRUE(w.identical) << w.worst << " differs by up to " << w.max_difference;
+  EXPECT_EQ(metrics_without_timing(path("hosts") + "/metrics.csv"),
+            metrics_without_timing(path("one-host") + "/metrics.csv"));
+  EXPECT_EQ(json::parse(read_text(path("hosts") + "/manifest.json"))["world_size"], 2);
+}
+
+// A host that drops off the network: its link goes down in the middle of mode (iii). With the
+// timeout 5 s, every rank stops within 15 s, each with one line naming the rank it lost (rank 0
+// loses rank 1; rank 1 loses rank 0, whose store it can no longer reach), and the checkpoint on
+// disk is a whole one that scout reads.
+TEST_F(TrainDistributed, ANamespaceWhoseLinkGoesDownStopsEveryRankWithinFifteenSeconds) {
+  scout::testing::NetworkNamespaces hosts;
+  REQUIRE_NAMESPACES(hosts);
+  const std::string run_dir = path("run");
+  const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 5" +
+                           scout::testing::train_cli_support::kTiny;
+  const int port = free_port();
+  const Rank r0 = start_rank_in(hosts, 0, port, args, local_.path());
+  const Rank r1 = start_rank_in(hosts, 1, port, args, local_.path());
+  ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
+  ASSERT_TRUE(hosts.set_link(1, false));
+  const auto t0 = Clock::now();
+  const auto [status0, seconds0] = wait_rank(r0, 60);
+  const auto [status1, seconds1] = wait_rank(r1, 60 - seconds0);
+  const double stopped1 = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::printf("[ measured ] link down: rank 0 stopped after %.1f s, rank 1 after %.1f s\n", seconds0,
+              std::max(seconds0, stopped1));
+  for (const auto& [rank, status, seconds, lost] :
+       {std::tuple{0, status0, seconds0, 1}, std::tuple{1, status1, std::max(seconds0, stopped1), 0}}) {
+    const std::string said = read_text(rank == 0 ? r0.err : r1.err);
+    EXPECT_EQ(status, 1) << "rank " << rank << ": " << said;
+    EXPECT_LT(seconds, 15.0) << "rank " << rank << ": " << said;
+    const std::vector<std::string> errors = error_lines(said);
+    ASSERT_EQ(errors.size(), 1u) << said;
+    EXPECT_NE(
+        errors[0].find("scout: rank " + std::to_string(rank) + ": error: rank " + std::to_string(lost) + " was lost"),
+        std::string::npos)
+        << said;
+  }
+  // The last good checkpoint: whole, and read back by scout.
+  const Result exported = run("export " + run_dir + " --out " + path("last.safetensors"));
+  EXPECT_EQ(exported.status, 0) << exported.out << exported.err;
+}
+
+// A host whose rank is killed: the other rank, in its own namespace, stops within 15 s with one
+// line naming it.
+TEST_F(TrainDistributed, ARankKilledInItsNamespaceStopsTheOtherWithinFifteenSeconds) {
+  scout::testing::NetworkNamespaces hosts;
+  REQUIRE_NAMESPACES(hosts);
+  const std::string run_dir = path("run");
+  const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 5" +
+                           scout::testing::train_cli_support::kTiny;
+  const int port = free_port();
+  const Rank r0 = start_rank_in(hosts, 0, port, args, local_.path());
+  const Rank r1 = start_rank_in(hosts, 1, port, args, local_.path());
+  ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
+  kill(r1.pid, SIGKILL);
+  const auto [status, seconds] = wait_rank(r0, 60);
+  wait_rank(r1, 5);
+  std::printf("[ measured ] rank 0 stopped %.1f s after rank 1 was killed in its namespace\n", seconds);
+  const std::string said = read_text(r0.err);
+  EXPECT_EQ(status, 1) << said;
+  EXPECT_LT(seconds, 15.0) << said;
+  const std::vector<std::string> errors = error_lines(said);
+  ASSERT_EQ(errors.size(), 1u) << said;
+  EXPECT_NE(errors[0].find("scout: rank 0: error: rank 1 was lost"), std::string::npos) << said;
+  const Result exported = run("export " + run_dir + " --out " + path("last.safetensors"));
+  EXPECT_EQ(exported.status, 0) << exported.out << exported.err;
 }
 
 }  // namespace
