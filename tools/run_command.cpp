@@ -332,7 +332,7 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                                    .obstacles = marks.obstacles,
                                    .slip = marks.slip,
                                    .faint_floor = marks.faint_floor,
-                                   .wide_side_px = marks.wide_side_px});
+                                   .wide = {world.camera.wide_px, world.camera.wide_scale}});
   }
   if (!opt.no_images) {
     interrupt_token().throw_if_requested();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 namespace scout::tools {
@@ -11,6 +12,25 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   const std::size_t team = records.size();
   grid::RevealMask seen(run.frame);
   for (const learn::RolloutRecord& r : records) seen.reveal(grid::camera_window(r.start, run.patch_px, run.frame));
+  // The wider view's coarse map, painted as env::BatchEnv::reveal_wide paints it: every floor pixel
+  // of a wide pixel's block takes its mean, the latest look winning, at each grid pose.
+  const int width = run.frame.width_px, height = run.frame.height_px, wide_px = run.wide.px,
+            wide_scale = run.wide.scale;
+  const std::size_t area = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  std::vector<std::uint8_t> coarse(wide_px > 0 ? area : 0), coarse_seen(coarse.size()), look;
+  const auto reveal_wide = [&](const grid::Cell& pose) {
+    if (wide_px == 0) return;
+    look.resize(static_cast<std::size_t>(wide_px) * wide_px);
+    render::wide_patch(run.floor, width, height, run.wide, {.x = pose.x(), .y = pose.y()}, look.data());
+    const int x0 = pose.x() - wide_px * wide_scale / 2, y0 = pose.y() - wide_px * wide_scale / 2;
+    for (int y = std::max(y0, 0); y < std::min(y0 + wide_px * wide_scale, height); ++y)
+      for (int x = std::max(x0, 0); x < std::min(x0 + wide_px * wide_scale, width); ++x) {
+        const std::size_t at = static_cast<std::size_t>(y) * width + x;
+        coarse[at] = look[static_cast<std::size_t>((y - y0) / wide_scale) * wide_px + (x - x0) / wide_scale];
+        coarse_seen[at] = 1;
+      }
+  };
+  for (const learn::RolloutRecord& r : records) reveal_wide(r.start);
 
   render::Snapshot s;
   s.floor = run.floor;
@@ -23,7 +43,11 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.obstacles = run.obstacles;
   s.slip = run.slip;
   s.faint_unseen_floor = run.faint_floor;
-  s.wide_side_px = run.wide_side_px;
+  s.wide_side_px = wide_px * wide_scale;
+  if (wide_px > 0) {
+    s.wide_revealed = coarse.data();
+    s.wide_seen = coarse_seen.data();
+  }
   s.teammates.resize(team - 1);
   // Robot 0 is drawn through the snapshot's own fields, robot k > 0 through teammates[k - 1].
   auto path_of = [&](std::size_t k) -> std::vector<render::PixelPose>& {
@@ -86,6 +110,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
     for (std::size_t k = 0; k < team; ++k) {
       const grid::Cell& pose = records[k].steps[j].grid_pose;
       seen.reveal(grid::camera_window(pose, run.patch_px, run.frame));
+      reveal_wide(pose);
       path_of(k).push_back({.x = pose.x(), .y = pose.y()});
     }
     if (ticks == 0) draw();  // a move that needed no tick still reveals

@@ -5,6 +5,7 @@
 
 #include "grid/grid.hpp"
 #include "learn/rollout.hpp"
+#include "render/camera.hpp"
 #include "render/video.hpp"
 
 namespace scout::tools {
@@ -24,12 +25,15 @@ struct RunAnimation {
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask, drawn on every frame; null: none
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask, tinted on every frame; null: none
   bool faint_floor = false;                 ///< the unseen floor shows faintly (a composed floor)
-  int wide_side_px = 0;  ///< the wider window's side in floor pixels, outlined where the body is (0: none)
+  /// The camera's wider view (px 0: none): its window outlined where the body is, and the coarse
+  /// map it has made so far shown where the patch has not been, as in the pictures.
+  render::WideView wide{};
 };
 
 /// Appends the run's frames to `video`: a short hold on each episode's new goal, then one frame
 /// per physics tick with the robot's disc and camera window where the body is, the floor revealed
-/// as the camera saw it after each move, the path so far and the goal; at the end a one-second
+/// as the camera saw it after each move (with the wider view, the team's coarse map too, made with
+/// render::wide_patch, which equals the camera's), the path so far and the goal; at the end a one-second
 /// hold on the final picture with the prediction bars, which stay empty until then (the
 /// classifier is asked once, after the last move). A team's robots move in the same frames, each
 /// in its colour (render::teammate_colour), over what the team has seen. Returns the number of
