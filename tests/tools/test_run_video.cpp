@@ -6,6 +6,9 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 #include <string>
 
@@ -74,6 +77,36 @@ TEST_F(EvalRun, AnMp4OfModeIHasTheFloorOnlyAndEveryTick) {
     ASSERT_EQ(image.rows, kSide * 10);
   }
   EXPECT_EQ(frames, expected_frames(trajectory, 30, 2));  // --fps defaults to 30
+}
+
+// With the wider view, the frames show its coarse map where the patch has not been (a little
+// lighter than the unseen floor, over whole blocks), not only its window's outline: the last frame
+// of the same run (mode i moves read no observation) differs from the one without the view over
+// far more pixels than the outline's, and only where the view looked.
+TEST_F(EvalRun, VideosOfAWorldWithAWiderViewShowItsCoarseMap) {
+  const std::string base = read_file(world());
+  std::ofstream(path("wide.yaml")) << std::string(base).replace(base.find("camera: {patch_px: 3}"), 21,
+                                                                "camera: {patch_px: 3, wide_px: 3, wide_scale: 2}");
+  const auto last_frame = [&](const std::string& world_file, const std::string& name) {
+    const Result r = scout("run " + world_file + " --out " + path(name + "-out") +
+                           " --count 1 --no-images --scale 10 --video " + path(name + ".mp4"));
+    EXPECT_EQ(r.status, 0) << r.output;
+    cv::VideoCapture in(path(name + ".mp4"), cv::CAP_FFMPEG);
+    cv::Mat last;
+    for (cv::Mat image; in.read(image);) last = image.clone();
+    return last;
+  };
+  const cv::Mat plain = last_frame(world(), "plain"), wide = last_frame(path("wide.yaml"), "wide");
+  ASSERT_FALSE(plain.empty());
+  ASSERT_EQ(plain.size(), wide.size());
+  cv::Mat difference;
+  cv::absdiff(plain, wide, difference);
+  cv::Mat grey;
+  cv::cvtColor(difference, grey, cv::COLOR_BGR2GRAY);
+  const int changed = cv::countNonZero(grey > 12);
+  // The window's outline: 6 floor pixels a side at scale 10, a perimeter of about 240 pixels, a
+  // few wide; a block of the coarse map alone is 20 x 20 pixels, and a run covers several.
+  EXPECT_GT(changed, 1500) << "pixels that differ: " << changed;
 }
 
 TEST_F(EvalRun, BadVideoPathsAreOneLineBeforeAnyWork) {
