@@ -284,6 +284,25 @@ if gymnasium is not None:
     _register()
 
 
+def _agent_module():
+    """scout._scout_agent, which links LibTorch (libtorch_cpu, libc10) and loads it with itself. Its
+    RPATH finds them in the torch package installed beside scout (site-packages/torch/lib) or, in a
+    build, in the one it was built against. An installed package whose torch is on another sys.path
+    entry (a .pth file, the system's site packages) loads them first from the torch package Python
+    imports, as the `scout` command does for the program (_scout_command.py); the dynamic linker
+    then takes them by name, before any other LibTorch on the machine (Debian's libtorch-dev)."""
+    if _scout.installed:
+        import _scout_command  # installed with the package
+
+        folder = _scout_command.torch_library_folder(os.path.dirname(os.path.abspath(__file__)))
+        if folder is not None:
+            import ctypes
+            for name in ("libc10.so", "libtorch_cpu.so"):
+                ctypes.CDLL(os.path.join(folder, name))
+    from . import _scout_agent
+    return _scout_agent
+
+
 def checkpoint_tensors(path):
     """Every tensor of a Scout model or checkpoint (.safetensors; a run folder: its checkpoint) as
     Scout's own reader loads it, read back out of its networks and its optimizer: a dict of NumPy
@@ -296,8 +315,7 @@ def checkpoint_tensors(path):
     LibTorch is loaded with it (the scout._scout_agent module)."""
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"path: expected a path to a model file or run folder, got {path!r}")
-    from . import _scout_agent  # LibTorch comes with it
-    return _scout_agent.checkpoint_tensors(os.fspath(path))
+    return _agent_module().checkpoint_tensors(os.fspath(path))
 
 
 class Agent:
@@ -333,8 +351,7 @@ class Agent:
             raise ValueError(f"threads: expected an integer in 0..256 (0: one per core), got {threads!r}")
         if not isinstance(precision, str):  # str(None) would be refused as "None", a value never given
             raise TypeError(f"precision: expected 'auto', 'bf16' or 'fp32', got {precision!r}")
-        from . import _scout_agent  # LibTorch comes with it
-        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads), precision)
+        self._core = _agent_module().AgentCore(os.fspath(model), bool(greedy), int(threads), precision)
         self.num_classes = self._core.classes
         self.precision = self._core.precision
         self.trained_precision = self._core.trained_precision
