@@ -4,8 +4,10 @@ its site packages); then, with the source tree out of reach (a mount namespace l
 over it, and over the build folder inside it), from another folder, the installed package must:
 import, make and step a registered id through gymnasium.make and gymnasium.make_vec, drive the
 agent, and run the installed `scout` program (--help, a run of the installed world file that agrees
-with the environment, and the agent's run bit for bit), with its LibTorch found through the
-installed RPATH; a missing data folder is one line that says how to install it.
+with the environment, and the agent's run move for move), on the project's LibTorch: found through
+the installed RPATHs where torch is installed beside the package (the wheel's environment), through
+the `scout` command and scout.Agent where it is only on sys.path (the other); `scout report` with
+the installed script (once); a missing data folder is one line that says how to install it.
 
 The pip builds reuse this build folder (scikit-build-core's build-dir; SCOUT_BUILD_DIR, default
 <source>/build): CMake reconfigures it and finds nothing to compile. ctest runs this alone (label
@@ -14,7 +16,6 @@ SCOUT_BUILD_DIR set; .ci/run runs it as its own step, which the time table shows
 import glob
 import os
 import subprocess
-import sys
 import sysconfig
 import textwrap
 import time
@@ -162,6 +163,13 @@ CHECK = textwrap.dedent('''\
                                 text=True).stdout
         [line] = [line for line in linked.splitlines() if "libtorch_cpu.so =>" in line]
         assert "/scout/bin/../../torch/lib/" in line and os.path.samefile(line.split()[2], project_libtorch), line
+
+    if torch_beside == "beside":  # once: `scout report`, its figures drawn by the installed script
+        digits = os.path.join(os.environ["SCOUT_DATA"], "mnist-10k", "t10k")
+        subprocess.run([program, "report", model, "--out", "report", "--runs", "1", "--sweep-digits", "0",
+                        "--episodes", "2", "--images", digits + "-images-idx3-ubyte", "--labels",
+                        digits + "-labels-idx1-ubyte", "--precision", "fp32"], check=True, capture_output=True)
+        assert os.path.getsize("report/REPORT.md") > 0 and os.path.getsize("report/confusion.png") > 0
 
     # Without data: one line that says how to install it, in the installed package's data folder.
     os.environ.pop("SCOUT_DATA")
