@@ -16,9 +16,11 @@ set(SCOUT_TORCH_DIR "" CACHE PATH
     "A LibTorch: a folder with include/ and lib/libtorch_cpu.so (empty: the torch package of SCOUT_PYTHON)")
 set(_scout_torch_dir "${SCOUT_TORCH_DIR}")
 if(NOT _scout_torch_dir)
-  # Asked at every configure, so that a build follows its environment's torch.
+  # Asked at every configure, so that a build follows its environment's torch. Without PYTHONPATH:
+  # under pip's build isolation it points at pip's own build environment, whose site customization
+  # hides the environment SCOUT_PYTHON belongs to.
   execute_process(
-    COMMAND "${SCOUT_PYTHON}" -c
+    COMMAND ${CMAKE_COMMAND} -E env --unset=PYTHONPATH --unset=PYTHONNOUSERSITE "${SCOUT_PYTHON}" -c
             "import importlib.util as u; s = u.find_spec('torch'); print(s.submodule_search_locations[0] if s else '')"
     OUTPUT_VARIABLE _scout_python_torch OUTPUT_STRIP_TRAILING_WHITESPACE ERROR_QUIET)
   if(_scout_python_torch AND EXISTS "${_scout_python_torch}/lib/libtorch_cpu.so"
@@ -76,7 +78,8 @@ else()
   if(NOT Torch_FOUND)
     message(FATAL_ERROR "No LibTorch: ${SCOUT_PYTHON} has no torch package with include/ and lib/, and "
                         "find_package(Torch) found none. Run ./scripts/setup.sh (it installs PyTorch into "
-                        ".venv/), or name one with -DSCOUT_TORCH_DIR=/path/to/libtorch")
+                        ".venv/), or name one with -DSCOUT_TORCH_DIR=/path/to/libtorch; for `pip install .`, "
+                        "install python/requirements.txt into the environment first (README, The Python side)")
   endif()
   add_library(scout::torch INTERFACE IMPORTED GLOBAL)
   target_include_directories(scout::torch SYSTEM INTERFACE ${TORCH_INCLUDE_DIRS})

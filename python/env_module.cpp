@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/install_layout.hpp"
 #include "env/vector_env.hpp"
 #include "python/bindings.hpp"
 #include "render/snapshot.hpp"
@@ -448,7 +449,10 @@ PYBIND11_MODULE(_scout, m) {
   using namespace scout::python;
   m.doc() = "Scout's batched robot environment (use the scout package)";
   m.attr("__version__") = SCOUT_VERSION;
-  m.attr("source_dir") = SCOUT_SOURCE_DIR;  // where the world files are (worlds/)
+  // Where the world files are (worlds/): the source tree for a build (build/python), the package's
+  // share/ folder when installed (core/install_layout.hpp).
+  m.attr("files_dir") = scout::core::files_root().string();
+  m.attr("installed") = scout::core::installed_files().has_value();
   m.attr("max_envs") = scout::env::VectorEnv::kMaxEnvs;
   register_errors();
   py::class_<VectorEnvCore>(m, "VectorEnvCore")

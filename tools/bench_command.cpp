@@ -13,6 +13,7 @@
 #include <random>
 #include <sstream>
 
+#include "core/install_layout.hpp"
 #include "core/memory.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
@@ -41,7 +42,7 @@ using core::median;
 using core::seconds_since;
 
 struct BenchOptions {
-  std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
+  std::string world = (core::files_root() / "worlds" / "mnist.yaml").string();
   std::string data_root;
   std::string json_out;
   int robots = 240;
@@ -50,7 +51,7 @@ struct BenchOptions {
 };
 
 struct TrainBenchOptions {
-  std::string world = std::string(SCOUT_SOURCE_DIR) + "/worlds/mnist.yaml";
+  std::string world = (core::files_root() / "worlds" / "mnist.yaml").string();
   std::string data_root;
   std::string json_out;
   SettingOptions settings;  // the training settings bench train takes (the library's defaults: the paper preset)
@@ -576,7 +577,8 @@ void add_bench_command(CLI::App& app, const Context& context) {
                                         "Agent-steps/s of the simulation for a batch of robots driven by mode (i): "
                                         "physics + camera, physics alone, camera alone.");
   sim_cmd->add_option("--world", opt->world, "World file")->capture_default_str();
-  sim_cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  sim_cmd->add_option("--data", opt->data_root,
+                      "Data folder (default: $SCOUT_DATA, else <source>/data; installed: ~/.local/share/scout)");
   sim_cmd->add_option("--robots", opt->robots, "Robots in the batch")
       ->capture_default_str()
       ->check(decimal_in(1, render::kMaxCameraRobots));
@@ -602,7 +604,8 @@ void add_bench_command(CLI::App& app, const Context& context) {
       "Training images/s in each mode with the physics and the camera in the loop (the paper preset: N = 4, B = 60), "
       "and the share of a step spent in physics, rendering, state building, forward, backward and Adam.");
   train_cmd->add_option("--world", topt->world, "World file")->capture_default_str();
-  train_cmd->add_option("--data", topt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  train_cmd->add_option("--data", topt->data_root,
+                        "Data folder (default: $SCOUT_DATA, else <source>/data; installed: ~/.local/share/scout)");
   topt->settings.add_to(*train_cmd, /*bench=*/true);
   train_cmd
       ->add_option("--floor-size", topt->floor_side,

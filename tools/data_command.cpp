@@ -29,7 +29,8 @@ void add_data_command(CLI::App& app, const Context& context) {
     for (const worlds::InstallableDataset& d : worlds::installable_datasets()) v.push_back(d.name);
     return v;
   }()));
-  cmd->add_option("--data", *data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  cmd->add_option("--data", *data_root,
+                  "Data folder (default: $SCOUT_DATA, else <source>/data; installed: ~/.local/share/scout)");
   cmd->callback([data_root, wanted, &context] {
     const std::filesystem::path root =
         data_root->empty() ? worlds::default_data_root() : std::filesystem::path(*data_root);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/digest.hpp"
+#include "core/install_layout.hpp"
 #include "core/process.hpp"
 #include "core/random.hpp"
 #include "core/seed_streams.hpp"
@@ -450,11 +451,14 @@ std::string cpu_name() {
 
 fs::path report_script() {
   if (const char* env = std::getenv("SCOUT_REPORT_SCRIPT"); env != nullptr && *env != '\0') return env;
-  return fs::path(SCOUT_SOURCE_DIR) / "tools" / "report" / "scout_report.py";
+  return core::files_root() / "tools" / "report" / "scout_report.py";
 }
 
 std::string python_interpreter() {
   if (const char* env = std::getenv("SCOUT_PYTHON"); env != nullptr && *env != '\0') return env;
+  // An installed program's `scout` command sets SCOUT_PYTHON to the Python it is installed for
+  // (python/_scout_command.py); run by its path, the python3 on PATH (an active environment's).
+  if (core::installed_files()) return "python3";
   // The project's environment (.venv/, with matplotlib from PyPI; another python3 on PATH may lack
   // it).
   return SCOUT_PYTHON;
@@ -823,7 +827,8 @@ void add_report_command(CLI::App& app, const Context& context) {
                   "RUN/test-eval.json, else the report evaluates it");
   cmd->add_option("--images", opt->images, "Test images (default: the official MNIST test set of data set mnist)");
   cmd->add_option("--labels", opt->labels, "Test labels (with --images)");
-  cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  cmd->add_option("--data", opt->data_root,
+                  "Data folder (default: $SCOUT_DATA, else <source>/data; installed: ~/.local/share/scout)");
   cmd->add_option("--runs", opt->runs, "R: stochastic runs when the report evaluates the model")
       ->capture_default_str()
       ->check(decimal_in(1, 1000));

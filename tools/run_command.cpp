@@ -476,7 +476,8 @@ void add_run_command(CLI::App& app, const Context& context) {
   cmd->add_option("--count", opt->count, "Number of rollouts (each on its own digit with index: random)")
       ->capture_default_str()
       ->check(decimal_in(1, 1000000));
-  cmd->add_option("--data", opt->data_root, "Data folder (default: $SCOUT_DATA, else <source>/data)");
+  cmd->add_option("--data", opt->data_root,
+                  "Data folder (default: $SCOUT_DATA, else <source>/data; installed: ~/.local/share/scout)");
   cmd->add_option("--scale", opt->scale, "Image pixels per floor pixel")
       ->capture_default_str()
       ->check(decimal_in(1, 64));

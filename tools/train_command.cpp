@@ -465,8 +465,8 @@ void add_train_command(CLI::App& app, const Context& context) {
       "and the training settings of this command line (fine-tuning a trained agent in another world, "
       "e.g. --epochs 0,0,3)");
   cmd->add_option("--data", o->data_root,
-                  "Data folder: the project's (default: $SCOUT_DATA, else <source>/data) or any "
-                  "folder with train-*/t10k-* IDX files");
+                  "Data folder: the project's (default: $SCOUT_DATA, else <source>/data; installed: "
+                  "~/.local/share/scout) or any folder with train-*/t10k-* IDX files");
   o->settings.add_to(*cmd, /*bench=*/false);
   cmd->add_option("--threads", o->threads,
                   "LibTorch threads per process (0: the cores divided among the processes; on --resume, the run's own, "

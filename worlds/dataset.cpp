@@ -19,6 +19,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/install_layout.hpp"
 #include "core/random.hpp"
 
 namespace scout::worlds {
@@ -89,7 +90,9 @@ LabeledImages select(const LabeledImages& from, const std::vector<int>& indices)
 
 fs::path default_data_root() {
   if (const char* env = std::getenv("SCOUT_DATA"); env != nullptr && *env != '\0') return fs::path(env);
-  return fs::path(SCOUT_SOURCE_DIR) / "data";
+  // An installed package has no source tree to keep data in: the user's data folder.
+  if (core::installed_files()) return core::user_data_folder();
+  return core::files_root() / "data";
 }
 
 std::array<std::string_view, 3> named_datasets() { return {"mnist", "mnist-10k", "fashion-mnist"}; }

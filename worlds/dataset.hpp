@@ -24,7 +24,9 @@ struct LabeledImages {
 /// Throws InputError naming the file for anything else (as read_idx_images does for a bad file).
 LabeledImages read_labeled_idx(const std::filesystem::path& images, const std::filesystem::path& labels);
 
-/// The project's data folder: $SCOUT_DATA if set, else <source tree>/data.
+/// The project's data folder (where `scout data` installs by default): $SCOUT_DATA if set, else
+/// <source tree>/data for a build, and for an installed package (`pip install .`) the user's data
+/// folder, $XDG_DATA_HOME/scout or ~/.local/share/scout (core/install_layout.hpp).
 std::filesystem::path default_data_root();
 
 /// The data sets known by name: "mnist" (the whole of MNIST, `scout data`), "mnist-10k" (its

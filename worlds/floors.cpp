@@ -188,10 +188,11 @@ FloorSet load_dataset(const World& world, const fs::path& data_root) {
     std::error_code ec;
     const bool mnist_missing =
         (world.floor.dataset == "mnist" || world.floor.dataset == "mnist-10k") && !fs::is_directory(folder, ec);
-    const std::string hint = !mnist_missing ? ""
-                             : data_root == default_data_root()
-                                 ? " (run `scout data` to install MNIST)"
-                                 : " (run `scout data --data " + data_root.string() + "` to install MNIST there)";
+    const std::string hint =
+        !mnist_missing ? ""
+        : data_root == default_data_root()
+            ? " (run `scout data` to install MNIST there, or set SCOUT_DATA to a data folder that has it)"
+            : " (run `scout data --data " + data_root.string() + "` to install MNIST there)";
     fail(world, "floor.dataset", e.what() + hint);
   }
   FloorSet set;

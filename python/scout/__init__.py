@@ -37,13 +37,14 @@ except ImportError:  # Gymnasium is optional: the package works the same without
 __all__ = ["make_vec", "VectorEnv", "Env", "Agent", "checkpoint_tensors", "Box", "Dict", "Discrete", "MultiDiscrete",
            "WORLDS", "__version__"]
 
-#: The registered ids (scout/<name>) and their world files in the source tree's worlds/. The
+#: The registered ids (scout/<name>) and their world files in worlds/: the source tree's for a build
+#: (build/python), the package's own (site-packages/scout/share/worlds) when installed by pip. The
 #: translated and cluttered ones put the digit at a random place on a larger floor (worlds/README.md
 #: § Floors larger than the digit), as the recurrent attention model's benchmarks do.
 WORLDS = {"MNIST-v0": "mnist.yaml", "FashionMNIST-v0": "fashion.yaml",
           "TranslatedMNIST60-v0": "translated-60.yaml", "ClutteredMNIST60-v0": "cluttered-60.yaml",
           "ClutteredMNIST100-v0": "cluttered-100.yaml"}
-_DEFAULT_WORLD = os.path.join(_scout.source_dir, "worlds", WORLDS["MNIST-v0"])
+_DEFAULT_WORLD = os.path.join(_scout.files_dir, "worlds", WORLDS["MNIST-v0"])
 _MODES = ("NextStep", "SameStep", "Disabled")
 _METADATA = {"render_modes": ["rgb_array"], "render_fps": 30}
 
@@ -197,7 +198,8 @@ def make_vec(world=_DEFAULT_WORLD, num_envs=1, seed=None, split=None, data=None,
 
     seed: the run sequence's seed (default: the world file's); robot i's j-th run is run
     j * num_envs + i of `scout run --seed SEED`. split: "train", "validation" or "test" (default:
-    the world's). data: a data folder (default: $SCOUT_DATA, else the source tree's data/).
+    the world's). data: a data folder (default: $SCOUT_DATA, else where `scout data` installs: the
+    source tree's data/ for a build, ~/.local/share/scout for an installed package).
     reward: "dense" (-cross-entropy of the prediction after every move) or "sparse" (after the
     last move only); 0 where no prediction is given. force: start even when the memory estimate
     (num_envs x the floor's size) exceeds what the machine has available (the smallest of
@@ -275,11 +277,30 @@ def _register():
         env_id = f"scout/{name}"
         if env_id not in gymnasium.registry:
             gymnasium.register(id=env_id, entry_point="scout:Env", vector_entry_point="scout:make_vec",
-                               kwargs={"world": os.path.join(_scout.source_dir, "worlds", world)})
+                               kwargs={"world": os.path.join(_scout.files_dir, "worlds", world)})
 
 
 if gymnasium is not None:
     _register()
+
+
+def _agent_module():
+    """scout._scout_agent, which links LibTorch (libtorch_cpu, libc10) and loads it with itself. Its
+    RPATH finds them in the torch package installed beside scout (site-packages/torch/lib) or, in a
+    build, in the one it was built against. An installed package whose torch is on another sys.path
+    entry (a .pth file, the system's site packages) loads them first from the torch package Python
+    imports, as the `scout` command does for the program (_scout_command.py); the dynamic linker
+    then takes them by name, before any other LibTorch on the machine (Debian's libtorch-dev)."""
+    if _scout.installed:
+        import _scout_command  # installed with the package
+
+        folder = _scout_command.torch_library_folder(os.path.dirname(os.path.abspath(__file__)))
+        if folder is not None:
+            import ctypes
+            for name in ("libc10.so", "libtorch_cpu.so"):
+                ctypes.CDLL(os.path.join(folder, name))
+    from . import _scout_agent
+    return _scout_agent
 
 
 def checkpoint_tensors(path):
@@ -294,8 +315,7 @@ def checkpoint_tensors(path):
     LibTorch is loaded with it (the scout._scout_agent module)."""
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"path: expected a path to a model file or run folder, got {path!r}")
-    from . import _scout_agent  # LibTorch comes with it
-    return _scout_agent.checkpoint_tensors(os.fspath(path))
+    return _agent_module().checkpoint_tensors(os.fspath(path))
 
 
 class Agent:
@@ -331,8 +351,7 @@ class Agent:
             raise ValueError(f"threads: expected an integer in 0..256 (0: one per core), got {threads!r}")
         if not isinstance(precision, str):  # str(None) would be refused as "None", a value never given
             raise TypeError(f"precision: expected 'auto', 'bf16' or 'fp32', got {precision!r}")
-        from . import _scout_agent  # LibTorch comes with it
-        self._core = _scout_agent.AgentCore(os.fspath(model), bool(greedy), int(threads), precision)
+        self._core = _agent_module().AgentCore(os.fspath(model), bool(greedy), int(threads), precision)
         self.num_classes = self._core.classes
         self.precision = self._core.precision
         self.trained_precision = self._core.trained_precision
