@@ -348,8 +348,9 @@ TEST(PatchCamera, ReportsItsSizesAndRenderer) {
   EXPECT_EQ(camera.max_robots(), 240);
   const std::string description = camera.gl_description();
   // The back end ctest named is the one that drew (auto where none is named).
-  if (const char* named = std::getenv(kCameraBackendVariable); named != nullptr && std::string(named) != "auto")
+  if (const char* named = std::getenv(kCameraBackendVariable); named != nullptr && std::string(named) != "auto") {
     EXPECT_EQ(camera_backend_name(camera.backend()), std::string(named));
+  }
   const std::string backend = camera.backend() == CameraBackend::egl ? "EGL: " : "OSMesa: ";
   EXPECT_EQ(description.rfind(backend, 0), 0u) << description;
   const std::size_t separator = description.find("; ");
