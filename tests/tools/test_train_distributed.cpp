@@ -113,6 +113,16 @@ Rank start_rank_in(const scout::testing::NetworkNamespaces& hosts, int rank, int
   return r;
 }
 
+// A run of 40 tiny mode (iii) epochs with the timeout 5 s, one rank in each namespace: long enough
+// to lose a rank in the middle of it.
+std::pair<Rank, Rank> start_long_run_across(const scout::testing::NetworkNamespaces& hosts, const std::string& world,
+                                            const std::string& run_dir, const fs::path& dir) {
+  const std::string args = "train " + world + " --out " + run_dir + " --epochs 0,0,40 --timeout 5" +
+                           scout::testing::train_cli_support::kTiny;
+  const int port = free_port();
+  return {start_rank_in(hosts, 0, port, args, dir), start_rank_in(hosts, 1, port, args, dir)};
+}
+
 // The namespaces, or the test skips with their one-line reason; CI (CI=true) runs every test, so
 // there it fails instead (as the Gymnasium tests do).
 #define REQUIRE_NAMESPACES(hosts)                                                                            \
@@ -563,16 +573,12 @@ TEST_F(TrainDistributed, ANamespaceWhoseLinkGoesDownStopsEveryRankWithinFifteenS
   scout::testing::NetworkNamespaces hosts;
   REQUIRE_NAMESPACES(hosts);
   const std::string run_dir = path("run");
-  const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 5" +
-                           scout::testing::train_cli_support::kTiny;
-  const int port = free_port();
-  const Rank r0 = start_rank_in(hosts, 0, port, args, local_.path());
-  const Rank r1 = start_rank_in(hosts, 1, port, args, local_.path());
+  const auto [r0, r1] = start_long_run_across(hosts, world(), run_dir, local_.path());
   ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
   ASSERT_TRUE(hosts.set_link(1, false));
   const auto t0 = Clock::now();
   const auto [status0, seconds0] = wait_rank(r0, 60);
-  const auto [status1, seconds1] = wait_rank(r1, 60 - seconds0);
+  const int status1 = wait_rank(r1, 60 - seconds0).first;
   const double stopped1 = std::chrono::duration<double>(Clock::now() - t0).count();
   std::printf("[ measured ] link down: rank 0 stopped after %.1f s, rank 1 after %.1f s\n", seconds0,
               std::max(seconds0, stopped1));
@@ -599,11 +605,7 @@ TEST_F(TrainDistributed, ARankKilledInItsNamespaceStopsTheOtherWithinFifteenSeco
   scout::testing::NetworkNamespaces hosts;
   REQUIRE_NAMESPACES(hosts);
   const std::string run_dir = path("run");
-  const std::string args = "train " + world() + " --out " + run_dir + " --epochs 0,0,40 --timeout 5" +
-                           scout::testing::train_cli_support::kTiny;
-  const int port = free_port();
-  const Rank r0 = start_rank_in(hosts, 0, port, args, local_.path());
-  const Rank r1 = start_rank_in(hosts, 1, port, args, local_.path());
+  const auto [r0, r1] = start_long_run_across(hosts, world(), run_dir, local_.path());
   ASSERT_TRUE(scout::testing::wait_for_text(r0.pid, r0.out, "mode iii epoch   1:", 300)) << read_text(r0.err);
   kill(r1.pid, SIGKILL);
   const auto [status, seconds] = wait_rank(r0, 60);
