@@ -258,9 +258,11 @@ struct AgentEval {
   fs::path images, labels;
   int runs = 1, digits = 0;
   std::uint64_t seed = 1;
+  int baseline_runs = 0;  // > 0: the baselines too (i.i.d. moves, goals only, full images, greedy)
 };
 
-// The learned agent alone (no baselines) of the model opened once, with its own progress line.
+// The learned agent of the model opened once (alone, unless `what` asks for its baselines), with
+// its own progress line.
 learn::EvalReport evaluate_agent(const ReportOptions& opt, const learn::Checkpoint& checkpoint, const AgentEval& what,
                                  const std::string& label) {
   ProgressLine progress("scout report", "rollouts");  // one per evaluation: each has its own clock
@@ -273,7 +275,8 @@ learn::EvalReport evaluate_agent(const ReportOptions& opt, const learn::Checkpoi
   config.runs = what.runs;
   config.seed = what.seed;
   config.image_limit = what.digits;
-  config.agent_only = true;
+  config.agent_only = what.baseline_runs == 0;
+  if (what.baseline_runs > 0) config.baseline_runs = what.baseline_runs;
   config.precision = agent::parse_precision(opt.precision);
   config.on_progress = [&](const learn::EvalProgress& e) {
     progress.update(label, e.rollouts_done, e.rollouts_total, e.seconds);
@@ -695,9 +698,10 @@ void add_sweep(const ReportOptions& opt, const ReportInputs& in, json& data) {
         data["model"]["revealed_fraction"] = p["revealed_fraction"];
 }
 
-// Each scenario agent in the world it was trained for, beside this model in that world: accuracy
-// and the moves per rollout that did not arrive (blocked by an obstacle or a teammate), on the
-// robustness table's digits and runs.
+// Each scenario agent in the world it was trained for, beside its baselines there (random moves:
+// i.i.d. goals and axes; goals only: its goals, i.i.d. axes; both with its classifier) and beside
+// this model in that world: accuracy, the share of the floor seen and the moves per rollout that
+// did not arrive (blocked by an obstacle or a teammate), on the robustness table's digits and runs.
 json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
   json out;
   out["digits"] = std::min(opt.scenario_digits, in.test_images.count);
@@ -708,22 +712,32 @@ json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
   const std::size_t rows = in.scenario_agents.size();
   for (const ReportInputs::ScenarioAgent& a : in.scenario_agents) {
     ++row;
-    const AgentEval task{a.world, in.images, in.labels, opt.scenario_runs, opt.scenario_digits, in.seed};
+    AgentEval task{a.world, in.images, in.labels, opt.scenario_runs, opt.scenario_digits, in.seed};
+    task.baseline_runs = opt.scenario_runs;
     const learn::EvalReport agent =
         evaluate_agent(opt, a.opened, task, fmt::format("scenario agent {} of {}", row, rows));
+    task.baseline_runs = 0;
     const learn::EvalReport model =
         evaluate_agent(opt, in.opened, task, fmt::format("this model in scenario {} of {}", row, rows));
+    const bool goals_only = !std::isnan(agent.goals_only_accuracy);  // NaN: the agent has no learned goals
     out["rows"].push_back({{"world", a.world.file.stem().string()},
                            {"agent", a.model},
                            {"accuracy", agent.accuracy.mean},
                            {"ci95", agent.accuracy.ci95},
+                           {"revealed_fraction", agent.revealed_fraction},
                            {"stalled_moves", agent.stalled_moves_per_rollout},
+                           {"baseline_runs", agent.baseline_runs},
+                           {"iid_accuracy", agent.iid_accuracy},
+                           {"iid_ci95", agent.iid_ci95},
+                           {"goals_only_accuracy", goals_only ? json(agent.goals_only_accuracy) : json(nullptr)},
+                           {"goals_only_ci95", goals_only ? json(agent.goals_only_ci95) : json(nullptr)},
                            {"model_accuracy", model.accuracy.mean},
                            {"model_ci95", model.accuracy.ci95},
                            {"model_stalled_moves", model.stalled_moves_per_rollout}});
     fmt::print(
-        "  scenario agent {} in {}: accuracy {:.4f}, {:.2f} stalled moves per rollout (this model {:.4f}, {:.2f})\n",
-        a.model, a.world.file.stem().string(), agent.accuracy.mean, agent.stalled_moves_per_rollout,
+        "  scenario agent {} in {}: accuracy {:.4f}, random moves {:.4f}, {:.2f} stalled moves per rollout (this "
+        "model {:.4f}, {:.2f})\n",
+        a.model, a.world.file.stem().string(), agent.accuracy.mean, agent.iid_accuracy, agent.stalled_moves_per_rollout,
         model.accuracy.mean, model.stalled_moves_per_rollout);
     std::fflush(stdout);
   }
@@ -846,8 +860,9 @@ void add_report_command(CLI::App& app, const Context& context) {
                   "World files of the robustness table: the model in each, beside its own world (e.g. "
                   "worlds/scenarios/*.yaml; docs/SCENARIOS.md)");
   cmd->add_option("--scenario-agent", opt->scenario_agents,
-                  "An agent trained for a scenario world, in a table beside this model there, with the moves that "
-                  "did not arrive: WORLD.yaml=MODEL (repeatable)");
+                  "An agent trained for a scenario world, in a table beside its baselines (random moves, goals only) "
+                  "and this model there, with the share of the floor seen and the moves that did not arrive: "
+                  "WORLD.yaml=MODEL (repeatable)");
   cmd->add_option("--scenario-digits", opt->scenario_digits, "Test digits per world of the robustness table")
       ->capture_default_str()
       ->check(decimal_in(1, 1000000));

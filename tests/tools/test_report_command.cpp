@@ -214,7 +214,7 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   EXPECT_EQ(rows[2]["stalled_moves"], boxes["stalled_moves_per_rollout"]);
   const Result agent_direct =
       scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --world " + path("boxes.yaml") +
-            " --limit 9 --runs 2 --seed 6 --json " + path("agent-eval.json"));
+            " --limit 9 --runs 2 --baseline-runs 2 --seed 6 --json " + path("agent-eval.json"));
   ASSERT_EQ(agent_direct.status, 0) << agent_direct.output;
   const json agent = read_json(path("agent-eval.json"));
   ASSERT_EQ(data["scenario_agents"]["rows"].size(), 1u) << data.dump();
@@ -222,6 +222,12 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   EXPECT_EQ(agent_row["world"], "boxes");
   EXPECT_EQ(agent_row["accuracy"], agent["accuracy"]["mean"]);
   EXPECT_EQ(agent_row["stalled_moves"], agent["stalled_moves_per_rollout"]);
+  // Its baselines in its world, as scout eval gives them with as many baseline runs.
+  EXPECT_EQ(agent_row["baseline_runs"], 2);
+  EXPECT_EQ(agent_row["iid_accuracy"], agent["baselines"]["iid"]);
+  EXPECT_EQ(agent_row["iid_ci95"], agent["baselines"]["iid_ci95"]);
+  EXPECT_EQ(agent_row["goals_only_accuracy"], agent["baselines"]["goals_only"]);  // null: mode (i) learns no goals
+  EXPECT_EQ(agent_row["revealed_fraction"], agent["revealed_fraction"]);
   EXPECT_EQ(agent_row["model_accuracy"], boxes["accuracy"]["mean"]);
   EXPECT_EQ(agent_row["model_stalled_moves"], boxes["stalled_moves_per_rollout"]);
   const json& compared = data["sweep"]["compared"];

@@ -435,15 +435,29 @@ def write_report(data, figures, out_dir):
     if agents:
         add("## Agents trained for a scenario world")
         add("")
+        rows = need(agents, "rows", "scenario_agents")
+        # Reports made before the baselines were measured have none: their columns are left out.
+        baselines = all("iid_accuracy" in r for r in rows)
         add(f"Each in the world it was trained for, beside this model there; the first {agents['digits']} test "
             f"digits, {agents['runs']} stochastic run(s), seed {agents['seed']}. Stalled moves: per rollout, the "
-            "moves that did not arrive (blocked by an obstacle or a teammate, or out of ticks).")
+            "moves that did not arrive (blocked by an obstacle or a teammate, or out of ticks)."
+            + (" Beside each agent, in its world and with its classifier: random moves (i.i.d. goals and axes) and "
+               "goals only (its goals, i.i.d. axes; the agent itself when it has no action planner), and the share "
+               "of the floor its patches saw." if baselines else ""))
         add("")
-        add("| world | agent | accuracy | stalled moves | this model | its stalled moves |")
-        add("|---|---|---|---|---|---|")
-        for r in need(agents, "rows", "scenario_agents"):
-            add(f"| {r['world']} | `{r['agent']}` | {100 * r['accuracy']:.2f} ± {100 * r['ci95']:.2f} % | "
-                f"{r['stalled_moves']:.2f} | {100 * r['model_accuracy']:.2f} ± {100 * r['model_ci95']:.2f} % | "
+
+        def interval(mean, ci95):
+            return "-" if mean is None else f"{100 * mean:.2f} ± {100 * ci95:.2f} %"
+
+        add("| world | agent | accuracy |" + (" random moves | goals only | floor seen |" if baselines else "")
+            + " stalled moves | this model | its stalled moves |")
+        add("|---|---|---|" + ("---|---|---|" if baselines else "") + "---|---|---|")
+        for r in rows:
+            extra = (f" {interval(r['iid_accuracy'], r['iid_ci95'])} | "
+                     f"{interval(r['goals_only_accuracy'], r['goals_only_ci95'])}"
+                     f" | {100 * r['revealed_fraction']:.1f} % |") if baselines else ""
+            add(f"| {r['world']} | `{r['agent']}` | {interval(r['accuracy'], r['ci95'])} |{extra} "
+                f"{r['stalled_moves']:.2f} | {interval(r['model_accuracy'], r['model_ci95'])} | "
                 f"{r['model_stalled_moves']:.2f} |")
         add("")
     add("## Files")
