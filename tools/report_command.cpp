@@ -702,6 +702,8 @@ void add_sweep(const ReportOptions& opt, const ReportInputs& in, json& data) {
 // i.i.d. goals and axes; goals only: its goals, i.i.d. axes; both with its classifier) and beside
 // this model in that world: accuracy, the share of the floor seen and the moves per rollout that
 // did not arrive (blocked by an obstacle or a teammate), on the robustness table's digits and runs.
+// The agent's evaluation with baselines also makes the full-image and greedy passes scout eval
+// makes (about 3R + 1 passes instead of R); the report keeps the baselines only.
 json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
   json out;
   out["digits"] = std::min(opt.scenario_digits, in.test_images.count);
@@ -733,7 +735,8 @@ json scenario_agents(const ReportOptions& opt, const ReportInputs& in) {
                            {"goals_only_ci95", goals_only ? json(agent.goals_only_ci95) : json(nullptr)},
                            {"model_accuracy", model.accuracy.mean},
                            {"model_ci95", model.accuracy.ci95},
-                           {"model_stalled_moves", model.stalled_moves_per_rollout}});
+                           {"model_stalled_moves", model.stalled_moves_per_rollout},
+                           {"model_revealed_fraction", model.revealed_fraction}});
     fmt::print(
         "  scenario agent {} in {}: accuracy {:.4f}, random moves {:.4f}, {:.2f} stalled moves per rollout (this "
         "model {:.4f}, {:.2f})\n",
@@ -862,7 +865,7 @@ void add_report_command(CLI::App& app, const Context& context) {
   cmd->add_option("--scenario-agent", opt->scenario_agents,
                   "An agent trained for a scenario world, in a table beside its baselines (random moves, goals only) "
                   "and this model there, with the share of the floor seen and the moves that did not arrive: "
-                  "WORLD.yaml=MODEL (repeatable)");
+                  "WORLD.yaml=MODEL (repeatable; --scenario-runs runs each, of the agent and of each baseline)");
   cmd->add_option("--scenario-digits", opt->scenario_digits, "Test digits per world of the robustness table")
       ->capture_default_str()
       ->check(decimal_in(1, 1000000));

@@ -192,7 +192,8 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
                          " --runs 1 --sweep-digits 3 --sweep-runs 1 --episodes 0 --seed 6 --scenario-digits 9 "
                          "--scenario-runs 2 --sweep-compare \"mode i=" +
                          checkpoint("run_i") + "\" --scenario-agent " + path("boxes.yaml") + "=" + checkpoint("run_i") +
-                         " --scenarios " + path("odometry.yaml") + " " + path("boxes.yaml"));
+                         " --scenario-agent " + path("boxes.yaml") + "=" + path("run") + " --scenarios " +
+                         path("odometry.yaml") + " " + path("boxes.yaml"));
   ASSERT_EQ(r.status, 0) << r.output;
   const json data = read_json(path("robust") + "/report-data.json");
   const json& rows = data["robustness"]["rows"];
@@ -214,22 +215,31 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   EXPECT_EQ(rows[2]["stalled_moves"], boxes["stalled_moves_per_rollout"]);
   const Result agent_direct =
       scout("eval --checkpoint " + checkpoint("run_i") + test_data() + " --world " + path("boxes.yaml") +
-            " --limit 9 --runs 2 --baseline-runs 2 --seed 6 --json " + path("agent-eval.json"));
+            " --limit 9 --runs 2 --seed 6 --json " + path("agent-eval.json"));
   ASSERT_EQ(agent_direct.status, 0) << agent_direct.output;
   const json agent = read_json(path("agent-eval.json"));
-  ASSERT_EQ(data["scenario_agents"]["rows"].size(), 1u) << data.dump();
+  ASSERT_EQ(data.at("scenario_agents").at("rows").size(), 2u) << data.dump();
   const json& agent_row = data["scenario_agents"]["rows"][0];
-  EXPECT_EQ(agent_row["world"], "boxes");
-  EXPECT_EQ(agent_row["accuracy"], agent["accuracy"]["mean"]);
-  EXPECT_EQ(agent_row["stalled_moves"], agent["stalled_moves_per_rollout"]);
-  // Its baselines in its world, as scout eval gives them with as many baseline runs.
-  EXPECT_EQ(agent_row["baseline_runs"], 2);
-  EXPECT_EQ(agent_row["iid_accuracy"], agent["baselines"]["iid"]);
-  EXPECT_EQ(agent_row["iid_ci95"], agent["baselines"]["iid_ci95"]);
-  EXPECT_EQ(agent_row["goals_only_accuracy"], agent["baselines"]["goals_only"]);  // null: mode (i) learns no goals
-  EXPECT_EQ(agent_row["revealed_fraction"], agent["revealed_fraction"]);
-  EXPECT_EQ(agent_row["model_accuracy"], boxes["accuracy"]["mean"]);
-  EXPECT_EQ(agent_row["model_stalled_moves"], boxes["stalled_moves_per_rollout"]);
+  EXPECT_EQ(agent_row.at("world"), "boxes");
+  EXPECT_EQ(agent_row.at("accuracy"), agent["accuracy"]["mean"]);
+  EXPECT_EQ(agent_row.at("stalled_moves"), agent["stalled_moves_per_rollout"]);
+  EXPECT_EQ(agent_row.at("revealed_fraction"), agent["revealed_fraction"]);
+  // Its baselines in its world, as scout eval gives them (min(5, R) = 2 baseline runs each).
+  EXPECT_EQ(agent_row.at("baseline_runs"), 2);
+  EXPECT_EQ(agent_row.at("iid_accuracy"), agent["baselines"]["iid"]);
+  EXPECT_EQ(agent_row.at("iid_ci95"), agent["baselines"]["iid_ci95"]);
+  EXPECT_TRUE(agent_row.at("goals_only_accuracy").is_null());  // mode (i) learns no goals
+  EXPECT_TRUE(agent["baselines"]["goals_only"].is_null());
+  EXPECT_EQ(agent_row.at("model_accuracy"), boxes["accuracy"]["mean"]);
+  EXPECT_EQ(agent_row.at("model_stalled_moves"), boxes["stalled_moves_per_rollout"]);
+  EXPECT_EQ(agent_row.at("model_revealed_fraction"), boxes["revealed_fraction"]);
+  // An agent with learned goals: its goals-only baseline measured, as scout eval gives it.
+  const json& goals_row = data["scenario_agents"]["rows"][1];
+  EXPECT_EQ(goals_row.at("accuracy"), boxes["accuracy"]["mean"]);
+  ASSERT_TRUE(goals_row.at("goals_only_accuracy").is_number()) << goals_row.dump();
+  EXPECT_EQ(goals_row.at("goals_only_accuracy"), boxes["baselines"]["goals_only"]);
+  EXPECT_EQ(goals_row.at("goals_only_ci95"), boxes["baselines"]["goals_only_ci95"]);
+  EXPECT_EQ(goals_row.at("iid_accuracy"), boxes["baselines"]["iid"]);
   const json& compared = data["sweep"]["compared"];
   ASSERT_EQ(compared.size(), 1u);
   EXPECT_EQ(compared[0]["label"], "mode i");

@@ -143,18 +143,19 @@ def test_the_robustness_table_lists_each_world_and_its_change(tmp_path):
         {"world": "translated-60", "agent": "models/translated-60.safetensors", "accuracy": 0.91, "ci95": 0.01,
          "revealed_fraction": 0.123, "stalled_moves": 0.0, "baseline_runs": 5, "iid_accuracy": 0.3, "iid_ci95": 0.02,
          "goals_only_accuracy": 0.905, "goals_only_ci95": 0.011, "model_accuracy": 0.25, "model_ci95": 0.03,
-         "model_stalled_moves": 0.0})
+         "model_revealed_fraction": 0.08, "model_stalled_moves": 0.0})
     for row in data["scenario_agents"]["rows"][:1]:
         row.update(revealed_fraction=0.3, baseline_runs=5, iid_accuracy=0.8, iid_ci95=0.01, goals_only_accuracy=None,
-                   goals_only_ci95=None)
+                   goals_only_ci95=None, model_revealed_fraction=0.29)
     result, out = run(tmp_path, data)
     assert result.returncode == 0, result.stderr
     text = (out / "REPORT.md").read_text()
-    assert "| world | agent | accuracy | random moves | goals only | floor seen | stalled moves |" in text
+    assert ("| world | agent | accuracy | random moves | goals only | floor seen | stalled moves | this model | "
+            "its floor seen | its stalled moves |") in text
     assert ("| obstacles-random | `models/obstacles-random.safetensors` | 95.00 ± 0.40 % | 80.00 ± 1.00 % | - | 30.0 % "
-            "| 2.25 | 93.00 ± 0.60 % | 8.50 |") in text
+            "| 2.25 | 93.00 ± 0.60 % | 29.0 % | 8.50 |") in text
     assert ("| translated-60 | `models/translated-60.safetensors` | 91.00 ± 1.00 % | 30.00 ± 2.00 % | "
-            "90.50 ± 1.10 % | 12.3 % | 0.00 | 25.00 ± 3.00 % | 0.00 |") in text
+            "90.50 ± 1.10 % | 12.3 % | 0.00 | 25.00 ± 3.00 % | 8.0 % | 0.00 |") in text
     assert "Robustness" not in run(tmp_path, report_data())[1].joinpath("REPORT.md").read_text()
 
 

@@ -442,22 +442,24 @@ def write_report(data, figures, out_dir):
             f"digits, {agents['runs']} stochastic run(s), seed {agents['seed']}. Stalled moves: per rollout, the "
             "moves that did not arrive (blocked by an obstacle or a teammate, or out of ticks)."
             + (" Beside each agent, in its world and with its classifier: random moves (i.i.d. goals and axes) and "
-               "goals only (its goals, i.i.d. axes; the agent itself when it has no action planner), and the share "
-               "of the floor its patches saw." if baselines else ""))
+               "goals only (its goals, i.i.d. axes; the agent itself when it has no action planner; '-' when it "
+               "learned no goals); floor seen: the share of the floor the patches saw." if baselines else ""))
         add("")
 
         def interval(mean, ci95):
             return "-" if mean is None else f"{100 * mean:.2f} ± {100 * ci95:.2f} %"
 
         add("| world | agent | accuracy |" + (" random moves | goals only | floor seen |" if baselines else "")
-            + " stalled moves | this model | its stalled moves |")
-        add("|---|---|---|" + ("---|---|---|" if baselines else "") + "---|---|---|")
+            + " stalled moves | this model |" + (" its floor seen |" if baselines else "") + " its stalled moves |")
+        add("|---|---|---|" + ("---|---|---|" if baselines else "") + "---|---|" + ("---|" if baselines else "")
+            + "---|")
         for r in rows:
             extra = (f" {interval(r['iid_accuracy'], r['iid_ci95'])} | "
                      f"{interval(r['goals_only_accuracy'], r['goals_only_ci95'])}"
                      f" | {100 * r['revealed_fraction']:.1f} % |") if baselines else ""
+            model_seen = f" {100 * r['model_revealed_fraction']:.1f} % |" if baselines else ""
             add(f"| {r['world']} | `{r['agent']}` | {interval(r['accuracy'], r['ci95'])} |{extra} "
-                f"{r['stalled_moves']:.2f} | {interval(r['model_accuracy'], r['model_ci95'])} | "
+                f"{r['stalled_moves']:.2f} | {interval(r['model_accuracy'], r['model_ci95'])} |{model_seen} "
                 f"{r['model_stalled_moves']:.2f} |")
         add("")
     add("## Files")
