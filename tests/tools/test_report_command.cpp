@@ -178,6 +178,16 @@ TEST_F(EvalRun, ReportComparesAnotherModelsRowAndCurve) {
   EXPECT_TRUE(fs::is_regular_file(path("compared") + "/accuracy_vs_epochs.png"));
 }
 
+// A scenario agent with learned goals (a row of report-data.json's scenario_agents): its goals-only
+// baseline measured, as `scout eval` of the same agent in the same world (`eval`) gives it.
+void expect_goals_only_baseline_as_eval_gives_it(const json& row, const json& eval) {
+  EXPECT_EQ(row.at("accuracy"), eval["accuracy"]["mean"]);
+  ASSERT_TRUE(row.at("goals_only_accuracy").is_number()) << row.dump();
+  EXPECT_EQ(row.at("goals_only_accuracy"), eval["baselines"]["goals_only"]);
+  EXPECT_EQ(row.at("goals_only_ci95"), eval["baselines"]["goals_only_ci95"]);
+  EXPECT_EQ(row.at("iid_accuracy"), eval["baselines"]["iid"]);
+}
+
 // --scenarios: the robustness table, the model in its own world and in each scenario world; a row
 // is what scout eval gives in that world on the same digits, runs and seed, stalled moves included.
 // --scenario-agent: another agent in its scenario world beside the model there, the same way.
@@ -233,13 +243,7 @@ TEST_F(EvalRun, ReportMeasuresTheModelInScenarioWorlds) {
   EXPECT_EQ(agent_row.at("model_accuracy"), boxes["accuracy"]["mean"]);
   EXPECT_EQ(agent_row.at("model_stalled_moves"), boxes["stalled_moves_per_rollout"]);
   EXPECT_EQ(agent_row.at("model_revealed_fraction"), boxes["revealed_fraction"]);
-  // An agent with learned goals: its goals-only baseline measured, as scout eval gives it.
-  const json& goals_row = data["scenario_agents"]["rows"][1];
-  EXPECT_EQ(goals_row.at("accuracy"), boxes["accuracy"]["mean"]);
-  ASSERT_TRUE(goals_row.at("goals_only_accuracy").is_number()) << goals_row.dump();
-  EXPECT_EQ(goals_row.at("goals_only_accuracy"), boxes["baselines"]["goals_only"]);
-  EXPECT_EQ(goals_row.at("goals_only_ci95"), boxes["baselines"]["goals_only_ci95"]);
-  EXPECT_EQ(goals_row.at("iid_accuracy"), boxes["baselines"]["iid"]);
+  expect_goals_only_baseline_as_eval_gives_it(data["scenario_agents"]["rows"][1], boxes);
   const json& compared = data["sweep"]["compared"];
   ASSERT_EQ(compared.size(), 1u);
   EXPECT_EQ(compared[0]["label"], "mode i");
