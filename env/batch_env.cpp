@@ -5,11 +5,16 @@
 #include <string>
 
 #include "core/timing.hpp"
+#include "core/worker_pool.hpp"
 #include "env/runs.hpp"
 #include "render/camera.hpp"
 #include "sim/robots.hpp"
 
 namespace scout::env {
+
+// Robots a worker takes at a time from the pool: few enough to spread 240 over two threads evenly,
+// enough that taking them costs little beside the work.
+constexpr int kRobotsPerChunk = 8;
 
 using core::Clock;
 using core::seconds_since;
@@ -24,7 +29,8 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   if (max_robots % team_size_ != 0)
     throw std::invalid_argument("BatchEnv: max_robots " + std::to_string(max_robots) + " is not a multiple of " +
                                 std::to_string(team_size_) + " robots per team");
-  robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots);
+  pool_ = std::make_shared<core::WorkerPool>();
+  robots_ = std::make_unique<sim::RobotBatch>(frame, sim::RobotParams::from_world(world), max_robots, pool_);
   exact_motion_ = robots_->params().exact();
   wide_px_ = world.camera.wide_px;
   wide_scale_ = world.camera.wide_scale;
@@ -91,13 +97,25 @@ Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->positio
 
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
-// Puts robot i on its floor, at rest on its start, with nothing seen yet. A team's floor holds
-// the random boxes drawn from its first robot's motion seed, `layout_seed`.
-void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed,
-                     std::uint64_t layout_seed) {
+// Robot i's memory as a run starts: its floor copied in, the world's fixed obstacles painted over
+// it, and nothing seen yet. Touches robot i's arrays only, so the robots of a reset share the pool
+// (on a 100 x 100 floor these are four 10 kB arrays a robot).
+void BatchEnv::start_buffers(int robot, std::span<const std::uint8_t> floor) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
+  std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  if (wide_px_ > 0) {
+    std::fill_n(wide_revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+    std::fill_n(wide_seen_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  }
+  seen_[robot].clear();
+}
+
+// Puts robot i at rest on its start, after start_buffers. A team's floor holds the random boxes
+// drawn from its first robot's motion seed, `layout_seed`.
+void BatchEnv::place(int robot, const grid::Cell& start, std::uint64_t motion_seed, std::uint64_t layout_seed) {
+  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   if (world_.obstacles.random_boxes > 0) {
     // The run's own layout, drawn from its motion seed as every caller that drew its start did.
     const worlds::ObstacleSpec layout = run_obstacles(world_, frame_, layout_seed);
@@ -112,14 +130,8 @@ void BatchEnv::place(int robot, std::span<const std::uint8_t> floor, const grid:
     std::copy(fixed_occupied_.begin(), fixed_occupied_.end(),
               occupied_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   }
-  std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
-  if (wide_px_ > 0) {
-    std::fill_n(wide_revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
-    std::fill_n(wide_seen_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
-  }
   robots_->place(robot, start, motion_seed);
   poses_[robot] = robots_->agent_pose(robot);
-  seen_[robot].clear();
   moves_[robot] = 0;
   sim_results_[robot] = sim::MoveResult{};
   results_[robot] = MoveResult{};
@@ -145,8 +157,8 @@ void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid:
     if (!frame_.contains(s)) throw std::invalid_argument("BatchEnv::reset: a start cell is off the floor");
   const auto t0 = Clock::now();
   count_ = count;
-  for (int i = 0; i < count; ++i)
-    place(i, floors.subspan(area * i, area), starts[i], motion_seeds[i], motion_seeds[i - i % team_size_]);
+  pool_->parallel_for(count, kRobotsPerChunk, [&](int i) { start_buffers(i, floors.subspan(area * i, area)); });
+  for (int i = 0; i < count; ++i) place(i, starts[i], motion_seeds[i], motion_seeds[i - i % team_size_]);
   camera_->load_floors(std::span(floors_.data(), area * count), count);
   timing_.observe_s += seconds_since(t0);
   observe();
@@ -177,8 +189,10 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
                                   " does not begin a whole team of " + std::to_string(team_size_) + " in order");
   }
   const auto t0 = Clock::now();
+  pool_->parallel_for(static_cast<int>(robots.size()), kRobotsPerChunk,
+                      [&](int k) { start_buffers(robots[k], floors.subspan(area * k, area)); });
   for (std::size_t k = 0; k < robots.size(); ++k)
-    place(robots[k], floors.subspan(area * k, area), starts[k], motion_seeds[k], motion_seeds[k - k % team_size_]);
+    place(robots[k], starts[k], motion_seeds[k], motion_seeds[k - k % team_size_]);
   // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
   camera_->load_floors(std::span(floors_.data(), area * count_), count_);
   timing_.observe_s += seconds_since(t0);
@@ -241,60 +255,65 @@ void BatchEnv::observe() {
   timing_.render_s += seconds_since(t0);
 
   t0 = Clock::now();
-  const int m = patch_px_;
-  const int width = frame_.width_px;
-  const int half = m / 2;
-  for (int i = 0; i < count_; ++i) {
-    const grid::Window w = grid::camera_window(poses_[i], m, frame_);
-    const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
-    // The patch's (0, 0) is the window's unclipped corner (pose - m/2).
-    const int px0 = poses_[i].x() - half, py0 = poses_[i].y() - half;
-    const int team_first = i - i % team_size_;
-    for (int j = team_first; j < team_first + team_size_; ++j) {
-      seen_[j].reveal(w);
-      std::uint8_t* y = revealed_.data() + static_cast<std::size_t>(j) * frame_.area_px();
-      for (int yy = w.y0; yy < w.y1; ++yy)
-        for (int xx = w.x0; xx < w.x1; ++xx)
-          y[static_cast<std::size_t>(yy) * width + xx] = patch[(yy - py0) * m + (xx - px0)];
+  // A team's robots write only the team's arrays: the teams share the pool.
+  pool_->parallel_for(count_ / team_size_, std::max(1, kRobotsPerChunk / team_size_), [this](int team) {
+    for (int i = team * team_size_; i < (team + 1) * team_size_; ++i) {
+      reveal_patch(i);
+      if (wide_px_ > 0) reveal_wide(i);
     }
-  }
-  if (wide_px_ > 0) reveal_wide();
+  });
   timing_.observe_s += seconds_since(t0);
 }
 
-// The wider view into each team's coarse map: every floor pixel of a wide pixel's block takes its
-// mean (the latest look wins) and is marked seen coarsely, at the pose the agent reads, as the patch.
-void BatchEnv::reveal_wide() {
+// Robot i's patch into its team's y and h.
+void BatchEnv::reveal_patch(int i) {
+  const int m = patch_px_;
+  const int width = frame_.width_px;
+  const grid::Window w = grid::camera_window(poses_[i], m, frame_);
+  const std::uint8_t* patch = patches_.data() + static_cast<std::size_t>(i) * m * m;
+  // The patch's (0, 0) is the window's unclipped corner (pose - m/2).
+  const int px0 = poses_[i].x() - m / 2, py0 = poses_[i].y() - m / 2;
+  const int team_first = i - i % team_size_;
+  for (int j = team_first; j < team_first + team_size_; ++j) {
+    seen_[j].reveal(w);
+    std::uint8_t* y = revealed_.data() + static_cast<std::size_t>(j) * frame_.area_px();
+    for (int yy = w.y0; yy < w.y1; ++yy)
+      std::copy_n(patch + (yy - py0) * m + (w.x0 - px0), w.x1 - w.x0, y + static_cast<std::size_t>(yy) * width + w.x0);
+  }
+}
+
+// Robot i's wider view into its team's coarse map: every floor pixel of a wide pixel's block takes
+// its mean (the latest look wins) and is marked seen coarsely, at the pose the agent reads, as the
+// patch.
+void BatchEnv::reveal_wide(int i) {
   const int px = wide_px_, s = wide_scale_, width = frame_.width_px, height = frame_.height_px;
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-  for (int i = 0; i < count_; ++i) {
-    const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
-    const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
-    // The window clipped to the floor, painted a run of floor pixels per wide pixel (no division
-    // per floor pixel: this runs at every step for every robot).
-    const int xa = std::max(x0, 0), xb = std::min(x0 + px * s, width);
-    const int ya = std::max(y0, 0), yb = std::min(y0 + px * s, height);
-    if (xa >= xb || ya >= yb) continue;
-    const int team_first = i - i % team_size_;
-    for (int j = team_first; j < team_first + team_size_; ++j) {
-      std::uint8_t* coarse = wide_revealed_.data() + area * j;
-      std::uint8_t* seen = wide_seen_.data() + area * j;
-      // A block's rows are equal: the first is painted run by run, the others copied from it.
-      for (int y = ya; y < yb; ++y) {
-        std::uint8_t* row = coarse + static_cast<std::size_t>(y) * width;
-        if (y > ya && (y - y0) % s != 0) {
-          std::copy(row - width + xa, row - width + xb, row + xa);
-        } else {
-          const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
-          for (int c = (xa - x0) / s; c < px; ++c) {
-            const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
-            if (from >= to) break;
-            std::fill(row + from, row + to, look_row[c]);
-          }
+  const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
+  const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
+  // The window clipped to the floor, painted a run of floor pixels per wide pixel (no division
+  // per floor pixel: this runs at every step for every robot).
+  const int xa = std::max(x0, 0), xb = std::min(x0 + px * s, width);
+  const int ya = std::max(y0, 0), yb = std::min(y0 + px * s, height);
+  if (xa >= xb || ya >= yb) return;
+  const int team_first = i - i % team_size_;
+  for (int j = team_first; j < team_first + team_size_; ++j) {
+    std::uint8_t* coarse = wide_revealed_.data() + area * j;
+    std::uint8_t* seen = wide_seen_.data() + area * j;
+    // A block's rows are equal: the first is painted run by run, the others copied from it.
+    for (int y = ya; y < yb; ++y) {
+      std::uint8_t* row = coarse + static_cast<std::size_t>(y) * width;
+      if (y > ya && (y - y0) % s != 0) {
+        std::copy(row - width + xa, row - width + xb, row + xa);
+      } else {
+        const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
+        for (int c = (xa - x0) / s; c < px; ++c) {
+          const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
+          if (from >= to) break;
+          std::fill(row + from, row + to, look_row[c]);
         }
-        std::fill(seen + static_cast<std::size_t>(y) * width + xa, seen + static_cast<std::size_t>(y) * width + xb,
-                  std::uint8_t{1});
       }
+      std::fill(seen + static_cast<std::size_t>(y) * width + xa, seen + static_cast<std::size_t>(y) * width + xb,
+                std::uint8_t{1});
     }
   }
 }

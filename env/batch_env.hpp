@@ -18,6 +18,9 @@
 
 // The physics and the camera stay behind this header: its users (learn/, tools/, python/) reach
 // the world only through env/.
+namespace scout::core {
+class WorkerPool;
+}  // namespace scout::core
 namespace scout::sim {
 class RobotBatch;
 struct MoveResult;
@@ -137,16 +140,18 @@ class BatchEnv {
   std::string camera_description() const;
 
  private:
-  void place(int robot, std::span<const std::uint8_t> floor, const grid::Cell& start, std::uint64_t motion_seed,
-             std::uint64_t layout_seed);
+  void start_buffers(int robot, std::span<const std::uint8_t> floor);
+  void place(int robot, const grid::Cell& start, std::uint64_t motion_seed, std::uint64_t layout_seed);
   void observe();
-  void reveal_wide();
+  void reveal_patch(int robot);
+  void reveal_wide(int robot);
 
   grid::FloorFrame frame_;
   int patch_px_;
   int max_robots_;
   int team_size_;  // K robots per floor (world.team.robots)
   int count_ = 0;
+  std::shared_ptr<core::WorkerPool> pool_;  // the physics' threads, also spreading the robots' observations
   std::unique_ptr<sim::RobotBatch> robots_;
   std::unique_ptr<render::PatchCamera> camera_;
   std::vector<grid::Cell> poses_;

@@ -352,6 +352,7 @@ struct PatchCamera::Impl {
   std::vector<std::uint8_t> block_means_upload;
   std::vector<std::uint8_t> padded_row;
   std::vector<std::uint16_t> row_sums, column_sums;
+  std::vector<std::uint8_t> row_has_ink;
   int block_means_width_px() const { return floor_width_px + wide.scale - 1; }
   int block_means_height_px() const { return floor_height_px + wide.scale - 1; }
   GLuint program = 0;
@@ -543,6 +544,8 @@ struct PatchCamera::Impl {
   // does. Made from box sums in uint16 (a block sums to at most 255 x 256): each row's sums over
   // `scale` columns, then over `scale` rows, loops the compiler vectorises; a summed-area table
   // with a division per entry took ten times as long, about 10 ms a reset at 240 floors of 100 x 100.
+  // Rows without ink are skipped (their sums are 0, and so is every mean whose block lies in them):
+  // a floor larger than its digits is mostly black.
   void load_block_means(std::span<const std::uint8_t> floors, int count) {
     const int w = floor_width_px, h = floor_height_px, s = wide.scale;
     const int mw = block_means_width_px(), mh = block_means_height_px();
@@ -554,6 +557,7 @@ struct PatchCamera::Impl {
     padded_row.assign(static_cast<std::size_t>(w + 2 * (s - 1)), 0);
     row_sums.assign(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)), 0);
     column_sums.resize(static_cast<std::size_t>(mw));
+    row_has_ink.assign(static_cast<std::size_t>(h + 2 * (s - 1)), 0);  // per row of row_sums
     // The mean, halves up, in float: with x = 2 sum + n exact and q = x / (2 n) = k + f, f is 0 or
     // at least 1 / (2 n) from either integer, while float's error in x * (1 / (2 n)) is at most
     // 255 x 2^-22 < 1 / (4 n); adding 1 / (4 n) before truncating gives k exactly.
@@ -562,9 +566,13 @@ struct PatchCamera::Impl {
     for (int f = 0; f < count; ++f) {
       const std::uint8_t* floor = floors.data() + static_cast<std::size_t>(f) * w * h;
       for (int y = 0; y < h; ++y) {
-        std::copy_n(floor + static_cast<std::size_t>(y) * w, w, padded_row.begin() + (s - 1));
+        const std::uint8_t* floor_row = floor + static_cast<std::size_t>(y) * w;
         std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
         std::fill_n(sums, mw, std::uint16_t{0});
+        const bool ink = std::any_of(floor_row, floor_row + w, [](std::uint8_t p) { return p != 0; });
+        row_has_ink[static_cast<std::size_t>(y + s - 1)] = ink;
+        if (!ink) continue;
+        std::copy_n(floor_row, w, padded_row.begin() + (s - 1));
         for (int k = 0; k < s; ++k) {
           const std::uint8_t* shifted = padded_row.data() + k;
           for (int u = 0; u < mw; ++u) sums[u] = static_cast<std::uint16_t>(sums[u] + shifted[u]);
@@ -575,16 +583,25 @@ struct PatchCamera::Impl {
       // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
       std::uint16_t* acc = column_sums.data();
       std::fill_n(acc, mw, std::uint16_t{0});
+      int inked_rows = 0;  // rows with ink among row_sums' rows v .. v + scale - 1
       for (int k = 0; k + 1 < s; ++k) {
         const std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(k) * mw;
         for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + sums[u]);
+        inked_rows += row_has_ink[static_cast<std::size_t>(k)];
       }
       for (int v = 0; v < mh; ++v) {
+        inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
+        if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];
+        std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
+        if (inked_rows == 0) {  // every block here is black: so are its means, and the rows' sum is 0
+          std::fill_n(acc, mw, std::uint16_t{0});
+          std::fill_n(out, mw, std::uint8_t{0});
+          continue;
+        }
         const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
         const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v > 0 ? v - 1 : 0) * mw;
         const std::uint16_t keep = v > 0 ? 0xFFFF : 0;  // the row before row 0 is none
         for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u] - (leaving[u] & keep));
-        std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
         for (int u = 0; u < mw; ++u)
           out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
       }

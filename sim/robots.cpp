@@ -6,9 +6,10 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "core/random.hpp"
-#include "sim/worker_pool.hpp"
+#include "core/worker_pool.hpp"
 
 namespace scout::sim {
 
@@ -120,12 +121,16 @@ double RobotBatch::bumper_radius_px(const RobotParams& params, const grid::Floor
 }
 
 RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads)
+    : RobotBatch(frame, params, count, std::make_shared<core::WorkerPool>(threads)) {}
+
+RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count,
+                       std::shared_ptr<core::WorkerPool> pool)
     : frame_(frame),
       params_(params),
       robots_(new Robot[count > 0 ? count : 0]),
       count_(count),
       team_size_(params.team.robots),
-      pool_(std::make_unique<WorkerPool>(threads)) {
+      pool_(std::move(pool)) {
   if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
   if (team_size_ < 1 || team_size_ > worlds::kMaxTeamRobots || count % team_size_ != 0)
     throw std::invalid_argument("RobotBatch: " + std::to_string(count) + " robots do not make teams of " +

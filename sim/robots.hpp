@@ -11,6 +11,10 @@
 #include "grid/grid.hpp"
 #include "worlds/world.hpp"
 
+namespace scout::core {
+class WorkerPool;
+}  // namespace scout::core
+
 namespace scout::sim {
 
 /// Physical and controller parameters of every robot in a batch: the world file's own sections,
@@ -48,6 +52,9 @@ class RobotBatch {
  public:
   /// `count` robots (a multiple of K) on `frame`; `threads` advance them (0: one per hardware thread).
   RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count, int threads = 0);
+  /// The same, advanced by a pool shared with other per-robot work (env::BatchEnv's observations).
+  RobotBatch(const grid::FloorFrame& frame, const RobotParams& params, int count,
+             std::shared_ptr<core::WorkerPool> pool);
   ~RobotBatch();
   RobotBatch(const RobotBatch&) = delete;
   RobotBatch& operator=(const RobotBatch&) = delete;
@@ -122,7 +129,7 @@ class RobotBatch {
   std::unique_ptr<Robot[]> robots_;
   int count_;
   int team_size_;
-  std::unique_ptr<class WorkerPool> pool_;
+  std::shared_ptr<core::WorkerPool> pool_;
 };
 
 }  // namespace scout::sim

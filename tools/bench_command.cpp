@@ -248,24 +248,44 @@ void time_sim_parts(const BenchOptions& opt, const SimBatch& b, const std::vecto
   }));
 }
 
-SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
-  SimFigures f;
-  const auto engine = make_engine(b.world, b.frame, b.n);
-  // One recorded batch gives the commands and poses that the physics-only and camera-only runs replay.
+// A batch's engine and one recorded batch, whose commands and poses the physics-only and
+// camera-only runs replay.
+struct SimRun {
+  std::unique_ptr<learn::RolloutEngine> engine;
+  std::vector<learn::RolloutRecord> recorded;
+};
+
+SimRun start_sim_run(const SimBatch& b) {
+  SimRun run{make_engine(b.world, b.frame, b.n), {}};
   learn::RandomPolicy recorded_policy(sim_seeds(b.n, -1));
-  const std::vector<learn::RolloutRecord> recorded =
-      engine->run(b.floor_pixels, b.starts, b.motion_seeds, recorded_policy, true);
-  count_moves(recorded, f);
-  // Physics and camera together: whole rollouts of mode (i), nothing recorded. One line on
-  // stderr says the timing has begun (what a caller can wait for before signalling).
+  run.recorded = run.engine->run(b.floor_pixels, b.starts, b.motion_seeds, recorded_policy, true);
+  run.engine->reset_timing();
+  return run;
+}
+
+// Physics and camera together: one whole rollout of mode (i), nothing recorded; `repeat` seeds
+// its random moves.
+void run_sim_rollout(const SimBatch& b, SimRun& run, int repeat) {
+  learn::RandomPolicy policy(sim_seeds(b.n, repeat));
+  run.engine->run(b.floor_pixels, b.starts, b.motion_seeds, policy, false);
+}
+
+// The figures but `together`, from a started run.
+SimFigures time_sim_alone(const BenchOptions& opt, const SimBatch& b, const SimRun& run) {
+  SimFigures f;
+  count_moves(run.recorded, f);
+  time_sim_parts(opt, b, run.recorded, f);
+  f.camera_description = run.engine->camera_description();
+  return f;
+}
+
+SimFigures time_sim(const BenchOptions& opt, const SimBatch& b) {
+  SimRun run = start_sim_run(b);
+  // One line on stderr says the timing has begun (what a caller can wait for before signalling).
   std::fprintf(stderr, "scout bench sim: timing %d repeats\n", opt.repeats);
-  engine->reset_timing();
-  f.together = median(time_repeats(opt.repeats, [&](int r) {
-    learn::RandomPolicy policy(sim_seeds(b.n, r));
-    engine->run(b.floor_pixels, b.starts, b.motion_seeds, policy, false);
-  }));
-  time_sim_parts(opt, b, recorded, f);
-  f.camera_description = engine->camera_description();
+  const double together = median(time_repeats(opt.repeats, [&](int r) { run_sim_rollout(b, run, r); }));
+  SimFigures f = time_sim_alone(opt, b, run);
+  f.together = together;
   return f;
 }
 
@@ -350,9 +370,10 @@ void write_sim_json(const BenchOptions& opt, const SimBatch& b, const SimFigures
   write_file_atomic(opt.json_out, j.dump(2) + "\n");
 }
 
-// --floor-sizes: the world's task on floors of each side in turn, in one process, and each
-// figure beside the first size's (the speed a larger floor keeps). A world with a wider view is
-// timed on each floor with it and without it.
+// --floor-sizes: the world's task on floors of each side, in one process, and each figure beside
+// the first size's (the speed a larger floor keeps). A world with a wider view is timed on each
+// floor with it and without it. The rollouts of physics + camera are timed floor after floor
+// within each repeat, so that a slow spell of a shared machine falls on every floor alike.
 void bench_sim_floor_sizes(const BenchOptions& opt) {
   const bool wide = worlds::load_world(opt.world).camera.wide();
   std::vector<SimBatch> batches;            // per floor: without the wider view, then (a world with one) with it
@@ -366,24 +387,40 @@ void bench_sim_floor_sizes(const BenchOptions& opt) {
   }
   fmt::print("scout bench sim: {} robots, {} repeats, the world {} on floors of each size\n", opt.robots, opt.repeats,
              opt.world);
-  fmt::print("  {:<10} {:<18} {:>18} {:>8} {:>18} {:>18}\n", "floor", "camera", "physics + camera", "ratio",
-             "physics alone", "camera alone");
+  fmt::print("  {:<10} {:<18} {:>18} {:>8} {:>18} {:>18}   {}\n", "floor", "camera", "physics + camera", "ratio",
+             "physics alone", "camera alone", "a rollout's physics | camera | observing, ms");
+  std::vector<SimRun> runs;
+  for (const SimBatch& b : batches) runs.push_back(start_sim_run(b));
+  std::vector<std::vector<double>> together_s(batches.size());
+  for (int r = 0; r < opt.repeats; ++r)
+    for (std::size_t k = 0; k < batches.size(); ++k) {
+      interrupt_token().throw_if_requested();
+      const auto t0 = Clock::now();
+      run_sim_rollout(batches[k], runs[k], r);
+      together_s[k].push_back(seconds_since(t0));
+    }
   double first[2] = {0, 0};  // the first floor's figure without and with the wider view
-  for (const SimBatch& b : batches) {
-    const SimFigures f = time_sim(opt, b);
-    const double steps = double(b.n) * b.moves_per_rollout, together = steps / f.together;
+  for (std::size_t k = 0; k < batches.size(); ++k) {
+    const SimBatch& b = batches[k];
+    const SimFigures f = time_sim_alone(opt, b, runs[k]);
+    const double steps = double(b.n) * b.moves_per_rollout, together = steps / median(together_s[k]);
     const worlds::CameraSpec& camera = b.world.camera;
     double& reference = first[camera.wide() ? 1 : 0];
     if (reference == 0) reference = together;
     const std::string view = camera.wide() ? fmt::format("patch + wide {0}x{0}/{1}", camera.wide_px, camera.wide_scale)
                                            : std::string("patch");
-    fmt::print("  {:<10} {:<18} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}\n",
+    // Where the timed rollouts spent their time (means).
+    const env::EnvTiming& spent = runs[k].engine->timing().env;
+    const double per_rollout_ms = 1e3 / opt.repeats;
+    fmt::print("  {:<10} {:<18} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}   {:.2f} | {:.2f} | {:.2f}\n",
                fmt::format("{} x {}", b.frame.width_px, b.frame.height_px), view, together, 100 * together / reference,
-               steps / f.physics, steps / f.camera);
+               steps / f.physics, steps / f.camera, spent.physics_s * per_rollout_ms, spent.render_s * per_rollout_ms,
+               spent.observe_s * per_rollout_ms);
   }
   fmt::print(
       "  (agent-steps/s, medians; ratio: physics + camera against the first floor with the same camera;\n"
-      "   wide PxP/S: the wider view's P x P pixels, each the mean of S x S floor pixels)\n");
+      "   wide PxP/S: the wider view's P x P pixels, each the mean of S x S floor pixels; observing: the\n"
+      "   robots' floors loaded and cleared as runs start, and each look revealed into y and the coarse map)\n");
   fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));
 }
 

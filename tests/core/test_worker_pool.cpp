@@ -1,4 +1,4 @@
-// The worker pool under the robot batch: every index once, any thread count, errors carried home.
+// The worker pool under the robot batch and the env: every index once, any thread count, errors carried home.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -7,9 +7,9 @@
 #include <thread>
 #include <vector>
 
-#include "sim/worker_pool.hpp"
+#include "core/worker_pool.hpp"
 
-namespace scout::sim {
+namespace scout::core {
 namespace {
 
 TEST(WorkerPool, CallsEveryIndexExactlyOnce) {
@@ -48,4 +48,4 @@ TEST(WorkerPool, RethrowsTheErrorAfterAllThreadsStopped) {
 }
 
 }  // namespace
-}  // namespace scout::sim
+}  // namespace scout::core

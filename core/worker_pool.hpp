@@ -1,5 +1,6 @@
 #pragma once
-/// A small pool of worker threads for data-parallel loops over robots. Workers sleep on a
+/// A small pool of worker threads for data-parallel loops over robots (the physics in sim/, the
+/// observations in env/ share one). Workers sleep on a
 /// condition variable between loops (no spinning: on a 2-core machine that also runs other work,
 /// spinning threads steal the time slices the loop needs), and take chunks of the index range
 /// from a shared counter, so a core taken away by other work does not stall the loop.
@@ -12,7 +13,7 @@
 #include <type_traits>
 #include <vector>
 
-namespace scout::sim {
+namespace scout::core {
 
 class WorkerPool {
  public:
@@ -53,4 +54,4 @@ class WorkerPool {
   std::exception_ptr error_;  // the first exception of the current loop
 };
 
-}  // namespace scout::sim
+}  // namespace scout::core

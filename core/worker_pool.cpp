@@ -1,8 +1,8 @@
-#include "sim/worker_pool.hpp"
+#include "core/worker_pool.hpp"
 
 #include <algorithm>
 
-namespace scout::sim {
+namespace scout::core {
 
 WorkerPool::WorkerPool(int threads) {
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -80,4 +80,4 @@ void WorkerPool::run(int n, int chunk, void* context, Trampoline call) {
   if (error) std::rethrow_exception(error);
 }
 
-}  // namespace scout::sim
+}  // namespace scout::core
