@@ -26,7 +26,8 @@ class WorkerPool {
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
 
   /// Calls body(i) for every i in [0, n), in chunks of `chunk`, on all threads; returns when all
-  /// are done. If a call throws, the loop still waits for every thread, then rethrows the first
+  /// are done. One loop at a time: a pool shared by several owners is called from one thread,
+  /// never from inside a body. If a call throws, the loop still waits for every thread, then rethrows the first
   /// exception. No allocation: the body is called through a plain function pointer.
   template <typename Body>
   void parallel_for(int n, int chunk, Body&& body) {

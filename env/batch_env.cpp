@@ -179,6 +179,13 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
       throw std::invalid_argument("BatchEnv::reset_robots: a start cell is off the floor");
   }
   if (robots.empty()) return;
+  // Each robot once: their buffers are started in parallel.
+  std::vector<bool> listed(count_, false);
+  for (const int robot : robots) {
+    if (listed[robot])
+      throw std::invalid_argument("BatchEnv::reset_robots: robot " + std::to_string(robot) + " is listed twice");
+    listed[robot] = true;
+  }
   // A team starts again as a whole, its robots listed together, its first robot first: they share
   // a floor (and its random boxes, drawn from the first one's motion seed).
   for (std::size_t k = 0; k < robots.size(); k += team_size_) {

@@ -53,7 +53,8 @@ using TickHook = std::function<void(int robot, std::span<const Eigen::Vector2d> 
 struct EnvTiming {
   double physics_s = 0;  ///< the controller and Box2D
   double render_s = 0;   ///< the camera
-  double observe_s = 0;  ///< revealing windows and writing y
+  double observe_s = 0;  ///< a reset's robots placed, floors loaded (with their block means) and
+                         ///< maps cleared, and each look revealed into y and the coarse map
   long moves = 0;        ///< agent-steps: moves x robots
   long ticks = 0;        ///< Box2D ticks summed over robots
   double peak_speed_mps = 0;
@@ -84,7 +85,7 @@ class BatchEnv {
              std::span<const std::uint64_t> motion_seeds);
   /// Starts again only robots[k] (< count()), over floors[k] from starts[k] with motion_seeds[k];
   /// the others keep their state (an autoreset of finished robots). Teams start again whole: their
-  /// robots listed together, in order.
+  /// robots listed together, in order. Each robot at most once.
   void reset_robots(std::span<const int> robots, std::span<const std::uint8_t> floors,
                     std::span<const grid::Cell> starts, std::span<const std::uint64_t> motion_seeds);
   /// One move per robot (commands.size() == count()): commands[i] pixels from its grid pose

@@ -12,8 +12,8 @@
 #   is not instrumented, so ASan's runtime is preloaded for them; tests/python/CMakeLists.txt).
 #   About 11 minutes of building and 35 of testing on 2 cores.
 # thread: the tests of the code that runs threads or processes, built with ThreadSanitizer
-#   (build-tsan/): the worker pool and the batched physics (sim), the camera (render), the
-#   batched environment (env) and multi-process training (TrainDistributed: two or three `scout`
+#   (build-tsan/): the worker pool (core), the batched physics (sim), the camera (render), the
+#   batched environment (env, whose observing shares the physics' pool) and multi-process training (TrainDistributed: two or three `scout`
 #   processes over Gloo, each with its worker pool). The rest of the suite is single-threaded on
 #   Scout's side; LibTorch's own threads are not instrumented, so TSan could not see into them.
 # all: address, then thread.
@@ -100,7 +100,7 @@ TSAN_TESTS='^(osmesa\.)?(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|Ve
 TSAN_CI_TESTS='^((osmesa\.)?(WorkerPool|RobotBatch|PatchCamera|CropPatch|BatchEnv|VectorEnvTest)\..*|TrainDistributed\.(TwoProcessesTrainTheSameWeightsAsOne|ALostRankStopsTheOthersWithinTheTimeoutAndResumeFinishes|ControlCStopsEveryProcessAfterRankZeroSavesACheckpoint|EvalOverTwoProcessesGivesTheSameReport))$'
 # The multi-process tests run from the Release build's tools_process_tests against this tree's
 # instrumented `scout`, as the ASan subset's tools tests do.
-TSAN_TARGETS=(sim_tests render_camera_tests env_tests scout)
+TSAN_TARGETS=(core_tests sim_tests render_camera_tests env_tests scout)
 # What each of those regexes must still find (a renamed test would otherwise drop out unseen).
 TSAN_FAMILIES=('^WorkerPool\.' '^RobotBatch\.' '^osmesa\.PatchCamera\.' '^osmesa\.CropPatch\.' '^BatchEnv\.' '^VectorEnvTest\.')
 TSAN_CI_NAMED=('^TrainDistributed\.TwoProcessesTrainTheSameWeightsAsOne$'

@@ -131,6 +131,7 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
       count_(count),
       team_size_(params.team.robots),
       pool_(std::move(pool)) {
+  if (!pool_) throw std::invalid_argument("RobotBatch: no worker pool");
   if (count <= 0) throw std::invalid_argument("RobotBatch: count must be positive, got " + std::to_string(count));
   if (team_size_ < 1 || team_size_ > worlds::kMaxTeamRobots || count % team_size_ != 0)
     throw std::invalid_argument("RobotBatch: " + std::to_string(count) + " robots do not make teams of " +

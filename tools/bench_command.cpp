@@ -392,6 +392,7 @@ void bench_sim_floor_sizes(const BenchOptions& opt) {
   std::vector<SimRun> runs;
   for (const SimBatch& b : batches) runs.push_back(start_sim_run(b));
   std::vector<std::vector<double>> together_s(batches.size());
+  std::fprintf(stderr, "scout bench sim: timing %d repeats\n", opt.repeats);
   for (int r = 0; r < opt.repeats; ++r)
     for (std::size_t k = 0; k < batches.size(); ++k) {
       interrupt_token().throw_if_requested();

@@ -149,6 +149,13 @@ TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {
   expect_consistent(env, f);
   EXPECT_THROW(env.reset_robots(std::vector<int>{3}, floor4, std::vector<grid::Cell>{{0, 0}}, no_motion(1)),
                std::invalid_argument);
+  // A robot named twice (its buffers are started in parallel) is refused, and nothing moves.
+  std::vector<std::uint8_t> twice(floor4);
+  twice.insert(twice.end(), floor4.begin(), floor4.end());
+  EXPECT_THROW(env.reset_robots(std::vector<int>{2, 2}, twice, std::vector<grid::Cell>{{0, 0}, {1, 1}}, no_motion(2)),
+               std::invalid_argument);
+  EXPECT_EQ(env.moves()[2], 1);
+  expect_consistent(env, f);
 }
 
 TEST(BatchEnv, TheTickHookSeesEveryTickOfEveryRobot) {

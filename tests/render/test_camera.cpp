@@ -692,6 +692,19 @@ TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere
     std::vector<std::uint8_t> alone(count * m * m, 0xAB);
     camera.capture(poses, alone);
     EXPECT_EQ(alone, patches);
+    // Floors mostly black, as a digit on a larger floor is (the block means skip empty rows): a
+    // band of empty rows from 1 row to the whole floor, at the top, in the middle or at the bottom,
+    // and single empty rows between inked ones; the last floor all black.
+    Floors sparse = floors;
+    for (int i = 0; i < count; ++i) {
+      const int band = 1 + i % height, start = (i * 5) % height;
+      for (int y = 0; y < height; ++y)
+        if ((y >= start && y < start + band) || (y + i) % 9 == 0 || i == count - 1)
+          std::fill_n(sparse.bytes.begin() + (static_cast<std::ptrdiff_t>(i) * height + y) * width, width, 0);
+    }
+    camera.load_floors(sparse.bytes, count);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(far, cpu_wide(sparse, wide, poses)) << "black rows, wide " << wide.px << " x " << wide.scale;
   }
 }
 
