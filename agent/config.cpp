@@ -151,6 +151,7 @@ std::string describe_planners(const NetworkConfig& config) {
   if (config.team_channels) add("the teammates' channels");
   if (config.wide_view) add("the wider view's channels");
   if (config.goals_only) add("no action planner (goals only)");
+  if (config.free_routes) add("the route rule (free routes only)");
   return text + extras;
 }
 

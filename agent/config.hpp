@@ -131,11 +131,23 @@ struct NetworkConfig {
   /// The planners also read the wider view (beyond the paper; a world with camera.wide_px > 0):
   /// y_w, the team's coarse map of it, and h_w, 0 where it has covered the floor, 1 elsewhere.
   bool wide_view = false;
+  /// The route rule (beyond the paper; METHOD.md § Obstacles): the goal planner's distribution is
+  /// renormalised over the cells that a monotone route of free cells joins to the robot's cell
+  /// (grid::monotone_reach over the run's o), and a move's axis is forced where only one of the two
+  /// keeps such a route to the goal. No parameters and no effect in a world without obstacles.
+  bool free_routes = false;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
   bool operator==(const NetworkConfig&) const = default;
 };
+
+/// Whether a model of `has` loads into networks of `wants` as it is: equal but for the settings
+/// that carry no weights (free_routes).
+inline bool same_weights(NetworkConfig has, const NetworkConfig& wants) {
+  has.free_routes = wants.free_routes;
+  return has == wants;
+}
 
 /// Input channels of both planners: y (c), l, h, g_l, o with `occupancy`, t_p and t_g with
 /// `team_channels`, y_w and h_w with `wide_view`.

@@ -360,6 +360,7 @@ void copy_into_grown(const AgentImpl& from, AgentImpl& to) {
   grown.goals_only = wants.goals_only;
   grown.team_channels = wants.team_channels;
   grown.wide_view = wants.wide_view;
+  grown.free_routes = wants.free_routes;
   const bool adds_occupancy = wants.occupancy && !has.occupancy;
   const bool adds_team = wants.team_channels && !has.team_channels;
   const bool adds_wide = wants.wide_view && !has.wide_view;

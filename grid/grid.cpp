@@ -46,6 +46,69 @@ Decision decide(const Cell& p, const Cell& g) {
   return Decision::Choose;
 }
 
+namespace {
+
+void check_blocked_size(std::span<const std::uint8_t> blocked, const FloorFrame& frame, const char* who) {
+  if (blocked.size() != static_cast<std::size_t>(frame.area_px()))
+    throw std::invalid_argument(std::string(who) + ": blocked must hold one byte per floor cell");
+}
+
+// The monotone routes from `from` into the rectangle spanned by `from` and `to`, as a DP over that
+// rectangle in the direction of travel: a cell is reached when it is free and the cell before it
+// along x or along y is reached. Writes the rectangle's cells (row-major, |dx| + 1 wide) to `out`.
+void reach_rectangle(std::span<const std::uint8_t> blocked, int width, const Cell& from, const Cell& to,
+                     std::uint8_t* out) {
+  const int sx = to.x() >= from.x() ? 1 : -1, sy = to.y() >= from.y() ? 1 : -1;
+  const int w = std::abs(to.x() - from.x()) + 1, h = std::abs(to.y() - from.y()) + 1;
+  for (int j = 0; j < h; ++j) {
+    const std::uint8_t* row = blocked.data() + static_cast<std::size_t>(from.y() + sy * j) * width;
+    std::uint8_t* r = out + static_cast<std::size_t>(j) * w;
+    for (int i = 0; i < w; ++i) {
+      if (i == 0 && j == 0) {
+        r[0] = 1;
+        continue;
+      }
+      const bool before = (i > 0 && r[i - 1] != 0) || (j > 0 && r[i - w] != 0);
+      r[i] = before && row[from.x() + sx * i] == 0 ? 1 : 0;
+    }
+  }
+}
+
+}  // namespace
+
+void monotone_reach(std::span<const std::uint8_t> blocked, const FloorFrame& frame, const Cell& from,
+                    std::span<std::uint8_t> reach) {
+  check_blocked_size(blocked, frame, "monotone_reach");
+  if (reach.size() != blocked.size()) throw std::invalid_argument("monotone_reach: reach must match blocked");
+  if (!frame.contains(from)) throw std::invalid_argument("monotone_reach: from is off the floor");
+  const int width = frame.width_px;
+  // Each quadrant is the rectangle from `from` to a floor corner; cells on the axes through
+  // `from` belong to two quadrants and get the same value from both.
+  std::vector<std::uint8_t> quadrant;
+  for (const Cell& corner :
+       {Cell(0, 0), Cell(width - 1, 0), Cell(0, frame.height_px - 1), Cell(width - 1, frame.height_px - 1)}) {
+    const int w = std::abs(corner.x() - from.x()) + 1, h = std::abs(corner.y() - from.y()) + 1;
+    const int sx = corner.x() >= from.x() ? 1 : -1, sy = corner.y() >= from.y() ? 1 : -1;
+    quadrant.resize(static_cast<std::size_t>(w) * h);
+    reach_rectangle(blocked, width, from, corner, quadrant.data());
+    for (int j = 0; j < h; ++j)
+      for (int i = 0; i < w; ++i)
+        reach[static_cast<std::size_t>(from.y() + sy * j) * width + (from.x() + sx * i)] =
+            quadrant[static_cast<std::size_t>(j) * w + i];
+  }
+}
+
+bool monotone_route_free(std::span<const std::uint8_t> blocked, const FloorFrame& frame, const Cell& from,
+                         const Cell& to, std::vector<std::uint8_t>& scratch) {
+  check_blocked_size(blocked, frame, "monotone_route_free");
+  if (!frame.contains(from) || !frame.contains(to))
+    throw std::invalid_argument("monotone_route_free: a cell is off the floor");
+  const int w = std::abs(to.x() - from.x()) + 1, h = std::abs(to.y() - from.y()) + 1;
+  scratch.resize(static_cast<std::size_t>(w) * h);
+  reach_rectangle(blocked, frame.width_px, from, to, scratch.data());
+  return scratch.back() != 0;
+}
+
 Cell move_command(const Cell& p, const Cell& g, Axis axis, int step_px) {
   const auto toward = [step_px](int from, int to) {
     const int d = to - from;

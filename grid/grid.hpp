@@ -58,6 +58,20 @@ Decision decide(const Cell& p, const Cell& g);
 /// (0, 0) for Axis::None.
 Cell move_command(const Cell& p, const Cell& g, Axis axis, int step_px);
 
+/// Free routes among obstacles (METHOD.md § Obstacles, the route rule). A monotone route from a to
+/// b is a staircase of one-pixel steps, each along x or y and each towards b, so that every cell
+/// on it lies in the rectangle spanned by a and b: the routes the action protocol drives. `blocked`
+/// holds one byte per floor cell (row-major, non-zero: the robot cannot stand there).
+///
+/// reach[c] = 1 for every cell c that a monotone route of free cells joins to `from` (`from`
+/// itself counts as free). reach must hold frame.area_px() bytes. O(area).
+void monotone_reach(std::span<const std::uint8_t> blocked, const FloorFrame& frame, const Cell& from,
+                    std::span<std::uint8_t> reach);
+/// Whether a monotone route of free cells joins `from` to `to` (`from` counts as free). O(area of
+/// their rectangle); `scratch` is resized to it.
+bool monotone_route_free(std::span<const std::uint8_t> blocked, const FloorFrame& frame, const Cell& from,
+                         const Cell& to, std::vector<std::uint8_t>& scratch);
+
 /// Pixels seen so far by one robot, and their count.
 class RevealMask {
  public:

@@ -74,8 +74,22 @@ void AgentPolicy::choose_goals(const BatchState& state, int episode, std::span<g
   if (count != count_) throw std::invalid_argument("AgentPolicy::choose_goals: robot count differs from begin()");
   const int width = frame_.width_px, area = frame_.area_px();
   if (!sampling_.learned_goals) {
+    if (routes_free(state)) {  // uniform over the cells the route rule allows
+      rows_.resize(count);
+      std::iota(rows_.begin(), rows_.end(), std::int64_t{0});
+      reachable_goals(state, rows_);
+    }
     for (int i = 0; i < count; ++i) {
-      const auto pixel = static_cast<int>(core::uniform_below(rngs_[i], static_cast<std::uint64_t>(area)));
+      if (!routes_free(state)) {
+        const auto pixel = static_cast<int>(core::uniform_below(rngs_[i], static_cast<std::uint64_t>(area)));
+        goals[i] = {pixel % width, pixel / width};
+        continue;
+      }
+      const std::uint8_t* allowed = reachable_.data() + static_cast<std::size_t>(i) * area;
+      const auto cells = static_cast<std::uint64_t>(std::count(allowed, allowed + area, 1));
+      auto nth = static_cast<std::int64_t>(core::uniform_below(rngs_[i], cells));  // cells >= 1: the robot's own
+      int pixel = 0;
+      while (allowed[pixel] == 0 || nth-- > 0) ++pixel;
       goals[i] = {pixel % width, pixel / width};
     }
     return;
@@ -148,7 +162,15 @@ void AgentPolicy::sample_goals(const BatchState& state, std::span<const std::int
   input = network_input(input, sampling_.precision);
   timing_.state_s += seconds_since(t0);
   t0 = Clock::now();
-  torch::Tensor log_p = torch::log_softmax(agent_.goal->forward(input).to(torch::kFloat), 1);  // [k, H*W]
+  torch::Tensor logits = agent_.goal->forward(input).to(torch::kFloat);  // [k, H*W]
+  if (routes_free(state)) {
+    // The route rule: pi_g renormalised over the reachable cells. A large finite negative rather
+    // than -inf keeps p log p at 0 (not NaN) in the entropy.
+    reachable_goals(state, rows);
+    const torch::Tensor reachable = torch::from_blob(reachable_.data(), {k, area}, torch::kUInt8).to(torch::kBool);
+    logits = logits.masked_fill(reachable.logical_not(), -1e30f);
+  }
+  torch::Tensor log_p = torch::log_softmax(logits, 1);  // [k, H*W]
   torch::Tensor p = log_p.detach().exp().contiguous();
   const float* probabilities = p.data_ptr<float>();
   std::vector<std::int64_t> chosen(k);
@@ -180,6 +202,7 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   const int count = static_cast<int>(need.size());
   if (count != count_ || axes.size() < need.size())
     throw std::invalid_argument("AgentPolicy::choose_axes: robot count differs from begin()");
+  if (routes_free(state)) need = route_axes(state, need, axes);
   if (!sampling_.learned_actions) {
     for (int i = 0; i < count; ++i)
       if (need[i]) axes[i] = (rngs_[i]() >> 63) ? grid::Axis::Vertical : grid::Axis::Horizontal;
@@ -227,6 +250,44 @@ void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint
   log_pi_ = log_pi_.index_add(0, rows, log_p.gather(1, index).squeeze(1));
   entropy_ = entropy_.index_add(0, rows, -(log_p.exp() * log_p).sum(1));
   timing_.forward_s += seconds_since(t0);
+}
+
+bool AgentPolicy::routes_free(const BatchState& state) const {
+  return agent_.config().free_routes && !state.occupied.empty();
+}
+
+void AgentPolicy::reachable_goals(const BatchState& state, std::span<const std::int64_t> rows) {
+  const auto area = static_cast<std::size_t>(frame_.area_px());
+  reachable_.resize(rows.size() * area);
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    const auto i = static_cast<int>(rows[r]);
+    grid::monotone_reach(std::span(state.occupied_cells(i), area), frame_, state.pose[i],
+                         std::span(reachable_.data() + r * area, area));
+  }
+}
+
+std::span<const std::uint8_t> AgentPolicy::route_axes(const BatchState& state, std::span<const std::uint8_t> need,
+                                                      std::span<grid::Axis> axes) {
+  if (state.step_px <= 0) throw std::invalid_argument("AgentPolicy: the route rule needs the state's step_px");
+  const auto area = static_cast<std::size_t>(frame_.area_px());
+  need_.assign(need.begin(), need.end());
+  constexpr grid::Axis kAxes[2] = {grid::Axis::Horizontal, grid::Axis::Vertical};
+  for (std::size_t i = 0; i < need.size(); ++i) {
+    if (need[i] == 0) continue;
+    const std::span<const std::uint8_t> blocked(state.occupied_cells(static_cast<int>(i)), area);
+    const grid::Cell& pose = state.pose[i];
+    const grid::Cell& goal = state.goal[i];
+    bool keeps_route[2];
+    for (int a = 0; a < 2; ++a) {
+      const grid::Cell to = pose + grid::move_command(pose, goal, kAxes[a], state.step_px);
+      keeps_route[a] = grid::monotone_route_free(blocked, frame_, pose, to, route_scratch_) &&
+                       grid::monotone_route_free(blocked, frame_, to, goal, route_scratch_);
+    }
+    if (keeps_route[0] == keeps_route[1]) continue;  // both or neither: the layer chooses as before
+    need_[i] = 0;
+    axes[i] = keeps_route[0] ? kAxes[0] : kAxes[1];
+  }
+  return need_;
 }
 
 const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {

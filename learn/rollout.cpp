@@ -50,6 +50,7 @@ RolloutEngine::RolloutEngine(const worlds::World& world, const grid::FloorFrame&
   env_ = std::make_unique<env::BatchEnv>(world, frame, max_robots);
   state_.frame = frame;
   state_.patch_px = world.camera.patch_px;
+  state_.step_px = world.task.step_px;
   goals_.resize(max_robots);
 }
 

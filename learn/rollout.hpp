@@ -21,6 +21,7 @@ namespace scout::learn {
 struct BatchState {
   grid::FloorFrame frame;
   int patch_px = 0;
+  int step_px = 0;                         ///< s: the longest move (task.step_px); the route rule reads it
   int count = 0;                           ///< robots in this rollout batch
   int team = 1;                            ///< K: robots t*K .. t*K+K-1 share floor t
   std::span<const grid::Cell> pose;        ///< the pose each robot reads (env::BatchEnv::poses)

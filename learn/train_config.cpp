@@ -118,6 +118,10 @@ constexpr Row kRows[] = {
         "No action planner: every move's axis is drawn i.i.d. 1/2 - 1/2, no f2 parameters or arithmetic; trains in "
         "modes i and ii only (beyond the paper)", kBoth, R::Kept, A::Networks, false, false, true,
         /*stored_unless_default=*/true),
+    row("free_routes", "network", T::Flag, &NetworkConfig::free_routes, 0, 0, "--free-routes", "",
+        "The route rule: goals only where a monotone route of free cells reaches, and an axis forced where only one "
+        "keeps such a route to the goal (worlds with obstacles; no parameters; beyond the paper)", kBoth, R::Kept,
+        A::Networks, false, false, true, /*stored_unless_default=*/true),
     row("pretrain_epochs", "", T::Integer, &TrainConfig::pretrain_epochs, 0, kMaxEpochs, "--pretrain-epochs", "",
         "Epochs of the classifier on full images, first", kTrain, R::Kept, A::Training),
     row("epochs", "", T::Epochs, &TrainConfig::epochs, 0, kMaxEpochs, "--epochs", "I,II,III", "Epochs of modes i,ii,iii",

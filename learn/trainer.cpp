@@ -569,7 +569,7 @@ Trainer::Trainer(const TrainConfig& config, fs::path run_dir, int threads, bool 
       throw InputError(fmt::format("{}: the model has {} classes of {}-channel images, the training data {} of {}",
                                    initial_weights->file().string(), has.classes, has.image_channels, data.classes,
                                    data.image_channels));
-    if (has == data)
+    if (agent::same_weights(has, data))
       initial_weights->contents().load_into(*impl_->agent, nullptr);
     else  // the model's networks grown by an occupancy channel or a goal context branch, read at zero
       agent::copy_into_grown(*initial_weights->contents().networks(), *impl_->agent);

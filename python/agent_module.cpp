@@ -197,6 +197,7 @@ class AgentCore {
       revealed_[k] = static_cast<std::uint8_t>(std::lround(std::clamp(obs.revealed[k], 0.0f, 1.0f) * 255.0f));
     state_.frame = frame;
     state_.patch_px = obs.patch_px;
+    state_.step_px = agent_->config().world.task.step_px;  // the route rule's move length: the model's world's
     state_.count = n;
     state_.pose = poses_;
     state_.goal = goals_;

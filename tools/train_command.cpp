@@ -198,18 +198,21 @@ void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, le
   const bool drops_actions = config.network.goals_only && !model.network.goals_only;
   const bool adds_team = config.network.team_channels && !model.network.team_channels;
   const bool adds_wide = config.network.wide_view && !model.network.wide_view;
+  const bool adds_routes = config.network.free_routes && !model.network.free_routes;
   for (const learn::TrainSetting& s : learn::train_settings()) {
     if (s.section != "network" || !o.settings.given(s) || (adds_occupancy && s.key == "occupancy") ||
         (adds_context && s.key == "goal_context") || (drops_actions && s.key == "goals_only") ||
-        (adds_team && s.key == "team_channels") || (adds_wide && s.key == "wide_view"))
+        (adds_team && s.key == "team_channels") || (adds_wide && s.key == "wide_view") ||
+        (adds_routes && s.key == "free_routes"))
       continue;
     const std::string has = learn::setting_text(model, s), asked = learn::setting_text(config, s);
     if (has != asked)
-      throw InputError(fmt::format(
-          "{}: --init-from {} has {}, the command line asks for {} (a run started from a "
-          "model keeps its networks, but may add --occupancy, --team-channels, --wide-view or --goal-context, or "
-          "drop its action planner with --goals-only; leave {} out)",
-          s.option, o.init_from, has, asked, s.option));
+      throw InputError(
+          fmt::format("{}: --init-from {} has {}, the command line asks for {} (a run started from a "
+                      "model keeps its networks, but may add --occupancy, --team-channels, --wide-view, --goal-context "
+                      "or --free-routes, or "
+                      "drop its action planner with --goals-only; leave {} out)",
+                      s.option, o.init_from, has, asked, s.option));
   }
   const int goal_context = config.network.goal_context;
   config.network = model.network;
@@ -218,6 +221,7 @@ void take_init_networks(const TrainOptions& o, const learn::Checkpoint& init, le
   config.network.goals_only = model.network.goals_only || drops_actions;
   config.network.team_channels = model.network.team_channels || adds_team;
   config.network.wide_view = model.network.wide_view || adds_wide;
+  config.network.free_routes = model.network.free_routes || adds_routes;
 }
 
 learn::TrainConfig new_run_config(const TrainOptions& o, const learn::Checkpoint* init) {

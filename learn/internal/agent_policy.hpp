@@ -64,6 +64,15 @@ class AgentPolicy final : public Policy {
   /// goals they hold (`team_goals`, where `has_goal`), gathered into teammate_scratch_.
   agent::RobotView view_of(const BatchState& state, int i, const grid::Cell* goal,
                            std::span<const grid::Cell> team_goals, std::span<const std::uint8_t> has_goal);
+  /// Whether the route rule applies to this state: the agent has it and the world has obstacles.
+  bool routes_free(const BatchState& state) const;
+  /// The route rule's goals: reachable_[r * area + c] = 1 where a monotone free route joins robot
+  /// rows[r]'s cell to cell c.
+  void reachable_goals(const BatchState& state, std::span<const std::int64_t> rows);
+  /// The route rule's axes: for every robot with need[i], the axis is forced (need_[i] = 0) where
+  /// only one of the two moves keeps a monotone free route to the goal. Returns need_.
+  std::span<const std::uint8_t> route_axes(const BatchState& state, std::span<const std::uint8_t> need,
+                                           std::span<grid::Axis> axes);
 
   agent::AgentImpl& agent_;
   grid::FloorFrame frame_;
@@ -75,10 +84,11 @@ class AgentPolicy final : public Policy {
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
   std::vector<std::int64_t> rows_;
-  std::vector<grid::Cell> goals_now_;                        // the goals the robots hold during a choice
-  std::vector<std::uint8_t> has_goal_;                       // ... where they hold one
-  std::vector<std::uint8_t> all_goals_;                      // all ones: while moving, every robot holds a goal
-  std::vector<grid::Cell> teammate_poses_, teammate_goals_;  // one robot's teammates (scratch)
+  std::vector<grid::Cell> goals_now_;                           // the goals the robots hold during a choice
+  std::vector<std::uint8_t> has_goal_;                          // ... where they hold one
+  std::vector<std::uint8_t> all_goals_;                         // all ones: while moving, every robot holds a goal
+  std::vector<grid::Cell> teammate_poses_, teammate_goals_;     // one robot's teammates (scratch)
+  std::vector<std::uint8_t> reachable_, route_scratch_, need_;  // the route rule's (scratch)
   long action_decisions_ = 0;
   PolicyTiming timing_;
 };

@@ -1,6 +1,10 @@
 // The pure pixel arithmetic of METHOD.md: frames, windows, the action protocol, the grid model.
 #include <gtest/gtest.h>
 
+#include <random>
+#include <stdexcept>
+#include <vector>
+
 #include "grid/grid.hpp"
 
 namespace scout::grid {
@@ -80,6 +84,65 @@ TEST(GridModel, LandsOnPosePlusCommandAndStopsAtTheBorder) {
   EXPECT_EQ(model.pose(), Cell(0, 27));
   model.move({2, 0});
   EXPECT_EQ(model.pose(), Cell(2, 27));
+}
+
+// A monotone route moves only towards its end: around a wall it may not turn back.
+TEST(MonotoneRoutes, AWallShadowsTheCellsBehindIt) {
+  const FloorFrame floor{7, 5, 0.1};
+  // A vertical wall at x = 3, rows 0..3: only row 4 passes it.
+  std::vector<std::uint8_t> blocked(35, 0);
+  for (int y = 0; y < 4; ++y) blocked[y * 7 + 3] = 1;
+  std::vector<std::uint8_t> reach(35);
+  monotone_reach(blocked, floor, {1, 1}, reach);
+  std::vector<std::uint8_t> scratch;
+  for (int y = 0; y < 5; ++y)
+    for (int x = 0; x < 7; ++x) {
+      // From (1, 1): everything left of the wall; right of it only rows y >= 4 (down, across row 4,
+      // on downwards), never rows above 4 (that would need a step back up).
+      const bool expected = x < 3 || y == 4;
+      EXPECT_EQ(reach[y * 7 + x] != 0, expected) << x << ", " << y;
+      EXPECT_EQ(monotone_route_free(blocked, floor, {1, 1}, {x, y}, scratch), expected) << x << ", " << y;
+    }
+  // From below the wall the cells right of it are reached again, and the route back up is free.
+  EXPECT_TRUE(monotone_route_free(blocked, floor, {1, 4}, {6, 0}, scratch));
+  EXPECT_TRUE(monotone_route_free(blocked, floor, {5, 1}, {5, 3}, scratch));
+  // The start counts as free, a blocked end does not.
+  blocked[1 * 7 + 1] = 1;
+  EXPECT_TRUE(monotone_route_free(blocked, floor, {1, 1}, {0, 0}, scratch));
+  EXPECT_FALSE(monotone_route_free(blocked, floor, {0, 0}, {1, 1}, scratch));
+  EXPECT_THROW(monotone_route_free(blocked, floor, {0, 0}, {7, 0}, scratch), std::invalid_argument);
+  EXPECT_THROW(monotone_reach(std::span(blocked).first(34), floor, {0, 0}, reach), std::invalid_argument);
+}
+
+// The whole-floor map and the single-route check agree, and both match a route found by trying
+// every staircase (a depth-first search over monotone steps) on random obstacle maps.
+TEST(MonotoneRoutes, ReachAndRouteAgreeWithASearchOverStaircases) {
+  const FloorFrame floor{9, 8, 0.1};
+  std::mt19937 rng(12);
+  std::vector<std::uint8_t> blocked(72), reach(72), scratch;
+  for (int trial = 0; trial < 40; ++trial) {
+    for (auto& b : blocked) b = rng() % 100 < 30 ? 1 : 0;
+    const Cell from(static_cast<int>(rng() % 9), static_cast<int>(rng() % 8));
+    monotone_reach(blocked, floor, from, reach);
+    for (int y = 0; y < 8; ++y)
+      for (int x = 0; x < 9; ++x) {
+        const Cell to(x, y);
+        // The search: from `at`, one step along x or y towards `to`, over free cells.
+        auto search = [&](auto&& self, Cell at) -> bool {
+          if (at == to) return true;
+          for (int axis = 0; axis < 2; ++axis) {
+            if (at[axis] == to[axis]) continue;
+            Cell next = at;
+            next[axis] += to[axis] > at[axis] ? 1 : -1;
+            if (blocked[next.y() * 9 + next.x()] == 0 && self(self, next)) return true;
+          }
+          return false;
+        };
+        const bool expected = search(search, from);
+        ASSERT_EQ(reach[y * 9 + x] != 0, expected) << "trial " << trial << " at " << x << ", " << y;
+        ASSERT_EQ(monotone_route_free(blocked, floor, from, to, scratch), expected) << trial;
+      }
+  }
 }
 
 }  // namespace
