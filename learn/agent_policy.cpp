@@ -198,11 +198,11 @@ void AgentPolicy::sample_goals(const BatchState& state, std::span<const std::int
   timing_.forward_s += seconds_since(t0);
 }
 
-void AgentPolicy::choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) {
+void AgentPolicy::choose_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) {
   const int count = static_cast<int>(need.size());
   if (count != count_ || axes.size() < need.size())
     throw std::invalid_argument("AgentPolicy::choose_axes: robot count differs from begin()");
-  if (routes_free(state)) need = route_axes(state, need, axes);
+  if (routes_free(state)) route_axes(state, need, axes);
   if (!sampling_.learned_actions) {
     for (int i = 0; i < count; ++i)
       if (need[i]) axes[i] = (rngs_[i]() >> 63) ? grid::Axis::Vertical : grid::Axis::Horizontal;
@@ -266,11 +266,9 @@ void AgentPolicy::reachable_goals(const BatchState& state, std::span<const std::
   }
 }
 
-std::span<const std::uint8_t> AgentPolicy::route_axes(const BatchState& state, std::span<const std::uint8_t> need,
-                                                      std::span<grid::Axis> axes) {
+void AgentPolicy::route_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) {
   if (state.step_px <= 0) throw std::invalid_argument("AgentPolicy: the route rule needs the state's step_px");
   const auto area = static_cast<std::size_t>(frame_.area_px());
-  need_.assign(need.begin(), need.end());
   constexpr grid::Axis kAxes[2] = {grid::Axis::Horizontal, grid::Axis::Vertical};
   for (std::size_t i = 0; i < need.size(); ++i) {
     if (need[i] == 0) continue;
@@ -284,10 +282,9 @@ std::span<const std::uint8_t> AgentPolicy::route_axes(const BatchState& state, s
                        grid::monotone_route_free(blocked, frame_, to, goal, route_scratch_);
     }
     if (keeps_route[0] == keeps_route[1]) continue;  // both or neither: the layer chooses as before
-    need_[i] = 0;
+    need[i] = 0;
     axes[i] = keeps_route[0] ? kAxes[0] : kAxes[1];
   }
-  return need_;
 }
 
 const std::vector<float>& AgentPolicy::goal_map(int robot, int episode) const {

@@ -33,8 +33,7 @@ void RandomPolicy::choose_goals(const BatchState& state, int /*episode*/, std::s
   }
 }
 
-void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<const std::uint8_t> need,
-                               std::span<grid::Axis> axes) {
+void RandomPolicy::choose_axes(const BatchState& /*state*/, std::span<std::uint8_t> need, std::span<grid::Axis> axes) {
   if (need.size() > rngs_.size() || axes.size() < need.size())
     throw std::invalid_argument("RandomPolicy: more robots than seeds or axes");
   for (std::size_t i = 0; i < need.size(); ++i)

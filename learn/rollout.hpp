@@ -58,8 +58,10 @@ class Policy {
   virtual ~Policy() = default;
   /// The goal of `episode` for every robot (cells on the floor).
   virtual void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) = 0;
-  /// An axis (Horizontal or Vertical) for every robot i with need[i] != 0; others are ignored.
-  virtual void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) = 0;
+  /// An axis (Horizontal or Vertical) for every robot i with need[i] != 0; others are ignored. A
+  /// policy whose own rule settles an axis without a decision (AgentPolicy's route rule) sets it and
+  /// clears need[i]: the engine then records the move as not sampled (chi = 0).
+  virtual void choose_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) = 0;
 };
 
 /// Mode (i) of METHOD.md: goals i.i.d. uniform over the floor's pixels, axes i.i.d. 1/2 - 1/2.
@@ -69,7 +71,7 @@ class RandomPolicy final : public Policy {
  public:
   explicit RandomPolicy(std::span<const std::uint64_t> seeds);
   void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override;
-  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override;
+  void choose_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) override;
 
  private:
   std::vector<core::Rng> rngs_;

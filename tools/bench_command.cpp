@@ -387,8 +387,8 @@ void bench_sim_floor_sizes(const BenchOptions& opt) {
   }
   fmt::print("scout bench sim: {} robots, {} repeats, the world {} on floors of each size\n", opt.robots, opt.repeats,
              opt.world);
-  fmt::print("  {:<10} {:<18} {:>18} {:>8} {:>18} {:>18}   {}\n", "floor", "camera", "physics + camera", "ratio",
-             "physics alone", "camera alone", "a rollout's physics | camera | observing, ms");
+  fmt::print("  {:<10} {:<18} {:>18} {:>8} {:>18} {:>18} {:>11}   {}\n", "floor", "camera", "physics + camera", "ratio",
+             "physics alone", "camera alone", "ticks/move", "a rollout's physics | camera | observing, ms");
   std::vector<SimRun> runs;
   for (const SimBatch& b : batches) runs.push_back(start_sim_run(b));
   std::vector<std::vector<double>> together_s(batches.size());
@@ -413,13 +413,15 @@ void bench_sim_floor_sizes(const BenchOptions& opt) {
     // Where the timed rollouts spent their time (means).
     const env::EnvTiming& spent = runs[k].engine->timing().env;
     const double per_rollout_ms = 1e3 / opt.repeats;
-    fmt::print("  {:<10} {:<18} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f}   {:.2f} | {:.2f} | {:.2f}\n",
+    fmt::print("  {:<10} {:<18} {:>18.0f} {:>7.0f}% {:>18.0f} {:>18.0f} {:>11.2f}   {:.2f} | {:.2f} | {:.2f}\n",
                fmt::format("{} x {}", b.frame.width_px, b.frame.height_px), view, together, 100 * together / reference,
-               steps / f.physics, steps / f.camera, spent.physics_s * per_rollout_ms, spent.render_s * per_rollout_ms,
-               spent.observe_s * per_rollout_ms);
+               steps / f.physics, steps / f.camera, f.all_moves > 0 ? double(f.ticks) / f.all_moves : 0.0,
+               spent.physics_s * per_rollout_ms, spent.render_s * per_rollout_ms, spent.observe_s * per_rollout_ms);
   }
   fmt::print(
       "  (agent-steps/s, medians; ratio: physics + camera against the first floor with the same camera;\n"
+      "   ticks/move: physics ticks per move of the recorded rollout (a larger floor has fewer moves that\n"
+      "   stop short at a goal already reached);\n"
       "   wide PxP/S: the wider view's P x P pixels, each the mean of S x S floor pixels; observing: the\n"
       "   robots' floors loaded and cleared as runs start, and each look revealed into y and the coarse map)\n");
   fmt::print("  memory: peak resident {}\n", core::format_bytes(core::peak_resident_bytes()));

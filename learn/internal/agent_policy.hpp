@@ -41,7 +41,7 @@ class AgentPolicy final : public Policy {
   /// Starts a batch: new generators, log pi and entropy reset to zero.
   void begin(std::span<const std::uint64_t> seeds, const Sampling& sampling);
   void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override;
-  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override;
+  void choose_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) override;
 
   /// Sum over the batch so far of the sampled log-probabilities of the learned layers, per robot
   /// [count] (zeros when no layer is learned). Carries the graph when sampling.with_grad.
@@ -69,10 +69,9 @@ class AgentPolicy final : public Policy {
   /// The route rule's goals: reachable_[r * area + c] = 1 where a monotone free route joins robot
   /// rows[r]'s cell to cell c.
   void reachable_goals(const BatchState& state, std::span<const std::int64_t> rows);
-  /// The route rule's axes: for every robot with need[i], the axis is forced (need_[i] = 0) where
-  /// only one of the two moves keeps a monotone free route to the goal. Returns need_.
-  std::span<const std::uint8_t> route_axes(const BatchState& state, std::span<const std::uint8_t> need,
-                                           std::span<grid::Axis> axes);
+  /// The route rule's axes: for every robot with need[i], the axis is set and need[i] cleared where
+  /// only one of the two moves keeps a monotone free route to the goal.
+  void route_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes);
 
   agent::AgentImpl& agent_;
   grid::FloorFrame frame_;
@@ -84,11 +83,11 @@ class AgentPolicy final : public Policy {
   torch::Tensor log_pi_, entropy_;
   std::vector<std::vector<std::vector<float>>> goal_maps_;
   std::vector<std::int64_t> rows_;
-  std::vector<grid::Cell> goals_now_;                           // the goals the robots hold during a choice
-  std::vector<std::uint8_t> has_goal_;                          // ... where they hold one
-  std::vector<std::uint8_t> all_goals_;                         // all ones: while moving, every robot holds a goal
-  std::vector<grid::Cell> teammate_poses_, teammate_goals_;     // one robot's teammates (scratch)
-  std::vector<std::uint8_t> reachable_, route_scratch_, need_;  // the route rule's (scratch)
+  std::vector<grid::Cell> goals_now_;                        // the goals the robots hold during a choice
+  std::vector<std::uint8_t> has_goal_;                       // ... where they hold one
+  std::vector<std::uint8_t> all_goals_;                      // all ones: while moving, every robot holds a goal
+  std::vector<grid::Cell> teammate_poses_, teammate_goals_;  // one robot's teammates (scratch)
+  std::vector<std::uint8_t> reachable_, route_scratch_;      // the route rule's (scratch)
   long action_decisions_ = 0;
   PolicyTiming timing_;
 };

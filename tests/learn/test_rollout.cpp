@@ -258,7 +258,7 @@ class RevealCountingPolicy final : public Policy {
   void choose_goals(const BatchState& state, int episode, std::span<grid::Cell> goals) override {
     goals_.choose_goals(state, episode, goals);
   }
-  void choose_axes(const BatchState& state, std::span<const std::uint8_t> need, std::span<grid::Axis> axes) override {
+  void choose_axes(const BatchState& state, std::span<std::uint8_t> need, std::span<grid::Axis> axes) override {
     for (std::size_t i = 0; i < need.size(); ++i) {
       if (!need[i]) continue;
       ++decisions;
