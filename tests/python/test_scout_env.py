@@ -43,15 +43,19 @@ def drive(envs, agent, seed):
             return first_info, np.stack(poses), np.stack(goals), agent.classify(obs)
 
 
-def test_the_agent_through_make_vec_is_scout_run_bit_for_bit(tmp_path):
-    # 241 robots: `scout run` drives them in batches of 240 and 1, the Agent all at once.
-    n, seed = 241, 17
+def run_both_ways(tmp_path, world, model, n, seed):
+    """`scout run`'s runs of `model` in `world`, and the same robots driven by scout.Agent through
+    make_vec: (runs, info, poses, goals, logits)."""
     out = tmp_path / "run"
-    subprocess.run([BINARY, "run", WORLD, "--checkpoint", MODEL, "--seed", str(seed), "--count", str(n),
+    subprocess.run([BINARY, "run", world, "--checkpoint", model, "--seed", str(seed), "--count", str(n),
                     "--no-images", "--out", str(out)], check=True, capture_output=True)
     runs = json.loads((out / "trajectory.json").read_text())["runs"]
-    envs = scout.make_vec(WORLD, n, seed=seed)
-    info, poses, goals, logits = drive(envs, scout.Agent(MODEL), seed)
+    return (runs, *drive(scout.make_vec(world, n, seed=seed), scout.Agent(model), seed))
+
+
+def test_the_agent_through_make_vec_is_scout_run_bit_for_bit(tmp_path):
+    # 241 robots: `scout run` drives them in batches of 240 and 1, the Agent all at once.
+    runs, info, poses, goals, logits = run_both_ways(tmp_path, WORLD, MODEL, n=241, seed=17)
     for i, run in enumerate(runs):
         assert info["index"][i] == run["index"]
         assert info["label"][i] == run["label"]
@@ -68,13 +72,8 @@ def test_the_route_rule_agent_among_boxes_is_scout_run_bit_for_bit(tmp_path):
     # and the model's step: through make_vec it takes the goals and moves `scout run` takes.
     world = os.path.join(SOURCE, "worlds", "scenarios", "obstacles-random.yaml")
     model = os.path.join(SOURCE, "models", "obstacles-random.safetensors")
-    n, seed = 24, 5
-    out = tmp_path / "run"
-    subprocess.run([BINARY, "run", world, "--checkpoint", model, "--seed", str(seed), "--count", str(n),
-                    "--no-images", "--out", str(out)], check=True, capture_output=True)
-    runs = json.loads((out / "trajectory.json").read_text())["runs"]
-    envs = scout.make_vec(world, n, seed=seed)
-    info, poses, goals, logits = drive(envs, scout.Agent(model), seed)
+    n = 24
+    runs, info, poses, goals, logits = run_both_ways(tmp_path, world, model, n=n, seed=5)
     blocked = sum(s.get("blocked", False) for run in runs for s in run["steps"])
     assert blocked < n * 2.5  # the rule at work: mnist.safetensors ends about 5 of 20 moves against a box
     for i, run in enumerate(runs):
