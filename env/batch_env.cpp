@@ -1,6 +1,7 @@
 #include "env/batch_env.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -289,6 +290,33 @@ void BatchEnv::reveal_patch(int i) {
   }
 }
 
+namespace {
+
+// Writes n bytes as 16-byte pieces, the last one overlapping the one before: fixed-size copies the
+// compiler makes single vector moves. The coarse map's rows are a few dozen bytes, where a call to
+// memmove or memset per row cost more than its bytes (about 1 ms of a 240-robot rollout at 100 x 100).
+void copy_short_row(std::uint8_t* to, const std::uint8_t* from, int n) {
+  constexpr int kPiece = 16;
+  if (n < kPiece) {
+    std::memcpy(to, from, static_cast<std::size_t>(n));
+    return;
+  }
+  for (int i = 0; i + kPiece < n; i += kPiece) std::memcpy(to + i, from + i, kPiece);
+  std::memcpy(to + n - kPiece, from + n - kPiece, kPiece);
+}
+
+// Bytes a fill_run may write past its run.
+constexpr int kRunSlack = 8;
+
+// Fills n > 0 bytes with v in 8-byte words, writing up to kRunSlack - 1 bytes past them (the
+// buffer has room; a run that follows overwrites them).
+void fill_run(std::uint8_t* to, std::uint8_t v, int n) {
+  const std::uint64_t word = 0x0101010101010101ull * v;
+  for (int i = 0; i < n; i += 8) std::memcpy(to + i, &word, sizeof word);
+}
+
+}  // namespace
+
 // Robot i's wider view into its team's coarse map: every floor pixel of a wide pixel's block takes
 // its mean (the latest look wins) and is marked seen coarsely, at the pose the agent reads, as the
 // patch.
@@ -297,31 +325,39 @@ void BatchEnv::reveal_wide(int i) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
   const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
-  // The window clipped to the floor, painted a run of floor pixels per wide pixel (no division
-  // per floor pixel: this runs at every step for every robot).
+  // The window clipped to the floor: a block row's floor rows are equal, so each block row is
+  // painted once into `painted` (no division per floor pixel: this runs at every step for every
+  // robot) and copied into its rows.
   const int xa = std::max(x0, 0), xb = std::min(x0 + px * s, width);
   const int ya = std::max(y0, 0), yb = std::min(y0 + px * s, height);
   if (xa >= xb || ya >= yb) return;
+  const int run = xb - xa;
+  // A block row as painted, and a row of 1s for the seen map: per thread, as the pool's threads
+  // paint teams side by side (grown once to the widest window).
+  thread_local std::vector<std::uint8_t> painted, ones;
+  if (painted.size() < static_cast<std::size_t>(run + kRunSlack)) {
+    painted.resize(static_cast<std::size_t>(run + kRunSlack));
+    ones.assign(painted.size(), 1);
+  }
   const int team_first = i - i % team_size_;
-  for (int j = team_first; j < team_first + team_size_; ++j) {
-    std::uint8_t* coarse = wide_revealed_.data() + area * j;
-    std::uint8_t* seen = wide_seen_.data() + area * j;
-    // A block's rows are equal: the first is painted run by run, the others copied from it.
-    for (int y = ya; y < yb; ++y) {
-      std::uint8_t* row = coarse + static_cast<std::size_t>(y) * width;
-      if (y > ya && (y - y0) % s != 0) {
-        std::copy(row - width + xa, row - width + xb, row + xa);
-      } else {
-        const std::uint8_t* look_row = look + static_cast<std::size_t>((y - y0) / s) * px;
-        for (int c = (xa - x0) / s; c < px; ++c) {
-          const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
-          if (from >= to) break;
-          std::fill(row + from, row + to, look_row[c]);
-        }
-      }
-      std::fill(seen + static_cast<std::size_t>(y) * width + xa, seen + static_cast<std::size_t>(y) * width + xb,
-                std::uint8_t{1});
+  for (int y = ya; y < yb;) {
+    const int block_row = (y - y0) / s;
+    const int rows_end = std::min(y0 + (block_row + 1) * s, yb);
+    const std::uint8_t* look_row = look + static_cast<std::size_t>(block_row) * px;
+    for (int c = (xa - x0) / s; c < px; ++c) {
+      const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
+      if (from >= to) break;
+      fill_run(painted.data() + (from - xa), look_row[c], to - from);
     }
+    for (int j = team_first; j < team_first + team_size_; ++j) {
+      std::uint8_t* coarse = wide_revealed_.data() + area * j + xa;
+      std::uint8_t* seen = wide_seen_.data() + area * j + xa;
+      for (int row = y; row < rows_end; ++row) {
+        copy_short_row(coarse + static_cast<std::size_t>(row) * width, painted.data(), run);
+        copy_short_row(seen + static_cast<std::size_t>(row) * width, ones.data(), run);
+      }
+    }
+    y = rows_end;
   }
 }
 

@@ -317,6 +317,20 @@ void require(bool condition, const std::string& message) {
 // that passes them allocates nothing.
 [[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("PatchCamera: " + message); }
 
+// Whether a floor row has a pixel that is not black: 8 bytes at a time, as most rows of a floor
+// larger than its digits are black and every row of every floor is tested as it is loaded.
+bool has_ink(const std::uint8_t* row, int n) {
+  int i = 0;
+  std::uint64_t any = 0;
+  for (; i + 8 <= n; i += 8) {
+    std::uint64_t word;
+    std::memcpy(&word, row + i, sizeof word);
+    any |= word;
+  }
+  for (; i < n; ++i) any |= row[i];
+  return any != 0;
+}
+
 }  // namespace
 
 struct PatchCamera::Impl {
@@ -552,10 +566,11 @@ struct PatchCamera::Impl {
     const std::size_t table = static_cast<std::size_t>(mw) * static_cast<std::size_t>(mh);
     if (block_means_upload.size() < table * static_cast<std::size_t>(count))
       block_means_upload.resize(table * static_cast<std::size_t>(count));
-    // padded_row: a floor row with scale - 1 zeros each side; row_sums: each floor row's sums over
-    // `scale` columns, with scale - 1 zero rows above and below; column_sums: one table row's.
+    // padded_row: a floor row with scale - 1 zeros each side; row_sums: each inked floor row's sums
+    // over `scale` columns (rows without ink, the scale - 1 zero rows above and below included, are
+    // never read); column_sums: one table row's.
     padded_row.assign(static_cast<std::size_t>(w + 2 * (s - 1)), 0);
-    row_sums.assign(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)), 0);
+    row_sums.resize(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)));
     column_sums.resize(static_cast<std::size_t>(mw));
     row_has_ink.assign(static_cast<std::size_t>(h + 2 * (s - 1)), 0);  // per row of row_sums
     // The mean, halves up, in float: with x = 2 sum + n exact and q = x / (2 n) = k + f, f is 0 or
@@ -568,10 +583,10 @@ struct PatchCamera::Impl {
       for (int y = 0; y < h; ++y) {
         const std::uint8_t* floor_row = floor + static_cast<std::size_t>(y) * w;
         std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
-        std::fill_n(sums, mw, std::uint16_t{0});
-        const bool ink = std::any_of(floor_row, floor_row + w, [](std::uint8_t p) { return p != 0; });
+        const bool ink = has_ink(floor_row, w);
         row_has_ink[static_cast<std::size_t>(y + s - 1)] = ink;
-        if (!ink) continue;
+        if (!ink) continue;  // its sums are never read: the means of blocks without ink are written 0
+        std::fill_n(sums, mw, std::uint16_t{0});
         std::copy_n(floor_row, w, padded_row.begin() + (s - 1));
         for (int k = 0; k < s; ++k) {
           const std::uint8_t* shifted = padded_row.data() + k;
@@ -584,11 +599,7 @@ struct PatchCamera::Impl {
       std::uint16_t* acc = column_sums.data();
       std::fill_n(acc, mw, std::uint16_t{0});
       int inked_rows = 0;  // rows with ink among row_sums' rows v .. v + scale - 1
-      for (int k = 0; k + 1 < s; ++k) {
-        const std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(k) * mw;
-        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + sums[u]);
-        inked_rows += row_has_ink[static_cast<std::size_t>(k)];
-      }
+      for (int k = 0; k + 1 < s; ++k) inked_rows += row_has_ink[static_cast<std::size_t>(k)];  // zero rows above
       for (int v = 0; v < mh; ++v) {
         inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
         if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];
@@ -598,10 +609,15 @@ struct PatchCamera::Impl {
           std::fill_n(out, mw, std::uint8_t{0});
           continue;
         }
-        const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
-        const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v > 0 ? v - 1 : 0) * mw;
-        const std::uint16_t keep = v > 0 ? 0xFFFF : 0;  // the row before row 0 is none
-        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u] - (leaving[u] & keep));
+        // Only inked rows hold sums (a row without ink adds 0); the row before row 0 is none.
+        if (row_has_ink[static_cast<std::size_t>(v + s - 1)]) {
+          const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
+          for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u]);
+        }
+        if (v > 0 && row_has_ink[static_cast<std::size_t>(v - 1)]) {
+          const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v - 1) * mw;
+          for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] - leaving[u]);
+        }
         for (int u = 0; u < mw; ++u)
           out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
       }

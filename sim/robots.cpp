@@ -64,6 +64,53 @@ b2Filter filter(std::uint16_t category, std::uint16_t mask) {
 const b2Filter kDiscFilter = filter(0x0004, 0x0001);
 const b2Filter kBumperFilter = filter(0x0002, 0x0002);
 
+// The walls: one static loop through `corners`. A chain collides on one side only, the right of
+// each edge, so the corners wind with the right side facing the floor.
+b2Body* add_walls(b2World& world, const b2Vec2 (&corners)[4]) {
+  b2BodyDef def;
+  b2Body* walls = world.CreateBody(&def);
+  b2ChainShape loop;
+  loop.CreateLoop(corners, 4);
+  walls->CreateFixture(&loop, 0.0f);
+  return walls;
+}
+
+// A robot: a frictionless disc with fixed rotation at `position` (Box2D units). With a bumper radius
+// (teams), a massless bumper as well, which only the teammates' bumpers touch: Box2D's discs have
+// no contact skin, so two robots closing in at full speed would overlap by up to two ticks' travel
+// before their contact acts, and a robot blocked there would keep the overlap. A bumper one tick's
+// travel wider than the disc keeps the discs themselves apart.
+b2Body* add_robot(b2World& world, b2Vec2 position, float radius_u, float density, float bumper_radius_u) {
+  b2BodyDef def;
+  def.type = b2_dynamicBody;
+  def.fixedRotation = true;
+  def.allowSleep = false;
+  def.position = position;
+  b2Body* body = world.CreateBody(&def);
+  const bool bumper = bumper_radius_u > 0.0f;
+  b2CircleShape disc;
+  disc.m_radius = radius_u;
+  b2FixtureDef fixture;
+  fixture.shape = &disc;
+  fixture.density = density;
+  fixture.friction = 0.0f;
+  fixture.restitution = 0.0f;
+  if (bumper) fixture.filter = kDiscFilter;  // the bumper meets the teammates
+  body->CreateFixture(&fixture);
+  if (bumper) {
+    b2CircleShape ring;
+    ring.m_radius = bumper_radius_u;
+    b2FixtureDef ring_def;
+    ring_def.shape = &ring;
+    ring_def.density = 0.0f;
+    ring_def.friction = 0.0f;
+    ring_def.restitution = 0.0f;
+    ring_def.filter = kBumperFilter;
+    body->CreateFixture(&ring_def);
+  }
+  return body;
+}
+
 // The fastest a robot may go: a scale error can speed the drive up (four standard deviations are
 // counted), and a push adds its velocity change.
 double fastest_speed_mps(const RobotParams& params) {
@@ -148,8 +195,6 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   const float min_x = 0.5f * px, max_x = (frame.width_px - 0.5f) * px;
   const float min_y = 0.5f * px, max_y = (frame.height_px - 0.5f) * px;
   const float off = wall_offset_u(radius_u);
-  // A chain collides on one side only, the right of each edge: wind it so that the right
-  // side faces the floor.
   const b2Vec2 corners[4] = {
       {min_x - off, min_y - off}, {min_x - off, max_y + off}, {max_x + off, max_y + off}, {max_x + off, min_y - off}};
   const float density = static_cast<float>(params.body.mass_kg / (M_PI * radius_u * radius_u));
@@ -160,54 +205,21 @@ RobotBatch::RobotBatch(const grid::FloorFrame& frame, const RobotParams& params,
   // against a 0.25 m radius, and a discrete contact then always stops the disc.
   const double fastest_mps = fastest_speed_mps(params);
   const bool continuous = fastest_mps * params.physics.dt_s > 0.25 * params.body.radius_m;  // same ratio in units
+  const float bumper_radius_u =
+      team_size_ > 1 ? static_cast<float>(bumper_radius_px(params, frame) * kUnitsPerPx) : 0.0f;
   for (int k = 0; k < count / team_size_; ++k) {
     Team& t = teams_[k];
     t.world = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
     t.world->SetAllowSleeping(false);
     t.world->SetContinuousPhysics(continuous);
-
-    b2BodyDef wall_def;
-    t.walls = t.world->CreateBody(&wall_def);
-    b2ChainShape loop;
-    loop.CreateLoop(corners, 4);
-    t.walls->CreateFixture(&loop, 0.0f);
+    t.walls = add_walls(*t.world, corners);
     if (!params.obstacles.no_fixed()) t.obstacles = add_obstacles(*t.world, params.obstacles);
-
     for (int i = k * team_size_; i < (k + 1) * team_size_; ++i) {
       Robot& r = robots_[i];
       r.team = &t;
-      b2BodyDef body_def;
-      body_def.type = b2_dynamicBody;
-      body_def.fixedRotation = true;
-      body_def.allowSleep = false;
       // Apart until place() puts them on their starts (members never overlap at creation).
-      body_def.position.Set(min_x + static_cast<float>(i - k * team_size_) * 3.0f * static_cast<float>(radius_u),
-                            min_y);
-      r.body = t.world->CreateBody(&body_def);
-      b2CircleShape disc;
-      disc.m_radius = static_cast<float>(radius_u);
-      b2FixtureDef fixture;
-      fixture.shape = &disc;
-      fixture.density = density;
-      fixture.friction = 0.0f;
-      fixture.restitution = 0.0f;
-      if (team_size_ > 1) fixture.filter = kDiscFilter;  // the bumper below meets the teammates
-      r.body->CreateFixture(&fixture);
-      if (team_size_ > 1) {
-        // Box2D's discs have no contact skin: two robots closing in at full speed would overlap
-        // by up to two ticks' travel before their contact acts, and a robot blocked there would
-        // keep the overlap. So teammates meet through a massless bumper one tick's travel wider
-        // than the disc, which only bumpers touch: the discs themselves never overlap.
-        b2CircleShape bumper;
-        bumper.m_radius = static_cast<float>(bumper_radius_px(params, frame) * kUnitsPerPx);
-        b2FixtureDef bumper_def;
-        bumper_def.shape = &bumper;
-        bumper_def.density = 0.0f;
-        bumper_def.friction = 0.0f;
-        bumper_def.restitution = 0.0f;
-        bumper_def.filter = kBumperFilter;
-        r.body->CreateFixture(&bumper_def);
-      }
+      const b2Vec2 parked(min_x + static_cast<float>(i - k * team_size_) * 3.0f * static_cast<float>(radius_u), min_y);
+      r.body = add_robot(*t.world, parked, static_cast<float>(radius_u), density, bumper_radius_u);
     }
   }
 }

@@ -7,31 +7,48 @@
 
 namespace scout::tools {
 
-int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
-  const std::span<const learn::RolloutRecord> records = run.records;
-  const std::size_t team = records.size();
-  grid::RevealMask seen(run.frame);
-  for (const learn::RolloutRecord& r : records) seen.reveal(grid::camera_window(r.start, run.patch_px, run.frame));
-  // The wider view's coarse map, painted as env::BatchEnv::reveal_wide paints it: every floor pixel
-  // of a wide pixel's block takes its mean, the latest look winning, at each grid pose.
-  const int width = run.frame.width_px, height = run.frame.height_px, wide_px = run.wide.px,
-            wide_scale = run.wide.scale;
-  const std::size_t area = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-  std::vector<std::uint8_t> coarse(wide_px > 0 ? area : 0), coarse_seen(coarse.size()), look;
-  const auto reveal_wide = [&](const grid::Cell& pose) {
-    if (wide_px == 0) return;
-    look.resize(static_cast<std::size_t>(wide_px) * wide_px);
-    render::wide_patch(run.floor, width, height, run.wide, {.x = pose.x(), .y = pose.y()}, look.data());
-    const int x0 = pose.x() - wide_px * wide_scale / 2, y0 = pose.y() - wide_px * wide_scale / 2;
-    for (int y = std::max(y0, 0); y < std::min(y0 + wide_px * wide_scale, height); ++y)
-      for (int x = std::max(x0, 0); x < std::min(x0 + wide_px * wide_scale, width); ++x) {
-        const std::size_t at = static_cast<std::size_t>(y) * width + x;
-        coarse[at] = look[static_cast<std::size_t>((y - y0) / wide_scale) * wide_px + (x - x0) / wide_scale];
-        coarse_seen[at] = 1;
-      }
-  };
-  for (const learn::RolloutRecord& r : records) reveal_wide(r.start);
+namespace {
 
+// The wider view's coarse map, painted as env::BatchEnv::reveal_wide paints it: every floor pixel
+// of a wide pixel's block takes its mean, the latest look winning, at each grid pose. Empty
+// without the wider view.
+class CoarseMap {
+ public:
+  explicit CoarseMap(const RunAnimation& run)
+      : run_(run),
+        values_(run.wide.px > 0 ? static_cast<std::size_t>(run.frame.area_px()) : 0),
+        seen_(values_.size()),
+        look_(static_cast<std::size_t>(run.wide.px) * run.wide.px) {}
+
+  void reveal(const grid::Cell& pose) {
+    const int px = run_.wide.px, scale = run_.wide.scale;
+    const int width = run_.frame.width_px, height = run_.frame.height_px;
+    if (px == 0) return;
+    render::wide_patch(run_.floor, width, height, run_.wide, {.x = pose.x(), .y = pose.y()}, look_.data());
+    const int x0 = pose.x() - px * scale / 2, y0 = pose.y() - px * scale / 2;
+    for (int y = std::max(y0, 0); y < std::min(y0 + px * scale, height); ++y)
+      for (int x = std::max(x0, 0); x < std::min(x0 + px * scale, width); ++x) {
+        const std::size_t at = static_cast<std::size_t>(y) * width + x;
+        values_[at] = look_[static_cast<std::size_t>((y - y0) / scale) * px + (x - x0) / scale];
+        seen_[at] = 1;
+      }
+  }
+
+  // Points the snapshot at the map (nothing without the wider view).
+  void show_in(render::Snapshot& s) const {
+    s.wide_side_px = run_.wide.px * run_.wide.scale;
+    if (values_.empty()) return;
+    s.wide_revealed = values_.data();
+    s.wide_seen = seen_.data();
+  }
+
+ private:
+  const RunAnimation& run_;
+  std::vector<std::uint8_t> values_, seen_, look_;
+};
+
+// What every frame of the run shows alike: the floor, its scenery and the prediction panel.
+render::Snapshot run_snapshot(const RunAnimation& run) {
   render::Snapshot s;
   s.floor = run.floor;
   s.width_px = run.frame.width_px;
@@ -43,11 +60,36 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
   s.obstacles = run.obstacles;
   s.slip = run.slip;
   s.faint_unseen_floor = run.faint_floor;
-  s.wide_side_px = wide_px * wide_scale;
-  if (wide_px > 0) {
-    s.wide_revealed = coarse.data();
-    s.wide_seen = coarse_seen.data();
+  return s;
+}
+
+// Robot k's disc where its body is, and the cell under its centre (robot 0 through the snapshot's
+// own fields, robot k > 0 through teammates[k - 1]).
+void show_body(render::Snapshot& s, std::size_t k, const Eigen::Vector2d& b, double radius_px) {
+  const render::PixelPose cell{.x = static_cast<int>(std::floor(b.x())), .y = static_cast<int>(std::floor(b.y()))};
+  const render::Snapshot::Body disc{.x_px = b.x(), .y_px = b.y(), .radius_px = radius_px};
+  if (k == 0) {
+    s.robot = cell;
+    s.body = disc;
+  } else {
+    s.teammates[k - 1].robot = cell;
+    s.teammates[k - 1].body = disc;
   }
+}
+
+}  // namespace
+
+int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
+  const std::span<const learn::RolloutRecord> records = run.records;
+  const std::size_t team = records.size();
+  grid::RevealMask seen(run.frame);
+  CoarseMap coarse(run);
+  for (const learn::RolloutRecord& r : records) {
+    seen.reveal(grid::camera_window(r.start, run.patch_px, run.frame));
+    coarse.reveal(r.start);
+  }
+  render::Snapshot s = run_snapshot(run);
+  coarse.show_in(s);
   s.teammates.resize(team - 1);
   // Robot 0 is drawn through the snapshot's own fields, robot k > 0 through teammates[k - 1].
   auto path_of = [&](std::size_t k) -> std::vector<render::PixelPose>& {
@@ -66,15 +108,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
     s.revealed = seen.data().data();
     for (std::size_t k = 0; k < team; ++k) {
       const Eigen::Vector2d& b = body[k];
-      const render::PixelPose cell{.x = static_cast<int>(std::floor(b.x())), .y = static_cast<int>(std::floor(b.y()))};
-      const render::Snapshot::Body disc{.x_px = b.x(), .y_px = b.y(), .radius_px = run.robot_radius_px};
-      if (k == 0) {
-        s.robot = cell;
-        s.body = disc;
-      } else {
-        s.teammates[k - 1].robot = cell;
-        s.teammates[k - 1].body = disc;
-      }
+      show_body(s, k, b, run.robot_radius_px);
       const render::FloorPoint here{static_cast<float>(b.x()), static_cast<float>(b.y())};
       // Held frames repeat the last point: kept once, so that a long run draws in linear time.
       std::vector<render::FloorPoint>& trail = true_path_of(k);
@@ -110,7 +144,7 @@ int append_run_frames(render::VideoWriter& video, const RunAnimation& run) {
     for (std::size_t k = 0; k < team; ++k) {
       const grid::Cell& pose = records[k].steps[j].grid_pose;
       seen.reveal(grid::camera_window(pose, run.patch_px, run.frame));
-      reveal_wide(pose);
+      coarse.reveal(pose);
       path_of(k).push_back({.x = pose.x(), .y = pose.y()});
     }
     if (ticks == 0) draw();  // a move that needed no tick still reveals

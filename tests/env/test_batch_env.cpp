@@ -26,15 +26,79 @@ worlds::World small_world(int patch_px) {
 std::vector<std::uint64_t> no_motion(std::size_t count) { return std::vector<std::uint64_t>(count, 0); }
 
 // Floor i's pixel (x, y) is (31 * i + 7 * x + 13 * y) % 251 + 1: never 0, different per robot.
-std::vector<std::uint8_t> floors(int count) {
-  std::vector<std::uint8_t> out(static_cast<std::size_t>(kFloor.area_px()) * count);
+std::vector<std::uint8_t> floors(int count, const grid::FloorFrame& frame = kFloor) {
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(frame.area_px()) * count);
   for (int i = 0; i < count; ++i)
-    for (int y = 0; y < kFloor.height_px; ++y)
-      for (int x = 0; x < kFloor.width_px; ++x)
-        out[static_cast<std::size_t>(i) * kFloor.area_px() + y * kFloor.width_px + x] =
+    for (int y = 0; y < frame.height_px; ++y)
+      for (int x = 0; x < frame.width_px; ++x)
+        out[static_cast<std::size_t>(i) * frame.area_px() + y * frame.width_px + x] =
             static_cast<std::uint8_t>((31 * i + 7 * x + 13 * y) % 251 + 1);
   return out;
 }
+
+// The coarse maps that each robot's looks paint, kept here pixel by pixel (every floor pixel of a
+// look's window, clipped to the floor, takes its wide pixel's value over what was there), checked
+// against the environment's after each look.
+class CoarseMaps {
+ public:
+  CoarseMaps(const BatchEnv& env, const std::vector<std::uint8_t>& floors, render::WideView wide)
+      : env_(env),
+        floors_(floors),
+        wide_(wide),
+        area_(static_cast<std::size_t>(env.frame().area_px())),
+        map_(static_cast<std::size_t>(env.count()), std::vector<std::uint8_t>(area_, 0)),
+        seen_(map_) {}
+
+  void clear(int robot) {
+    std::fill(map_[robot].begin(), map_[robot].end(), 0);
+    std::fill(seen_[robot].begin(), seen_[robot].end(), 0);
+  }
+
+  // Robot `robot`'s last look, painted here over its own maps, and the environment's window and
+  // maps against them (a robot alone).
+  void expect_look(int robot) {
+    paint(robot, robot);
+    expect_maps(robot);
+  }
+
+  // Robot `looker`'s last look (its window checked against the CPU's) painted over robot `into`'s
+  // maps here.
+  void paint(int looker, int into) {
+    const grid::FloorFrame& frame = env_.frame();
+    const int px = wide_.px, s = wide_.scale;
+    std::vector<std::uint8_t> look(static_cast<std::size_t>(px) * px);
+    const grid::Cell pose = env_.poses()[looker];
+    render::wide_patch(floors_.data() + area_ * looker, frame.width_px, frame.height_px, wide_, {pose.x(), pose.y()},
+                       look.data());
+    for (std::size_t k = 0; k < look.size(); ++k)
+      ASSERT_EQ(env_.wide_patches()[looker * look.size() + k], look[k]) << looker << ", " << k;
+    const int x0 = pose.x() - px * s / 2, y0 = pose.y() - px * s / 2;  // floor(px * s / 2) before the cell
+    for (int y = std::max(0, y0); y < std::min(frame.height_px, y0 + px * s); ++y)
+      for (int x = std::max(0, x0); x < std::min(frame.width_px, x0 + px * s); ++x) {
+        map_[into][static_cast<std::size_t>(y) * frame.width_px + x] = look[(y - y0) / s * px + (x - x0) / s];
+        seen_[into][static_cast<std::size_t>(y) * frame.width_px + x] = 1;
+      }
+  }
+
+  // Robot `robot`'s coarse map and where it is set, the environment's against the ones here.
+  void expect_maps(int robot) const {
+    const std::uint8_t* map = env_.wide_revealed().data() + area_ * robot;
+    const std::uint8_t* seen = env_.wide_seen().data() + area_ * robot;
+    const grid::Cell pose = env_.poses()[robot];
+    EXPECT_TRUE(std::equal(map_[robot].begin(), map_[robot].end(), map))
+        << "robot " << robot << " at " << pose.x() << ", " << pose.y();
+    EXPECT_TRUE(std::equal(seen_[robot].begin(), seen_[robot].end(), seen)) << "robot " << robot;
+  }
+
+  long seen_count(int robot) const { return std::count(seen_[robot].begin(), seen_[robot].end(), 1); }
+
+ private:
+  const BatchEnv& env_;
+  const std::vector<std::uint8_t>& floors_;
+  render::WideView wide_;
+  std::size_t area_;
+  std::vector<std::vector<std::uint8_t>> map_, seen_;
+};
 
 // y is the floor exactly where seen and 0 elsewhere; the patch is the CPU crop at the pose.
 void expect_consistent(const BatchEnv& env, const std::vector<std::uint8_t>& floor_bytes) {
@@ -93,40 +157,58 @@ TEST(BatchEnv, TheWiderViewFillsTheCoarseMapWithTheBlocksMeans) {
   const std::vector<std::uint8_t> f = floors(2);
   const std::vector<grid::Cell> starts = {{2, 2}, {12, 9}};
   env.reset(f, starts, no_motion(starts.size()));
-  const std::size_t area = static_cast<std::size_t>(kFloor.area_px());
-  const render::WideView wide{3, 2};
-  auto expect_look = [&](int robot, std::vector<std::uint8_t>& expected_map, std::vector<std::uint8_t>& expected_seen) {
-    std::uint8_t look[9];
-    const grid::Cell pose = env.poses()[robot];
-    render::wide_patch(f.data() + area * robot, kFloor.width_px, kFloor.height_px, wide, {pose.x(), pose.y()}, look);
-    for (int k = 0; k < 9; ++k) ASSERT_EQ(env.wide_patches()[robot * 9 + k], look[k]) << robot << ", " << k;
-    const int x0 = pose.x() - 3, y0 = pose.y() - 3;  // floor(3 * 2 / 2) before the cell
-    for (int y = std::max(0, y0); y < std::min(kFloor.height_px, y0 + 6); ++y)
-      for (int x = std::max(0, x0); x < std::min(kFloor.width_px, x0 + 6); ++x) {
-        expected_map[static_cast<std::size_t>(y) * kFloor.width_px + x] = look[(y - y0) / 2 * 3 + (x - x0) / 2];
-        expected_seen[static_cast<std::size_t>(y) * kFloor.width_px + x] = 1;
-      }
-    const std::uint8_t* map = env.wide_revealed().data() + area * robot;
-    const std::uint8_t* seen = env.wide_seen().data() + area * robot;
-    EXPECT_TRUE(std::equal(expected_map.begin(), expected_map.end(), map)) << "robot " << robot;
-    EXPECT_TRUE(std::equal(expected_seen.begin(), expected_seen.end(), seen)) << "robot " << robot;
-  };
-  std::vector<std::uint8_t> map0(area, 0), seen0(area, 0), map1(area, 0), seen1(area, 0);
-  expect_look(0, map0, seen0);
-  expect_look(1, map1, seen1);
+  CoarseMaps coarse(env, f, {3, 2});
+  coarse.expect_look(0);
+  coarse.expect_look(1);
   env.step(std::vector<grid::Cell>{{2, 0}, {0, -2}});
-  expect_look(0, map0, seen0);  // the new look over the old one; the rest stays
-  expect_look(1, map1, seen1);
-  EXPECT_GT(std::count(seen0.begin(), seen0.end(), 1), 36 - 12) << "two looks cover more than one";
+  coarse.expect_look(0);  // the new look over the old one; the rest stays
+  coarse.expect_look(1);
+  EXPECT_GT(coarse.seen_count(0), 36 - 12) << "two looks cover more than one";
   env.reset(f, starts, no_motion(starts.size()));
-  std::fill(map0.begin(), map0.end(), 0);
-  std::fill(seen0.begin(), seen0.end(), 0);
-  expect_look(0, map0, seen0);
+  coarse.clear(0);
+  coarse.expect_look(0);
   // A world without the wider view has none.
+  const std::size_t area = static_cast<std::size_t>(kFloor.area_px());
   BatchEnv plain(small_world(3), kFloor, 2);
   plain.reset(std::vector<std::uint8_t>(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(area)), {{{1, 1}}},
               no_motion(1));
   EXPECT_TRUE(plain.wide_patches().empty() && plain.wide_revealed().empty() && plain.wide_seen().empty());
+}
+
+TEST(BatchEnv, TheCoarseMapsRowsArePaintedWholeAtEveryWidthAndForTheWholeTeam) {
+  // Windows of 24 floor pixels on a 40 x 30 floor: rows painted whole (24), clipped at either
+  // edge (15, 16, 19, 21) and at the top and bottom, and moved over one another. In teams of two,
+  // each look goes into both teammates' maps, the second robot's over the first's.
+  const grid::FloorFrame frame{.width_px = 40, .height_px = 30, .pixel_size_m = 0.1};
+  worlds::World world = small_world(3);
+  world.camera.wide_px = 6;
+  world.camera.wide_scale = 4;
+  world.team.robots = 2;
+  BatchEnv env(world, frame, 4);
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  const std::vector<std::uint8_t> two = floors(2, frame);
+  std::vector<std::uint8_t> f;  // a team's robots over the same floor
+  for (const int team : {0, 0, 1, 1})
+    f.insert(f.end(), two.begin() + static_cast<std::ptrdiff_t>(area * team),
+             two.begin() + static_cast<std::ptrdiff_t>(area * (team + 1)));
+  const std::vector<grid::Cell> starts = {{20, 15}, {3, 3}, {37, 28}, {9, 15}};
+  env.reset(f, starts, no_motion(starts.size()));
+  CoarseMaps coarse(env, f, {6, 4});
+  auto expect_team_looks = [&] {
+    for (int robot = 0; robot < 4; ++robot) {
+      const int first = robot - robot % 2;
+      coarse.paint(first, robot);
+      coarse.paint(first + 1, robot);
+      coarse.expect_maps(robot);
+    }
+  };
+  expect_team_looks();
+  for (const std::vector<grid::Cell>& commands : {std::vector<grid::Cell>{{4, 0}, {0, 4}, {-4, 0}, {4, 0}},
+                                                  std::vector<grid::Cell>{{0, -4}, {1, 0}, {0, -4}, {-4, 0}}}) {
+    env.step(commands);
+    expect_team_looks();
+  }
+  EXPECT_EQ(env.poses()[1], grid::Cell(4, 7)) << "the window [0, 16): one piece of 16";
 }
 
 TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {

@@ -45,13 +45,19 @@ inline std::vector<std::string> lines_of(const std::string& text) {
   return lines;
 }
 
+// The cells of a metrics.csv row (no quoting: the file writes none).
+inline std::vector<std::string> csv_cells(const std::string& line) {
+  std::vector<std::string> cells;
+  std::istringstream in(line);
+  for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+  return cells;
+}
+
 // metrics.csv without its timing columns (images_per_s, seconds), which differ run to run.
 inline std::vector<std::string> metrics_without_timing(const std::string& file) {
   std::vector<std::string> rows;
   for (const std::string& line : lines_of(read_text(file))) {
-    std::vector<std::string> cells;
-    std::istringstream in(line);
-    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    std::vector<std::string> cells = csv_cells(line);
     if (cells.size() > 7) cells.erase(cells.begin() + 6, cells.begin() + 8);
     std::string row;
     for (const std::string& c : cells) row += c + ",";

@@ -13,6 +13,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using scout::testing::train_cli_support::csv_cells;
 using scout::testing::train_cli_support::json;
 using scout::testing::train_cli_support::lines_of;
 using scout::testing::train_cli_support::metrics_without_timing;
@@ -157,6 +158,36 @@ std::pair<int, double> wait_rank(const Rank& r, double limit_s = 300) {
   return {-1, limit_s};
 }
 
+// Two runs' metrics.csv, one process against two: the same validation figures (each validation
+// digit's rollout depends on its index alone), and the same training figures and gradient norms
+// up to the order of the sums.
+void expect_the_same_metrics(const std::string& one_csv, const std::string& two_csv) {
+  const std::vector<std::string> a = lines_of(read_text(one_csv));
+  const std::vector<std::string> b = lines_of(read_text(two_csv));
+  ASSERT_EQ(a.size(), 4u);
+  ASSERT_EQ(b.size(), a.size());
+  for (std::size_t i = 1; i < a.size(); ++i) {
+    const std::vector<std::string> x = csv_cells(a[i]), y = csv_cells(b[i]);
+    ASSERT_EQ(x.size(), y.size()) << a[i] << "\n" << b[i];
+    // mode, epoch, then validation_accuracy (6th) and validation_iid, goals_only, full_image
+    // (10th-12th): the same digits, the same draws.
+    for (const int column : {0, 1, 5, 9, 10, 11}) EXPECT_EQ(x.at(column), y.at(column)) << a[i] << "\n" << b[i];
+    // The training figures are sums over both processes' rollouts: the same reward, loss and
+    // training accuracy (the count of right guesses), up to the order of the sums.
+    for (const int column : {2, 3, 4})
+      EXPECT_NEAR(std::stod(x.at(column)), std::stod(y.at(column)), 1e-5) << "column " << column << "\n"
+                                                                          << a[i] << "\n"
+                                                                          << b[i];
+    EXPECT_EQ(x.at(8), y.at(8)) << "learning rate";
+    // The gradient each step applied (13th): the processes' shares must add up to the one
+    // process's gradient, which Adam's scale-free steps alone would not show (a share weighted
+    // twice, or a mean taken where a sum belongs, changes the norm by a factor, not the weights).
+    const double norm_one = std::stod(x.at(12)), norm_two = std::stod(y.at(12));
+    EXPECT_GT(norm_one, 0) << a[i];
+    EXPECT_NEAR(norm_two / norm_one, 1.0, 1e-4) << "gradient norm\n" << a[i] << "\n" << b[i];
+  }
+}
+
 // The multi-process tests under their own name (scripts/sanitize.sh runs them under ThreadSanitizer).
 class TrainDistributed : public TrainCli {};
 
@@ -208,38 +239,7 @@ TEST_F(TrainDistributed, TwoProcessesTrainTheSameWeightsAsOne) {
   EXPECT_GT(trained.relative, 1e-3);
   EXPECT_GT(compare_weights(path("two"), path("initial")).relative, 1e-3);
 
-  // The same validation figures (each validation digit's rollout depends on its index alone),
-  // and a manifest that records the process count.
-  const std::vector<std::string> a = lines_of(read_text(path("one") + "/metrics.csv"));
-  const std::vector<std::string> b = lines_of(read_text(path("two") + "/metrics.csv"));
-  ASSERT_EQ(a.size(), 4u);
-  ASSERT_EQ(b.size(), a.size());
-  auto cells_of = [](const std::string& row) {
-    std::vector<std::string> cells;
-    std::istringstream in(row);
-    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
-    return cells;
-  };
-  for (std::size_t i = 1; i < a.size(); ++i) {
-    const std::vector<std::string> x = cells_of(a[i]), y = cells_of(b[i]);
-    ASSERT_EQ(x.size(), y.size()) << a[i] << "\n" << b[i];
-    // mode, epoch, then validation_accuracy (6th) and validation_iid, goals_only, full_image
-    // (10th-12th): the same digits, the same draws.
-    for (const int column : {0, 1, 5, 9, 10, 11}) EXPECT_EQ(x.at(column), y.at(column)) << a[i] << "\n" << b[i];
-    // The training figures are sums over both processes' rollouts: the same reward, loss and
-    // training accuracy (the count of right guesses), up to the order of the sums.
-    for (const int column : {2, 3, 4})
-      EXPECT_NEAR(std::stod(x.at(column)), std::stod(y.at(column)), 1e-5) << "column " << column << "\n"
-                                                                          << a[i] << "\n"
-                                                                          << b[i];
-    EXPECT_EQ(x.at(8), y.at(8)) << "learning rate";
-    // The gradient each step applied (13th): the processes' shares must add up to the one
-    // process's gradient, which Adam's scale-free steps alone would not show (a share weighted
-    // twice, or a mean taken where a sum belongs, changes the norm by a factor, not the weights).
-    const double norm_one = std::stod(x.at(12)), norm_two = std::stod(y.at(12));
-    EXPECT_GT(norm_one, 0) << a[i];
-    EXPECT_NEAR(norm_two / norm_one, 1.0, 1e-4) << "gradient norm\n" << a[i] << "\n" << b[i];
-  }
+  expect_the_same_metrics(path("one") + "/metrics.csv", path("two") + "/metrics.csv");
   std::ifstream in(path("two") + "/manifest.json");
   EXPECT_EQ(json::parse(in)["world_size"], 2);
 }

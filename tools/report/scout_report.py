@@ -258,7 +258,8 @@ def plot_budget(sweep, paper, model_point, out_dir):
     ax.set_xlim(0, 1)
     ax.set_ylim(max(0.0, min(p["accuracy"] for p in points) - 0.05), 1.0)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
+    # Below the axes: its long labels span the plot's width, and inside it they hid the low points.
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), frameon=False)
     ax.set_title(f"Accuracy against the observation budget ({sweep['digits']} test digits, "
                  f"{sweep['runs']} run{'s' if sweep['runs'] != 1 else ''} each)", fontsize=9)
     return save(fig, out_dir, "budget.png")
