@@ -160,7 +160,7 @@ void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid:
   count_ = count;
   pool_->parallel_for(count, kRobotsPerChunk, [&](int i) { start_buffers(i, floors.subspan(area * i, area)); });
   for (int i = 0; i < count; ++i) place(i, starts[i], motion_seeds[i], motion_seeds[i - i % team_size_]);
-  camera_->load_floors(std::span(floors_.data(), area * count), count);
+  camera_->load_floors(std::span(floors_.data(), area * count), count, pool_.get());
   timing_.observe_s += seconds_since(t0);
   observe();
 }
@@ -202,7 +202,7 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
   for (std::size_t k = 0; k < robots.size(); ++k)
     place(robots[k], starts[k], motion_seeds[k], motion_seeds[k - k % team_size_]);
   // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
-  camera_->load_floors(std::span(floors_.data(), area * count_), count_);
+  camera_->load_floors(std::span(floors_.data(), area * count_), count_, pool_.get());
   timing_.observe_s += seconds_since(t0);
   // Looking again from an unchanged pose reveals nothing new and writes the same y.
   observe();

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/worker_pool.hpp"
 #include "render/internal/gl_context.hpp"
 #include "worlds/floors.hpp"
 
@@ -361,12 +362,9 @@ struct PatchCamera::Impl {
   GLuint colour_buffer = 0;
   // The wider view's block means, a (width + scale - 1) x (height + scale - 1) R8 image per floor
   // laid out as the floors are; `block_means_upload` is their CPU copy, grown to the largest batch
-  // loaded, and the rest load_block_means' working rows.
+  // loaded.
   GLuint block_means_texture = 0;
   std::vector<std::uint8_t> block_means_upload;
-  std::vector<std::uint8_t> padded_row;
-  std::vector<std::uint16_t> row_sums, column_sums;
-  std::vector<std::uint8_t> row_has_ink;
   int block_means_width_px() const { return floor_width_px + wide.scale - 1; }
   int block_means_height_px() const { return floor_height_px + wide.scale - 1; }
   GLuint program = 0;
@@ -552,75 +550,94 @@ struct PatchCamera::Impl {
     read_back.assign(static_cast<std::size_t>(framebuffer_width_px) * framebuffer_height_px * channels, 0);
   }
 
-  // The wider view's block means of `count` floors, made here and uploaded like the floors (whole
-  // layers in one call). Entry (u, v) of a floor's table is the mean of the scale x scale block
-  // from floor texel (u, v) - (scale - 1), texels off the floor 0, rounded half up as wide_patch
-  // does. Made from box sums in uint16 (a block sums to at most 255 x 256): each row's sums over
-  // `scale` columns, then over `scale` rows, loops the compiler vectorises; a summed-area table
-  // with a division per entry took ten times as long, about 10 ms a reset at 240 floors of 100 x 100.
-  // Rows without ink are skipped (their sums are 0, and so is every mean whose block lies in them):
-  // a floor larger than its digits is mostly black.
-  void load_block_means(std::span<const std::uint8_t> floors, int count) {
+  // Floors a worker takes at a time when the block means are spread over a pool.
+  static constexpr int kFloorsPerChunk = 8;
+
+  // One floor's block means into `means` (block_means_width_px() x block_means_height_px()):
+  // entry (u, v) is the mean of the scale x scale block from floor texel (u, v) - (scale - 1),
+  // texels off the floor 0, rounded half up as wide_patch does. Made from box sums in uint16 (a
+  // block sums to at most 255 x 256): each row's sums over `scale` columns, then over `scale` rows,
+  // loops the compiler vectorises; a summed-area table with a division per entry took ten times as
+  // long, about 10 ms a reset at 240 floors of 100 x 100. Rows without ink are skipped (their sums
+  // are 0, and so is every mean whose block lies in them): a floor larger than its digits is mostly
+  // black. Reads nothing of the camera's but its sizes, so floors are made side by side.
+  void block_means_of(const std::uint8_t* floor, std::uint8_t* means) const {
     const int w = floor_width_px, h = floor_height_px, s = wide.scale;
     const int mw = block_means_width_px(), mh = block_means_height_px();
-    const std::size_t table = static_cast<std::size_t>(mw) * static_cast<std::size_t>(mh);
-    if (block_means_upload.size() < table * static_cast<std::size_t>(count))
-      block_means_upload.resize(table * static_cast<std::size_t>(count));
-    // padded_row: a floor row with scale - 1 zeros each side; row_sums: each inked floor row's sums
-    // over `scale` columns (rows without ink, the scale - 1 zero rows above and below included, are
-    // never read); column_sums: one table row's.
+    // Per thread, grown once: padded_row, a floor row with scale - 1 zeros each side; row_sums,
+    // each inked floor row's sums over `scale` columns (the rows without ink, the scale - 1 zero
+    // rows above and below among them, are never read); column_sums, one table row's; row_has_ink,
+    // per row of row_sums.
+    thread_local std::vector<std::uint8_t> padded_row, row_has_ink;
+    thread_local std::vector<std::uint16_t> row_sums, column_sums;
     padded_row.assign(static_cast<std::size_t>(w + 2 * (s - 1)), 0);
     row_sums.resize(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)));
     column_sums.resize(static_cast<std::size_t>(mw));
-    row_has_ink.assign(static_cast<std::size_t>(h + 2 * (s - 1)), 0);  // per row of row_sums
+    row_has_ink.assign(static_cast<std::size_t>(h + 2 * (s - 1)), 0);
     // The mean, halves up, in float: with x = 2 sum + n exact and q = x / (2 n) = k + f, f is 0 or
     // at least 1 / (2 n) from either integer, while float's error in x * (1 / (2 n)) is at most
     // 255 x 2^-22 < 1 / (4 n); adding 1 / (4 n) before truncating gives k exactly.
     const int n = s * s;
     const float inverse = 1.0f / static_cast<float>(2 * n), nudge = 1.0f / static_cast<float>(4 * n);
-    for (int f = 0; f < count; ++f) {
-      const std::uint8_t* floor = floors.data() + static_cast<std::size_t>(f) * w * h;
-      for (int y = 0; y < h; ++y) {
-        const std::uint8_t* floor_row = floor + static_cast<std::size_t>(y) * w;
-        std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
-        const bool ink = has_ink(floor_row, w);
-        row_has_ink[static_cast<std::size_t>(y + s - 1)] = ink;
-        if (!ink) continue;  // its sums are never read: the means of blocks without ink are written 0
-        std::fill_n(sums, mw, std::uint16_t{0});
-        std::copy_n(floor_row, w, padded_row.begin() + (s - 1));
-        for (int k = 0; k < s; ++k) {
-          const std::uint8_t* shifted = padded_row.data() + k;
-          for (int u = 0; u < mw; ++u) sums[u] = static_cast<std::uint16_t>(sums[u] + shifted[u]);
-        }
+    for (int y = 0; y < h; ++y) {
+      const std::uint8_t* floor_row = floor + static_cast<std::size_t>(y) * w;
+      const bool ink = has_ink(floor_row, w);
+      row_has_ink[static_cast<std::size_t>(y + s - 1)] = ink;
+      if (!ink) continue;
+      std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
+      std::fill_n(sums, mw, std::uint16_t{0});
+      std::copy_n(floor_row, w, padded_row.begin() + (s - 1));
+      for (int k = 0; k < s; ++k) {
+        const std::uint8_t* shifted = padded_row.data() + k;
+        for (int u = 0; u < mw; ++u) sums[u] = static_cast<std::uint16_t>(sums[u] + shifted[u]);
       }
-      std::uint8_t* means = block_means_upload.data() + static_cast<std::size_t>(f) * table;
-      // acc: rows v .. v + scale - 1 of row_sums (floor rows v - (scale - 1) .. v), kept by adding
-      // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
-      std::uint16_t* acc = column_sums.data();
-      std::fill_n(acc, mw, std::uint16_t{0});
-      int inked_rows = 0;  // rows with ink among row_sums' rows v .. v + scale - 1
-      for (int k = 0; k + 1 < s; ++k) inked_rows += row_has_ink[static_cast<std::size_t>(k)];  // zero rows above
-      for (int v = 0; v < mh; ++v) {
-        inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
-        if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];
-        std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
-        if (inked_rows == 0) {  // every block here is black: so are its means, and the rows' sum is 0
-          std::fill_n(acc, mw, std::uint16_t{0});
-          std::fill_n(out, mw, std::uint8_t{0});
-          continue;
-        }
-        // Only inked rows hold sums (a row without ink adds 0); the row before row 0 is none.
-        if (row_has_ink[static_cast<std::size_t>(v + s - 1)]) {
-          const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
-          for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u]);
-        }
-        if (v > 0 && row_has_ink[static_cast<std::size_t>(v - 1)]) {
-          const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v - 1) * mw;
-          for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] - leaving[u]);
-        }
-        for (int u = 0; u < mw; ++u)
-          out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
+    }
+    // acc: rows v .. v + scale - 1 of row_sums (floor rows v - (scale - 1) .. v), kept by adding
+    // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
+    std::uint16_t* acc = column_sums.data();
+    std::fill_n(acc, mw, std::uint16_t{0});
+    int inked_rows = 0;  // rows with ink among row_sums' rows v .. v + scale - 1
+    for (int k = 0; k + 1 < s; ++k) inked_rows += row_has_ink[static_cast<std::size_t>(k)];  // zero rows above
+    for (int v = 0; v < mh; ++v) {
+      inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
+      if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];
+      std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
+      if (inked_rows == 0) {  // every block here is black: so are its means, and the rows' sum is 0
+        std::fill_n(acc, mw, std::uint16_t{0});
+        std::fill_n(out, mw, std::uint8_t{0});
+        continue;
       }
+      // Only inked rows hold sums (a row without ink adds 0); the row before row 0 is none.
+      if (row_has_ink[static_cast<std::size_t>(v + s - 1)]) {
+        const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
+        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u]);
+      }
+      if (v > 0 && row_has_ink[static_cast<std::size_t>(v - 1)]) {
+        const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v - 1) * mw;
+        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] - leaving[u]);
+      }
+      for (int u = 0; u < mw; ++u)
+        out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
+    }
+  }
+
+  // The wider view's block means of `count` floors (block_means_of, floor after floor, spread over
+  // `pool`'s threads where one is given), uploaded like the floors: whole layers in one call.
+  void load_block_means(std::span<const std::uint8_t> floors, int count, core::WorkerPool* pool) {
+    const int mw = block_means_width_px(), mh = block_means_height_px();
+    const std::size_t table = static_cast<std::size_t>(mw) * static_cast<std::size_t>(mh);
+    if (block_means_upload.size() < table * static_cast<std::size_t>(count))
+      block_means_upload.resize(table * static_cast<std::size_t>(count));
+    const std::size_t floor_bytes =
+        static_cast<std::size_t>(floor_width_px) * static_cast<std::size_t>(floor_height_px);
+    auto one_floor = [&](int f) {
+      block_means_of(floors.data() + floor_bytes * static_cast<std::size_t>(f),
+                     block_means_upload.data() + table * static_cast<std::size_t>(f));
+    };
+    if (pool != nullptr) {
+      pool->parallel_for(count, kFloorsPerChunk, one_floor);
+    } else {
+      for (int f = 0; f < count; ++f) one_floor(f);
     }
     gl.ActiveTexture(GL_TEXTURE1);
     const int whole_layers = count / floors_per_layer;
@@ -762,7 +779,7 @@ PatchCamera::~PatchCamera() {
   if (impl_) impl_->release();
 }
 
-void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
+void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count, core::WorkerPool* pool) {
   Impl& impl = *impl_;
   if (!(count > 0 && count <= impl.max_robots))
     fail("load_floors: count must be 1.." + std::to_string(impl.max_robots) + ", got " + std::to_string(count));
@@ -789,7 +806,7 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count) {
     impl.gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, whole_layers, impl.floor_width_px, impl.floor_height_px * rest,
                           1, GL_RED, GL_UNSIGNED_BYTE, floors.data() + offset);
   }
-  if (impl.wide.px > 0) impl.load_block_means(floors, count);
+  if (impl.wide.px > 0) impl.load_block_means(floors, count, pool);
   impl.floors_loaded = count;
 }
 

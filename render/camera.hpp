@@ -12,6 +12,10 @@
 
 #include "render/limits.hpp"
 
+namespace scout::core {
+class WorkerPool;
+}  // namespace scout::core
+
 namespace scout::render {
 
 /// A robot's grid pose, in floor pixels (x = column, y = row).
@@ -71,8 +75,10 @@ class PatchCamera {
   PatchCamera& operator=(const PatchCamera&) = delete;
 
   /// Uploads the floors: `floors` holds `count` images of width x height bytes, robot i sees
-  /// image i. One upload call for the whole batch.
-  void load_floors(std::span<const std::uint8_t> floors, int count);
+  /// image i. One upload call for the whole batch. With a wider view, each floor's block means are
+  /// made on the CPU first, spread over `pool`'s threads where one is given (the caller's; the
+  /// camera starts none).
+  void load_floors(std::span<const std::uint8_t> floors, int count, core::WorkerPool* pool = nullptr);
 
   /// Renders the patches of robots 0 .. poses.size()-1 at their grid poses and reads them back
   /// into `patches` (poses.size() * patch_px * patch_px bytes, robot after robot, row-major).

@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/worker_pool.hpp"
 #include "render/camera.hpp"
 
 namespace scout::render {
@@ -705,6 +706,14 @@ TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere
     camera.load_floors(sparse.bytes, count);
     camera.capture(poses, patches, far);
     EXPECT_EQ(far, cpu_wide(sparse, wide, poses)) << "black rows, wide " << wide.px << " x " << wide.scale;
+    // The block means made side by side on a pool's threads, as the environment has them made.
+    scout::core::WorkerPool pool(2);
+    camera.load_floors(floors.bytes, count, &pool);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(far, cpu_wide(floors, wide, poses)) << "over a pool, wide " << wide.px << " x " << wide.scale;
+    camera.load_floors(sparse.bytes, count, &pool);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(far, cpu_wide(sparse, wide, poses)) << "over a pool, black rows, wide " << wide.px;
   }
 }
 
