@@ -596,8 +596,9 @@ struct PatchCamera::Impl {
     // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
     std::uint16_t* acc = column_sums.data();
     std::fill_n(acc, mw, std::uint16_t{0});
-    int inked_rows = 0;  // rows with ink among row_sums' rows v .. v + scale - 1
-    for (int k = 0; k + 1 < s; ++k) inked_rows += row_has_ink[static_cast<std::size_t>(k)];  // zero rows above
+    // Rows with ink among row_sums' rows v .. v + scale - 1 (the scale - 1 zero rows above the
+    // floor, which open the window at v = 0, have none).
+    int inked_rows = 0;
     for (int v = 0; v < mh; ++v) {
       inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
       if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];

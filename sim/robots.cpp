@@ -29,19 +29,27 @@ constexpr double kUnitsPerPx = 0.1;
 // ~0.1 px past the border centre: on the border pixel, never off the floor.
 constexpr float kWallClearance_u = 2.0f * b2_linearSlop;
 
+// How far a polygon's faces stand inside the edge they stand for: Box2D's skin less its slop, so
+// that a disc comes to rest against the polygon where it would touch the bare edge.
+constexpr float kSkinInset_u = b2_polygonRadius - b2_linearSlop;
+
 float wall_offset_u(double radius_u) {
   return static_cast<float>(radius_u) + b2_polygonRadius - b2_linearSlop + kWallClearance_u;
 }
 
-// One static body holding every obstacle of the world as a fixture, in Box2D units. (A box's
-// polygon carries Box2D's skin of b2_polygonRadius, 0.1 px: the robot stops that much earlier.)
+// One static body holding every obstacle of the world as a fixture, in Box2D units. A box's
+// polygon is inset by kSkinInset_u: with Box2D's skin around it, the disc rests against the box
+// where the box is drawn, so a cell whose disc just reaches a box (o = 0 there, and the route
+// rule's routes go through it: at integer corners and a 2.5 px radius, many cells) is reached
+// like any other instead of about 0.05 px short (the skin less the slop), held there as blocked.
 b2Body* add_obstacles(b2World& world, const worlds::ObstacleSpec& spec) {
   b2BodyDef def;
   b2Body* body = world.CreateBody(&def);
   const float u = static_cast<float>(kUnitsPerPx);
   for (const worlds::BoxObstacle& b : spec.boxes) {
     b2PolygonShape box;
-    box.SetAsBox(0.5f * b.w * u, 0.5f * b.h * u, b2Vec2((b.x + 0.5f * b.w) * u, (b.y + 0.5f * b.h) * u), 0.0f);
+    box.SetAsBox(0.5f * b.w * u - kSkinInset_u, 0.5f * b.h * u - kSkinInset_u,
+                 b2Vec2((b.x + 0.5f * b.w) * u, (b.y + 0.5f * b.h) * u), 0.0f);
     body->CreateFixture(&box, 0.0f);
   }
   for (const worlds::DiscObstacle& d : spec.discs) {

@@ -23,19 +23,30 @@ RobotParams with_obstacles() {
   return p;
 }
 
-TEST(Obstacles, AMoveIntoABoxEndsAtContact) {
-  RobotParams p;
-  p.obstacles.boxes = {{14, 8, 4, 4}};
-  RobotBatch batch(kFloor, p, 1);
-  batch.place(0, {9, 9});
-  std::vector<MoveResult> result(1);
+// One robot at rest on cell (9, 9), left of the box [14, 18) x [8, 12).
+class BesideABox : public ::testing::Test {
+ protected:
+  static RobotParams one_box() {
+    RobotParams p;
+    p.obstacles.boxes = {{14, 8, 4, 4}};
+    return p;
+  }
+  void SetUp() override { batch.place(0, {9, 9}); }
+
+  RobotParams p = one_box();
+  RobotBatch batch{kFloor, p, 1};
+  std::vector<MoveResult> result = std::vector<MoveResult>(1);
+};
+
+TEST_F(BesideABox, AMoveIntoTheBoxEndsAtContact) {
   batch.move(std::vector<grid::Cell>{{4, 0}}, result);
   const double radius_px = p.body.radius_m / kFloor.pixel_size_m;
   EXPECT_TRUE(result[0].blocked);
   EXPECT_FALSE(result[0].settled);
   EXPECT_FALSE(result[0].touched_wall);
   EXPECT_LT(result[0].ticks, 30) << "the move should end at contact, not at the tick bound";
-  // The disc stops against the box's face at x = 14, within Box2D's skin and slop (0.1 px).
+  // The disc stops against the box's face at x = 14 (its polygon stands inside by Box2D's skin less
+  // the slop), within the slop and the last tick's shortfall (0.1 px).
   EXPECT_NEAR(batch.position_px(0).x(), 14.0 - radius_px, 0.1);
   EXPECT_NEAR(batch.position_px(0).y(), 9.5, 1e-3);
   EXPECT_EQ(batch.grid_pose(0), grid::Cell(11, 9));
@@ -44,6 +55,19 @@ TEST(Obstacles, AMoveIntoABoxEndsAtContact) {
   EXPECT_TRUE(result[0].settled);
   EXPECT_FALSE(result[0].blocked);
   EXPECT_EQ(batch.grid_pose(0), grid::Cell(9, 9));
+}
+
+TEST_F(BesideABox, ACellWhoseDiscJustReachesTheBoxIsReachedLikeAnyOther) {
+  // Cells (11, y) lie exactly the radius (2.5 px) from the box's face at x = 14: the disc fits
+  // there touching the box (o = 0). Moves onto them and along the face settle on their cells,
+  // not about 0.05 px short against Box2D's contact skin.
+  for (const grid::Cell& command : {grid::Cell(2, 0), grid::Cell(0, 3), grid::Cell(0, -4), grid::Cell(0, 2)}) {
+    batch.move(std::vector<grid::Cell>{command}, result);
+    EXPECT_TRUE(result[0].settled) << command.transpose();
+    EXPECT_FALSE(result[0].blocked) << command.transpose();
+    EXPECT_NEAR(batch.position_px(0).x(), 11.5, p.controller.tolerance_px) << command.transpose();
+  }
+  EXPECT_EQ(batch.grid_pose(0), grid::Cell(11, 10));
 }
 
 TEST(Obstacles, NoRobotEverEntersAnObstacle) {

@@ -114,7 +114,8 @@ TEST_F(ShippedModel, TheTranslatedFloorsSearcherFindsTheDigit) {
 // The obstacle agent (models/obstacles-random.safetensors, the route rule): over the same 100 runs
 // of its world (the same digits, starts and boxes), its moves end against a box far less often than
 // those of mnist.safetensors, which drives without the rule, and it reads more of the digits
-// (models/README.md: 1.33 against 5.00 of 20 moves, 97.9 % against 94.9 % on the test set).
+// (models/README.md: 0.02 against 4.10 of 20 moves, 97.9 % against 95.2 % on the test set). Its
+// routes pass cells whose disc just reaches a box: they are reached, not held against the box.
 TEST_F(ShippedModel, TheObstacleAgentKeepsOffTheBoxes) {
   const fs::path world = fs::path(SCOUT_SOURCE_DIR) / "worlds" / "scenarios" / "obstacles-random.yaml";
   ASSERT_TRUE(fs::is_regular_file(mnist_data() / "t10k-images-idx3-ubyte"))
@@ -144,6 +145,7 @@ TEST_F(ShippedModel, TheObstacleAgentKeepsOffTheBoxes) {
   EXPECT_GT(without.stalled_per_run, 3.0);  // the control: boxes do stop the agent without the rule
   EXPECT_LT(with_rule.stalled_per_run, 0.5 * without.stalled_per_run)
       << with_rule.stalled_per_run << " against " << without.stalled_per_run;
+  EXPECT_LT(with_rule.stalled_per_run, 0.1) << "moves onto cells beside a box must arrive";
   EXPECT_GT(with_rule.accuracy, 0.9);
 }
 
