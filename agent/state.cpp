@@ -67,10 +67,24 @@ void write_planner_input(const grid::FloorFrame& frame, int patch_px, const Robo
     std::fill(hw, hw + n, 1.0f);
     return;
   }
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool seen = view.wide_seen[i] != 0;
-    yw[i] = seen ? pixel_value(view.wide_revealed[i]) : 0.0f;
-    hw[i] = seen ? 0.0f : 1.0f;
+  // Each block's two values, then its floor pixels (a block row's floor rows are alike).
+  const grid::BlockGrid& blocks = view.wide_grid;
+  const int width = frame.width_px;
+  for (int v = 0; v < blocks.rows; ++v) {
+    const std::size_t first = static_cast<std::size_t>(v) * blocks.columns;
+    float* yw_row = yw + static_cast<std::size_t>(v) * blocks.scale * width;
+    float* hw_row = hw + static_cast<std::size_t>(v) * blocks.scale * width;
+    for (int x = 0; x < width; ++x) {
+      const std::size_t b = first + static_cast<std::size_t>(x / blocks.scale);
+      const bool seen = view.wide_seen[b] != 0;
+      yw_row[x] = seen ? pixel_value(view.wide_revealed[b]) : 0.0f;
+      hw_row[x] = seen ? 0.0f : 1.0f;
+    }
+    const int rows = std::min(blocks.scale, frame.height_px - v * blocks.scale);
+    for (int r = 1; r < rows; ++r) {
+      std::copy_n(yw_row, width, yw_row + static_cast<std::size_t>(r) * width);
+      std::copy_n(hw_row, width, hw_row + static_cast<std::size_t>(r) * width);
+    }
   }
 }
 

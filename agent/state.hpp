@@ -17,8 +17,10 @@ struct RobotView {
   const std::uint8_t* occupied = nullptr;  ///< o: 1 where the robot cannot stand; null: no obstacles (o all zeros)
   std::span<const grid::Cell> teammate_poses{};  ///< the team's other robots' grid poses (none alone)
   std::span<const grid::Cell> teammate_goals{};  ///< the goals they hold now (those that have one)
-  const std::uint8_t* wide_revealed = nullptr;   ///< the wider view's coarse map (env::BatchEnv::wide_revealed)
+  const std::uint8_t* wide_revealed = nullptr;   ///< the wider view's coarse map, a byte a block of wide_grid
+                                                 ///< (env::BatchEnv::wide_revealed)
   const std::uint8_t* wide_seen = nullptr;       ///< 1 where it is set; null: nothing seen coarsely
+  grid::BlockGrid wide_grid{};                   ///< the floor's blocks the two are laid on
 };
 
 /// A floor byte as the networks see it: p / 255 - 0.5 (METHOD.md § Symbols).
@@ -34,7 +36,7 @@ void write_revealed_image(const grid::FloorFrame& frame, const RobotView& view, 
 /// elsewhere; t_p: 0 on the camera windows at the teammates' poses, 1 elsewhere; t_g: 0 on the
 /// m x m windows around the teammates' goals, 1 elsewhere (both all ones for a robot alone).
 /// With `wide`, then y_w (pixel_value of wide_revealed where wide_seen, 0 elsewhere) and h_w (0
-/// where wide_seen, 1 elsewhere): 2 more planes.
+/// where wide_seen, 1 elsewhere): 2 more planes, each floor pixel taking its block's value.
 void write_planner_input(const grid::FloorFrame& frame, int patch_px, const RobotView& view, float* dst,
                          bool occupancy = false, bool team = false, bool wide = false);
 

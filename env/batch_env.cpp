@@ -1,7 +1,6 @@
 #include "env/batch_env.hpp"
 
 #include <algorithm>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -39,9 +38,11 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
                                                   render::WideView{wide_px_, wide_scale_});
   const std::size_t area = static_cast<std::size_t>(frame.area_px());
   if (wide_px_ > 0) {
+    wide_grid_ = grid::BlockGrid::over(frame, wide_scale_);
+    const std::size_t blocks = static_cast<std::size_t>(wide_grid_.area());
     wide_patches_.resize(static_cast<std::size_t>(max_robots) * wide_px_ * wide_px_);
-    wide_revealed_.resize(area * max_robots);
-    wide_seen_.resize(area * max_robots);
+    wide_revealed_.resize(blocks * max_robots);
+    wide_seen_.resize(blocks * max_robots);
   }
   poses_.resize(max_robots);
   seen_.assign(max_robots, grid::RevealMask(frame));
@@ -79,10 +80,10 @@ std::span<const std::uint8_t> BatchEnv::wide_patches() const {
   return {wide_patches_.data(), wide_patches_.empty() ? 0 : static_cast<std::size_t>(count_) * wide_px_ * wide_px_};
 }
 std::span<const std::uint8_t> BatchEnv::wide_revealed() const {
-  return {wide_revealed_.data(), wide_revealed_.empty() ? 0 : static_cast<std::size_t>(count_) * frame_.area_px()};
+  return {wide_revealed_.data(), static_cast<std::size_t>(count_) * wide_grid_.area()};
 }
 std::span<const std::uint8_t> BatchEnv::wide_seen() const {
-  return {wide_seen_.data(), wide_seen_.empty() ? 0 : static_cast<std::size_t>(count_) * frame_.area_px()};
+  return {wide_seen_.data(), static_cast<std::size_t>(count_) * wide_grid_.area()};
 }
 std::span<const std::uint8_t> BatchEnv::occupied() const {
   if (occupied_.empty()) return {};
@@ -99,16 +100,22 @@ Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->positio
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
 // Robot i's memory as a run starts: its floor copied in, the world's fixed obstacles painted over
-// it, and nothing seen yet. Touches robot i's arrays only, so the robots of a reset share the pool
-// (on a 100 x 100 floor these are four 10 kB arrays a robot).
+// it, and nothing seen yet. Touches robot i's arrays only, so the robots of a reset share the pool.
+// On a 100 x 100 floor: the 10 kB floor copied, y and the mask cleared where the last run saw (a
+// few hundred bytes, not 10 kB each), and the coarse map's two arrays of 289 bytes.
 void BatchEnv::start_buffers(int robot, std::span<const std::uint8_t> floor) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
   std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
   for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
-  std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+  // y holds bytes only where the robot's team revealed them, which its mask's bounds hold.
+  const grid::Window& written = seen_[robot].bounds();
+  for (int y = written.y0; y < written.y1; ++y)
+    std::fill_n(revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot + y * frame_.width_px + written.x0),
+                written.x1 - written.x0, 0);
   if (wide_px_ > 0) {
-    std::fill_n(wide_revealed_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
-    std::fill_n(wide_seen_.begin() + static_cast<std::ptrdiff_t>(area * robot), area, 0);
+    const std::size_t blocks = static_cast<std::size_t>(wide_grid_.area());
+    std::fill_n(wide_revealed_.begin() + static_cast<std::ptrdiff_t>(blocks * robot), blocks, 0);
+    std::fill_n(wide_seen_.begin() + static_cast<std::ptrdiff_t>(blocks * robot), blocks, 0);
   }
   seen_[robot].clear();
 }
@@ -290,75 +297,28 @@ void BatchEnv::reveal_patch(int i) {
   }
 }
 
-namespace {
-
-// Writes n bytes as 16-byte pieces, the last one overlapping the one before: fixed-size copies the
-// compiler makes single vector moves. The coarse map's rows are a few dozen bytes, where a call to
-// memmove or memset per row cost more than its bytes (about 1 ms of a 240-robot rollout at 100 x 100);
-// a row under 16 bytes (a window clipped by the floor's edge) is still one call.
-void copy_short_row(std::uint8_t* to, const std::uint8_t* from, int n) {
-  constexpr int kPiece = 16;
-  if (n < kPiece) {
-    std::memcpy(to, from, static_cast<std::size_t>(n));
-    return;
-  }
-  for (int i = 0; i + kPiece < n; i += kPiece) std::memcpy(to + i, from + i, kPiece);
-  std::memcpy(to + n - kPiece, from + n - kPiece, kPiece);
-}
-
-// Bytes a fill_run may write past its run.
-constexpr int kRunSlack = 8;
-
-// Fills n > 0 bytes with v in 8-byte words, writing up to kRunSlack - 1 bytes past them (the
-// buffer has room; a run that follows overwrites them).
-void fill_run(std::uint8_t* to, std::uint8_t v, int n) {
-  const std::uint64_t word = 0x0101010101010101ull * v;
-  for (int i = 0; i < n; i += 8) std::memcpy(to + i, &word, sizeof word);
-}
-
-}  // namespace
-
-// Robot i's wider view into its team's coarse map: every floor pixel of a wide pixel's block takes
-// its mean (the latest look wins) and is marked seen coarsely, at the pose the agent reads, as the
-// patch.
+// Robot i's wider view into its team's coarse map: each block the look covers takes its mean (the
+// latest look wins) and is marked seen, at the pose the agent reads, as the patch.
 void BatchEnv::reveal_wide(int i) {
-  const int px = wide_px_, s = wide_scale_, width = frame_.width_px, height = frame_.height_px;
-  const std::size_t area = static_cast<std::size_t>(frame_.area_px());
+  const int px = wide_px_;
+  const grid::BlockGrid& grid = wide_grid_;
+  const std::size_t blocks = static_cast<std::size_t>(grid.area());
   const std::uint8_t* look = wide_patches_.data() + static_cast<std::size_t>(i) * px * px;
-  const int x0 = poses_[i].x() - px * s / 2, y0 = poses_[i].y() - px * s / 2;
-  // The window clipped to the floor: a block row's floor rows are equal, so each block row is
-  // painted once into `painted` (no division per floor pixel: this runs at every step for every
-  // robot) and copied into its rows.
-  const int xa = std::max(x0, 0), xb = std::min(x0 + px * s, width);
-  const int ya = std::max(y0, 0), yb = std::min(y0 + px * s, height);
-  if (xa >= xb || ya >= yb) return;
-  const int run = xb - xa;
-  // A block row as painted, and a row of 1s for the seen map: per thread, as the pool's threads
-  // paint teams side by side (grown once to the widest window).
-  thread_local std::vector<std::uint8_t> painted, ones;
-  if (painted.size() < static_cast<std::size_t>(run + kRunSlack)) {
-    painted.resize(static_cast<std::size_t>(run + kRunSlack));
-    ones.assign(painted.size(), 1);
-  }
+  // The look's first block, and the part of the window on the floor's blocks.
+  const int u0 = grid.block_of(poses_[i].x()) - px / 2, v0 = grid.block_of(poses_[i].y()) - px / 2;
+  const int ua = std::max(u0, 0), ub = std::min(u0 + px, grid.columns);
+  const int va = std::max(v0, 0), vb = std::min(v0 + px, grid.rows);
+  if (ua >= ub || va >= vb) return;
   const int team_first = i - i % team_size_;
-  for (int y = ya; y < yb;) {
-    const int block_row = (y - y0) / s;
-    const int rows_end = std::min(y0 + (block_row + 1) * s, yb);
-    const std::uint8_t* look_row = look + static_cast<std::size_t>(block_row) * px;
-    for (int c = (xa - x0) / s; c < px; ++c) {
-      const int from = std::max(x0 + c * s, xa), to = std::min(x0 + (c + 1) * s, xb);
-      if (from >= to) break;
-      fill_run(painted.data() + (from - xa), look_row[c], to - from);
+  for (int j = team_first; j < team_first + team_size_; ++j) {
+    std::uint8_t* coarse = wide_revealed_.data() + blocks * j;
+    std::uint8_t* seen = wide_seen_.data() + blocks * j;
+    for (int v = va; v < vb; ++v) {
+      const std::size_t row = static_cast<std::size_t>(v) * grid.columns;
+      const std::uint8_t* look_row = look + static_cast<std::size_t>(v - v0) * px;
+      std::copy(look_row + (ua - u0), look_row + (ub - u0), coarse + row + ua);
+      std::fill(seen + row + ua, seen + row + ub, std::uint8_t{1});
     }
-    for (int j = team_first; j < team_first + team_size_; ++j) {
-      std::uint8_t* coarse = wide_revealed_.data() + area * j + xa;
-      std::uint8_t* seen = wide_seen_.data() + area * j + xa;
-      for (int row = y; row < rows_end; ++row) {
-        copy_short_row(coarse + static_cast<std::size_t>(row) * width, painted.data(), run);
-        copy_short_row(seen + static_cast<std::size_t>(row) * width, ones.data(), run);
-      }
-    }
-    y = rows_end;
   }
 }
 

@@ -118,12 +118,14 @@ class BatchEnv {
   /// coarse window, count * wide_px^2 bytes (render::PatchCamera::capture's wide_patches: at the
   /// grid pose, or at the cell of the true centre with imperfect motion) ...
   std::span<const std::uint8_t> wide_patches() const;
-  /// ... and the team's coarse map: each floor pixel a wide pixel has covered holds that pixel's
-  /// mean (the latest look wins), 0 elsewhere, count * H * W bytes, placed at the pose the agent
-  /// reads as y is ...
+  /// ... and the team's coarse map, one byte a block of wide_grid(): each block a look has covered
+  /// holds its mean (the latest look wins), 0 elsewhere, count * wide_grid().area() bytes, placed
+  /// at the pose the agent reads as y is ...
   std::span<const std::uint8_t> wide_revealed() const;
-  /// ... and where it is set: 1, count * H * W bytes.
+  /// ... and where it is set: 1, count * wide_grid().area() bytes.
   std::span<const std::uint8_t> wide_seen() const;
+  /// The floor's block grid the wider view sees in (empty, 0 x 0, without one).
+  const grid::BlockGrid& wide_grid() const { return wide_grid_; }
   /// o: 1 on each cell where the robot's disc would overlap one of its run's obstacles, 0
   /// elsewhere, count * H * W bytes (env::occupied_cells); empty in a world without obstacles.
   std::span<const std::uint8_t> occupied() const;
@@ -171,7 +173,8 @@ class BatchEnv {
   int wide_px_ = 0;                             // the world's wider view: window side (0: none) ...
   int wide_scale_ = 1;                          // ... and floor pixels per wide pixel
   std::vector<std::uint8_t> wide_patches_;      // each robot's last wide window
-  std::vector<std::uint8_t> wide_revealed_;     // the team's coarse map per robot (H * W)
+  grid::BlockGrid wide_grid_;                   // the floor's blocks (0 x 0 without a wider view)
+  std::vector<std::uint8_t> wide_revealed_;     // the team's coarse map per robot, a byte a block
   std::vector<std::uint8_t> wide_seen_;         // where it is set
   bool exact_motion_ = true;                    // moves land on cells: the camera crops at grid poses
   std::vector<render::PixelPose> pixel_poses_;  // exact worlds: the grid poses the camera crops at

@@ -307,13 +307,19 @@ void VectorEnv::write(const VectorOutputs& out) const {
     if (out.occupied && !occupied.empty())
       std::copy_n(occupied.begin() + static_cast<std::ptrdiff_t>(area * first), area, out.occupied + area * i);
     if (out.seen) std::copy_n(env_->seen()[first].data().data(), area, out.seen + area * i);
+    // The coarse map per floor pixel: each takes its block's byte.
+    const grid::BlockGrid& blocks = env_->wide_grid();
+    const std::size_t block_bytes = static_cast<std::size_t>(blocks.area());
     if (out.wide_revealed && wide) {
-      const std::uint8_t* map = env_->wide_revealed().data() + area * first;
-      for (std::size_t k = 0; k < area; ++k) out.wide_revealed[area * i + k] = map[k] * kScale;
+      const std::uint8_t* map = env_->wide_revealed().data() + block_bytes * first;
+      float* to = out.wide_revealed + area * i;
+      for (int y = 0; y < frame_.height_px; ++y) {
+        const std::uint8_t* block_row = map + static_cast<std::size_t>(y / blocks.scale) * blocks.columns;
+        for (int x = 0; x < frame_.width_px; ++x) *to++ = block_row[x / blocks.scale] * kScale;
+      }
     }
     if (out.wide_seen && wide)
-      std::copy_n(env_->wide_seen().begin() + static_cast<std::ptrdiff_t>(area * first), area,
-                  out.wide_seen + area * i);
+      grid::expand_blocks(blocks, frame_, env_->wide_seen().data() + block_bytes * first, out.wide_seen + area * i);
     if (out.time_step) out.time_step[i] = time_step_[i];
     if (out.label) out.label[i] = label_[i];
     if (out.index) out.index[i] = planned_[i].index;

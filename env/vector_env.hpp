@@ -71,9 +71,11 @@ struct VectorOutputs {
   /// world with obstacles only: VectorEnv::has_obstacles)
   std::uint8_t* occupied = nullptr;
   /// The wider view (written in a world with one only: VectorEnv::wide_px() > 0):
-  float* wide_patch = nullptr;        ///< N x w x w (N x K x w x w), each robot's coarse window in [0, 1]
-  float* wide_revealed = nullptr;     ///< N x H x W, the team's coarse map where set, 0 elsewhere, in [0, 1]
-  std::uint8_t* wide_seen = nullptr;  ///< N x H x W, 1 where the coarse map is set
+  float* wide_patch = nullptr;  ///< N x w x w (N x K x w x w), each robot's coarse window in [0, 1]
+  /// N x H x W, the team's coarse map where set, 0 elsewhere, in [0, 1]: each floor pixel takes
+  /// its block's value (env::BatchEnv::wide_grid) ...
+  float* wide_revealed = nullptr;
+  std::uint8_t* wide_seen = nullptr;  ///< ... N x H x W, 1 where the coarse map is set
 };
 
 /// The action of one step (spans of num_envs rows).

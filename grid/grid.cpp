@@ -129,6 +129,10 @@ RevealMask::RevealMask(const FloorFrame& frame)
     : width_(frame.width_px), seen_(static_cast<std::size_t>(frame.area_px()), 0) {}
 
 int RevealMask::reveal(const Window& window) {
+  if (window.x0 >= window.x1 || window.y0 >= window.y1) return 0;
+  bounds_ = bounds_.x0 == bounds_.x1 ? window
+                                     : Window{std::min(bounds_.x0, window.x0), std::min(bounds_.y0, window.y0),
+                                              std::max(bounds_.x1, window.x1), std::max(bounds_.y1, window.y1)};
   int fresh = 0;
   for (int y = window.y0; y < window.y1; ++y) {
     std::uint8_t* row = seen_.data() + static_cast<std::size_t>(y) * width_;
@@ -150,10 +154,16 @@ void RevealMask::assign(std::span<const std::uint8_t> seen) {
     seen_[k] = seen[k] != 0 ? 1 : 0;
     count_ += seen_[k];
   }
+  const int height = width_ > 0 ? static_cast<int>(seen_.size()) / width_ : 0;
+  bounds_ = count_ > 0 ? Window{0, 0, width_, height} : Window{};
 }
 
+// Only the rows and columns anything was seen in: a run of a few dozen moves sees a small part of
+// a large floor, and clearing all of it at every start was most of a reset's memory traffic.
 void RevealMask::clear() {
-  std::fill(seen_.begin(), seen_.end(), 0);
+  for (int y = bounds_.y0; y < bounds_.y1; ++y)
+    std::fill_n(seen_.begin() + static_cast<std::ptrdiff_t>(y) * width_ + bounds_.x0, bounds_.x1 - bounds_.x0, 0);
+  bounds_ = {};
   count_ = 0;
 }
 
@@ -166,6 +176,20 @@ void GridModel::move(const Cell& command) {
   const Cell target = pose_ + command;
   pose_ = {std::clamp(target.x(), 0, frame_.width_px - 1), std::clamp(target.y(), 0, frame_.height_px - 1)};
   revealed_.reveal(camera_window(pose_, patch_px_, frame_));
+}
+
+BlockGrid BlockGrid::over(const FloorFrame& frame, int scale) {
+  if (scale < 1) throw std::invalid_argument("BlockGrid: scale must be at least 1, got " + std::to_string(scale));
+  return {
+      .columns = (frame.width_px + scale - 1) / scale, .rows = (frame.height_px + scale - 1) / scale, .scale = scale};
+}
+
+void expand_blocks(const BlockGrid& grid, const FloorFrame& frame, const std::uint8_t* blocks, std::uint8_t* pixels) {
+  for (int y = 0; y < frame.height_px; ++y) {
+    const std::uint8_t* block_row = blocks + static_cast<std::size_t>(y / grid.scale) * grid.columns;
+    std::uint8_t* row = pixels + static_cast<std::size_t>(y) * frame.width_px;
+    for (int x = 0; x < frame.width_px; ++x) row[x] = block_row[x / grid.scale];
+  }
 }
 
 }  // namespace scout::grid

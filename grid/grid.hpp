@@ -41,6 +41,25 @@ struct Window {
 /// same rows), clipped to the floor. For even m its centre is the corner at (x, y).
 Window camera_window(const Cell& pose, int patch_px, const FloorFrame& frame);
 
+/// The wider view's coarse grid over a floor (worlds' camera.wide_scale, METHOD.md's wider view):
+/// blocks of scale x scale floor pixels laid from the floor's top-left corner, the last column and
+/// row of blocks cut by the floor's edge. A coarse map holds one byte per block, row-major.
+struct BlockGrid {
+  int columns = 0;  ///< ceil(width / scale)
+  int rows = 0;     ///< ceil(height / scale)
+  int scale = 1;    ///< floor pixels per block, per side
+
+  /// The grid over `frame` (scale >= 1).
+  static BlockGrid over(const FloorFrame& frame, int scale);
+  int area() const { return columns * rows; }
+  /// The block that holds floor coordinate v (either axis; floor division, so negative v too).
+  int block_of(int v) const { return v >= 0 ? v / scale : (v + 1) / scale - 1; }
+};
+
+/// A coarse map (grid.area() bytes) written out at floor resolution: every pixel of `frame` takes
+/// its block's byte (frame.area_px() bytes out), for pictures and observations that are per pixel.
+void expand_blocks(const BlockGrid& grid, const FloorFrame& frame, const std::uint8_t* blocks, std::uint8_t* pixels);
+
 /// Which axis a move takes.
 enum class Axis : std::uint8_t { None, Horizontal, Vertical };
 const char* to_string(Axis axis);  ///< "none", "h", "v"
@@ -85,11 +104,15 @@ class RevealMask {
   bool seen(int x, int y) const { return seen_[static_cast<std::size_t>(y) * width_ + x] != 0; }
   int count() const { return count_; }
   const std::vector<std::uint8_t>& data() const { return seen_; }  ///< row-major, 1 = seen
+  /// The smallest window that holds every pixel seen since the last clear() (empty, x0 == x1, if
+  /// none): clear() zeroes only it, and a caller that writes where it reveals can do the same.
+  const Window& bounds() const { return bounds_; }
 
  private:
   int width_;
   std::vector<std::uint8_t> seen_;
   int count_ = 0;
+  Window bounds_{};
 };
 
 /// The exact grid model of one robot: a move lands exactly on pose + command, clamped to the

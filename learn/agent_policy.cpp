@@ -125,6 +125,7 @@ agent::RobotView AgentPolicy::view_of(const BatchState& state, int i, const grid
           "the model's planners read the wider view (--wide-view), but this world has none: set camera.wide_px");
     view.wide_revealed = state.wide_revealed_image(i);
     view.wide_seen = state.wide_seen_cells(i);
+    view.wide_grid = state.wide_grid;
   }
   if (!agent_.config().team_channels || state.team <= 1) return view;
   teammate_poses_.clear();

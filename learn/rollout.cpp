@@ -75,6 +75,7 @@ void RolloutEngine::refresh_state() {
   state_.occupied = env_->occupied();
   state_.wide_revealed = env_->wide_revealed();
   state_.wide_seen = env_->wide_seen();
+  state_.wide_grid = env_->wide_grid();
   state_.goal = std::span<const grid::Cell>(goals_.data(), static_cast<std::size_t>(state_.count));
 }
 
@@ -118,9 +119,11 @@ void RolloutEngine::record_snapshots(std::vector<RolloutRecord>& records, int ep
     s.seen = state_.seen[i].data();
     if (const std::uint8_t* map = state_.wide_revealed_image(static_cast<int>(i))) {
       const std::size_t area = static_cast<std::size_t>(state_.frame.area_px());
-      s.wide_revealed.assign(map, map + area);
-      s.wide_seen.assign(state_.wide_seen_cells(static_cast<int>(i)),
-                         state_.wide_seen_cells(static_cast<int>(i)) + area);
+      s.wide_revealed.resize(area);
+      s.wide_seen.resize(area);
+      grid::expand_blocks(state_.wide_grid, state_.frame, map, s.wide_revealed.data());
+      grid::expand_blocks(state_.wide_grid, state_.frame, state_.wide_seen_cells(static_cast<int>(i)),
+                          s.wide_seen.data());
     }
     s.path_length = records[i].path.size();
     records[i].snapshots.push_back(std::move(s));

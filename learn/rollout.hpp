@@ -31,20 +31,21 @@ struct BatchState {
   /// o as bytes: count * H * W, 1 where the robot cannot stand (env::BatchEnv::occupied); empty in
   /// a world without obstacles.
   std::span<const std::uint8_t> occupied;
-  /// The wider view's coarse map and where it is set, count * H * W bytes each
-  /// (env::BatchEnv::wide_revealed, wide_seen); empty in a world without it.
+  /// The wider view's coarse map and where it is set, count * wide_grid.area() bytes each, a byte
+  /// a block (env::BatchEnv::wide_revealed, wide_seen); empty in a world without it.
   std::span<const std::uint8_t> wide_revealed;
   std::span<const std::uint8_t> wide_seen;
+  grid::BlockGrid wide_grid;  ///< the blocks they are laid on (env::BatchEnv::wide_grid)
 
   const std::uint8_t* revealed_image(int robot) const {
     return revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
   }
   /// Robot `robot`'s coarse map and its mask, or null in a world without the wider view.
   const std::uint8_t* wide_revealed_image(int robot) const {
-    return wide_revealed.empty() ? nullptr : wide_revealed.data() + static_cast<std::size_t>(robot) * frame.area_px();
+    return wide_revealed.empty() ? nullptr : wide_revealed.data() + static_cast<std::size_t>(robot) * wide_grid.area();
   }
   const std::uint8_t* wide_seen_cells(int robot) const {
-    return wide_seen.empty() ? nullptr : wide_seen.data() + static_cast<std::size_t>(robot) * frame.area_px();
+    return wide_seen.empty() ? nullptr : wide_seen.data() + static_cast<std::size_t>(robot) * wide_grid.area();
   }
   /// Robot `robot`'s o, or null in a world without obstacles.
   const std::uint8_t* occupied_cells(int robot) const {
@@ -97,7 +98,8 @@ struct SnapshotRecord {
   grid::Cell robot;
   std::optional<grid::Cell> goal;
   std::vector<std::uint8_t> seen;  ///< H * W, 1 where seen
-  /// The wider view's coarse map and where it is set (H * W each; empty in a world without it).
+  /// The wider view's coarse map and where it is set, written out per floor pixel (H * W each,
+  /// grid::expand_blocks; empty in a world without it).
   std::vector<std::uint8_t> wide_revealed, wide_seen;
   std::size_t path_length = 0;  ///< poses of RolloutRecord::path visited so far
 };

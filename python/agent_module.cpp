@@ -210,13 +210,26 @@ class AgentCore {
       state_.occupied = {};
     }
     if (obs.wide_revealed != nullptr) {
-      wide_revealed_.resize(area * n);
-      for (std::size_t k = 0; k < area * n; ++k)
-        wide_revealed_[k] =
-            static_cast<std::uint8_t>(std::lround(std::clamp(obs.wide_revealed[k], 0.0f, 1.0f) * 255.0f));
-      wide_seen_.assign(obs.wide_seen, obs.wide_seen + area * n);
+      // The observation holds the coarse map per floor pixel (each pixel its block's value, as
+      // scout.make_vec writes it); the planners read it a byte a block of the model's world's
+      // blocks, from each block's first pixel.
+      const grid::BlockGrid blocks = grid::BlockGrid::over(frame, agent_->config().world.camera.wide_scale);
+      const std::size_t block_bytes = static_cast<std::size_t>(blocks.area());
+      wide_revealed_.resize(block_bytes * n);
+      wide_seen_.resize(block_bytes * n);
+      for (int i = 0; i < n; ++i)
+        for (int v = 0; v < blocks.rows; ++v)
+          for (int u = 0; u < blocks.columns; ++u) {
+            const std::size_t pixel = area * i + static_cast<std::size_t>(v * blocks.scale) * obs.width +
+                                      static_cast<std::size_t>(u * blocks.scale);
+            const std::size_t block = block_bytes * i + static_cast<std::size_t>(v) * blocks.columns + u;
+            wide_revealed_[block] =
+                static_cast<std::uint8_t>(std::lround(std::clamp(obs.wide_revealed[pixel], 0.0f, 1.0f) * 255.0f));
+            wide_seen_[block] = obs.wide_seen[pixel];
+          }
       state_.wide_revealed = wide_revealed_;
       state_.wide_seen = wide_seen_;
+      state_.wide_grid = blocks;
     } else {
       state_.wide_revealed = {};
       state_.wide_seen = {};

@@ -371,10 +371,19 @@ class VectorEnvCore {
       s.revealed = e.batch().revealed().data() + area * robot;
       s.faint_unseen_floor = e.world().floor.composed();
       s.patch_px = e.patch_px();
+      std::vector<std::uint8_t> wide_revealed, wide_seen;  // the coarse map per floor pixel
       if (e.wide_px() > 0) {
-        s.wide_revealed = e.batch().wide_revealed().data() + area * robot;
-        s.wide_seen = e.batch().wide_seen().data() + area * robot;
-        s.wide_side_px = e.wide_px() * e.world().camera.wide_scale;
+        const grid::BlockGrid& blocks = e.batch().wide_grid();
+        const grid::FloorFrame frame{.width_px = e.width(), .height_px = e.height()};
+        const std::size_t block_bytes = static_cast<std::size_t>(blocks.area());
+        wide_revealed.resize(area);
+        wide_seen.resize(area);
+        grid::expand_blocks(blocks, frame, e.batch().wide_revealed().data() + block_bytes * robot,
+                            wide_revealed.data());
+        grid::expand_blocks(blocks, frame, e.batch().wide_seen().data() + block_bytes * robot, wide_seen.data());
+        s.wide_revealed = wide_revealed.data();
+        s.wide_seen = wide_seen.data();
+        s.wide = {e.wide_px(), e.world().camera.wide_scale};
       }
       s.robot = (*paths_)[robot].back();
       s.goal = goals_[robot];

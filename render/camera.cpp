@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/worker_pool.hpp"
+#include "grid/grid.hpp"
 #include "render/internal/gl_context.hpp"
 #include "worlds/floors.hpp"
 
@@ -225,17 +226,19 @@ void main() {
 // The wider view, in the same draw and the same fragments as the patches: with a wider view each
 // robot's tile is max(m, wide_px) pixels a side and the framebuffer is RG8, the patch in red (its
 // m x m corner) and the wider view in green (its wide_px x wide_px corner). Green pixel (i, j) of
-// robot r is the mean of the wide_scale x wide_scale floor texels from window + (i, j) *
-// wide_scale, where the window starts floor(wide_px * wide_scale / 2) texels before the robot's
-// cell on each axis; texels off the floor count as 0. Each is one read of the floor's block means
-// (block_means: texel (u, v) holds the mean of the block that starts at floor texel (u, v) -
-// (wide_scale - 1), made on the CPU when the floors are loaded, rounded half up exactly as
-// wide_patch computes it; the table covers every block that touches the floor, and its zero
-// border every block that does not). Measured at 240 robots, 8 x 8 of 6 x 6, against the patches
+// robot r is the mean of block (b + i, b + j) of the floor's block grid (grid::BlockGrid: blocks of
+// wide_scale x wide_scale texels from the floor's corner, texels off the floor counting 0), where
+// b = the block that holds the robot's cell - floor(wide_px / 2) on each axis. Each is one read of
+// the floor's block means (block_means: texel (u, v) holds block (u, v)'s mean, made on the CPU
+// when the floors are loaded, rounded half up exactly as wide_patch computes it; its zero border
+// is every block off the floor). Measured at 240 robots, 8 x 8 of 6 x 6, against the patches
 // alone (2.4 M a second): summing each block in the shader, 36 texelFetch a pixel, or four reads of
 // a summed-area texture, in a tile grid of its own drawn as a second instance, ran 3 to 6 times as
 // slow; one read in the patch's own fragments, read back as a second channel, is measured in the
-// README (speed).
+// README (speed). Windows on the block grid, rather than centred on the cell to the pixel, keep
+// the table at one texel a block (a table of every block position was 36 times as large at
+// scale 6, and making and uploading it took 0.7 ms of a 240-robot reset at 100 x 100), and let
+// the environment keep the coarse map at one byte a block.
 //
 // These parts come before the body of both vertex shaders and both fragment shaders (WIDE_VIEW 0
 // leaves them out).
@@ -243,10 +246,13 @@ constexpr const char* kWideVertexPart = R"(
 #if WIDE_VIEW
 uniform int wide_px;
 uniform int wide_scale;
-flat out ivec2 wide_offset;  // tile pixel p's block starts at floor texel p * wide_scale + wide_offset
+flat out ivec2 wide_offset;  // tile pixel p shows block p + wide_offset
 void set_wide_offset(ivec2 cell, ivec2 tile_origin) {
-  ivec2 window = cell - ivec2((wide_px * wide_scale) / 2);
-  wide_offset = window - tile_origin * wide_scale;
+  // Floor division, as grid::BlockGrid::block_of (GLSL's truncates toward zero): a cell left of or
+  // above the floor lies in a block before block 0.
+  ivec2 below = ivec2(lessThan(cell, ivec2(0)));
+  ivec2 block = (cell + below) / wide_scale - below;
+  wide_offset = block - ivec2(wide_px / 2) - tile_origin;
 }
 #endif
 )";
@@ -255,13 +261,13 @@ constexpr const char* kWideFragmentPart = R"(
 #if WIDE_VIEW
 uniform sampler2DArray block_means;
 uniform int wide_scale;
-uniform ivec2 block_means_px;         // (floor width, height) + wide_scale - 1
+uniform ivec2 block_means_px;         // the block grid's columns and rows
 uniform vec2 inverse_block_means_px;  // 1 / block_means_px
 flat in ivec2 wide_offset;
 float wide_grey(int wide_robot, int floors_per_layer) {
   // The block's texel in the table. GLSL int arithmetic wraps: a block far off the floor (an
   // absurd pose) still lands far outside the table.
-  ivec2 t = ivec2(gl_FragCoord.xy) * wide_scale + wide_offset + ivec2(wide_scale - 1);
+  ivec2 t = ivec2(gl_FragCoord.xy) + wide_offset;
 #if STACKED_FLOORS
   if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, block_means_px))) return 0.0;
   int row_offset = (wide_robot % floors_per_layer) * block_means_px.y;
@@ -360,13 +366,16 @@ struct PatchCamera::Impl {
   GLuint floor_texture = 0;
   GLuint framebuffer = 0;
   GLuint colour_buffer = 0;
-  // The wider view's block means, a (width + scale - 1) x (height + scale - 1) R8 image per floor
-  // laid out as the floors are; `block_means_upload` is their CPU copy, grown to the largest batch
-  // loaded.
+  // The wider view's block means, one texel a block of the floor's block grid (columns x rows, an
+  // R8 image per floor laid out as the floors are); `block_means_upload` is their CPU copy, grown
+  // to the largest batch loaded.
   GLuint block_means_texture = 0;
   std::vector<std::uint8_t> block_means_upload;
-  int block_means_width_px() const { return floor_width_px + wide.scale - 1; }
-  int block_means_height_px() const { return floor_height_px + wide.scale - 1; }
+  grid::BlockGrid blocks() const {
+    return grid::BlockGrid::over({.width_px = floor_width_px, .height_px = floor_height_px}, wide.scale);
+  }
+  int block_means_width_px() const { return blocks().columns; }
+  int block_means_height_px() const { return blocks().rows; }
   GLuint program = 0;
   // capture_at(): its own program and vertex array (the centres are floats in pose_buffer).
   GLuint bilinear_program = 0;
@@ -553,72 +562,30 @@ struct PatchCamera::Impl {
   // Floors a worker takes at a time when the block means are spread over a pool.
   static constexpr int kFloorsPerChunk = 8;
 
-  // One floor's block means into `means` (block_means_width_px() x block_means_height_px()):
-  // entry (u, v) is the mean of the scale x scale block from floor texel (u, v) - (scale - 1),
-  // texels off the floor 0, rounded half up as wide_patch does. Made from box sums in uint16 (a
-  // block sums to at most 255 x 256): each row's sums over `scale` columns, then over `scale` rows,
-  // loops the compiler vectorises; a summed-area table with a division per entry took ten times as
-  // long, about 10 ms a reset at 240 floors of 100 x 100. Rows without ink are skipped (their sums
-  // are 0, and so is every mean whose block lies in them): a floor larger than its digits is mostly
-  // black. Reads nothing of the camera's but its sizes, so floors are made side by side.
+  // One floor's block means into `means` (one byte a block of blocks(), row-major): the mean of the
+  // block's scale x scale texels, those off the floor 0, rounded half up as wide_patch does. Rows
+  // without ink add nothing and are skipped (a floor larger than its digits is mostly black). Reads
+  // nothing of the camera's but its sizes, so floors are made side by side.
   void block_means_of(const std::uint8_t* floor, std::uint8_t* means) const {
     const int w = floor_width_px, h = floor_height_px, s = wide.scale;
-    const int mw = block_means_width_px(), mh = block_means_height_px();
-    // Per thread, grown once: padded_row, a floor row with scale - 1 zeros each side; row_sums,
-    // each inked floor row's sums over `scale` columns (the rows without ink, the scale - 1 zero
-    // rows above and below among them, are never read); column_sums, one table row's; row_has_ink,
-    // per row of row_sums.
-    thread_local std::vector<std::uint8_t> padded_row, row_has_ink;
-    thread_local std::vector<std::uint16_t> row_sums, column_sums;
-    padded_row.assign(static_cast<std::size_t>(w + 2 * (s - 1)), 0);
-    row_sums.resize(static_cast<std::size_t>(mw) * static_cast<std::size_t>(h + 2 * (s - 1)));
-    column_sums.resize(static_cast<std::size_t>(mw));
-    row_has_ink.assign(static_cast<std::size_t>(h + 2 * (s - 1)), 0);
-    // The mean, halves up, in float: with x = 2 sum + n exact and q = x / (2 n) = k + f, f is 0 or
-    // at least 1 / (2 n) from either integer, while float's error in x * (1 / (2 n)) is at most
-    // 255 x 2^-22 < 1 / (4 n); adding 1 / (4 n) before truncating gives k exactly.
+    const grid::BlockGrid grid = blocks();
     const int n = s * s;
-    const float inverse = 1.0f / static_cast<float>(2 * n), nudge = 1.0f / static_cast<float>(4 * n);
-    for (int y = 0; y < h; ++y) {
-      const std::uint8_t* floor_row = floor + static_cast<std::size_t>(y) * w;
-      const bool ink = has_ink(floor_row, w);
-      row_has_ink[static_cast<std::size_t>(y + s - 1)] = ink;
-      if (!ink) continue;
-      std::uint16_t* sums = row_sums.data() + static_cast<std::size_t>(y + s - 1) * mw;
-      std::fill_n(sums, mw, std::uint16_t{0});
-      std::copy_n(floor_row, w, padded_row.begin() + (s - 1));
-      for (int k = 0; k < s; ++k) {
-        const std::uint8_t* shifted = padded_row.data() + k;
-        for (int u = 0; u < mw; ++u) sums[u] = static_cast<std::uint16_t>(sums[u] + shifted[u]);
+    thread_local std::vector<int> sums;  // one block row's, per thread (grown once)
+    sums.resize(static_cast<std::size_t>(grid.columns));
+    for (int v = 0; v < grid.rows; ++v) {
+      std::fill(sums.begin(), sums.end(), 0);
+      for (int y = v * s; y < std::min((v + 1) * s, h); ++y) {
+        const std::uint8_t* row = floor + static_cast<std::size_t>(y) * w;
+        if (!has_ink(row, w)) continue;
+        for (int u = 0; u < grid.columns; ++u) {
+          int sum = 0;
+          for (int x = u * s; x < std::min((u + 1) * s, w); ++x) sum += row[x];
+          sums[static_cast<std::size_t>(u)] += sum;
+        }
       }
-    }
-    // acc: rows v .. v + scale - 1 of row_sums (floor rows v - (scale - 1) .. v), kept by adding
-    // the row that enters and taking away the one that leaves (uint16 wraps back exactly).
-    std::uint16_t* acc = column_sums.data();
-    std::fill_n(acc, mw, std::uint16_t{0});
-    // Rows with ink among row_sums' rows v .. v + scale - 1 (the scale - 1 zero rows above the
-    // floor, which open the window at v = 0, have none).
-    int inked_rows = 0;
-    for (int v = 0; v < mh; ++v) {
-      inked_rows += row_has_ink[static_cast<std::size_t>(v + s - 1)];
-      if (v > 0) inked_rows -= row_has_ink[static_cast<std::size_t>(v - 1)];
-      std::uint8_t* out = means + static_cast<std::size_t>(v) * mw;
-      if (inked_rows == 0) {  // every block here is black: so are its means, and the rows' sum is 0
-        std::fill_n(acc, mw, std::uint16_t{0});
-        std::fill_n(out, mw, std::uint8_t{0});
-        continue;
-      }
-      // Only inked rows hold sums (a row without ink adds 0); the row before row 0 is none.
-      if (row_has_ink[static_cast<std::size_t>(v + s - 1)]) {
-        const std::uint16_t* entering = row_sums.data() + static_cast<std::size_t>(v + s - 1) * mw;
-        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] + entering[u]);
-      }
-      if (v > 0 && row_has_ink[static_cast<std::size_t>(v - 1)]) {
-        const std::uint16_t* leaving = row_sums.data() + static_cast<std::size_t>(v - 1) * mw;
-        for (int u = 0; u < mw; ++u) acc[u] = static_cast<std::uint16_t>(acc[u] - leaving[u]);
-      }
-      for (int u = 0; u < mw; ++u)
-        out[u] = static_cast<std::uint8_t>(static_cast<int>(static_cast<float>(2 * acc[u] + n) * inverse + nudge));
+      std::uint8_t* out = means + static_cast<std::size_t>(v) * grid.columns;
+      for (int u = 0; u < grid.columns; ++u)
+        out[u] = static_cast<std::uint8_t>((2 * sums[static_cast<std::size_t>(u)] + n) / (2 * n));
     }
   }
 
@@ -908,17 +875,18 @@ void sample_patch_bilinear(const std::uint8_t* floor, int floor_width_px, int fl
 
 void wide_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, WideView wide, PixelPose cell,
                 std::uint8_t* wide_out) {
-  const long long span = static_cast<long long>(wide.px) * wide.scale;
-  const long long left = static_cast<long long>(cell.x) - span / 2;
-  const long long top = static_cast<long long>(cell.y) - span / 2;
+  const grid::BlockGrid grid =
+      grid::BlockGrid::over({.width_px = floor_width_px, .height_px = floor_height_px}, wide.scale);
+  const long long first_column = static_cast<long long>(grid.block_of(cell.x)) - wide.px / 2;
+  const long long first_row = static_cast<long long>(grid.block_of(cell.y)) - wide.px / 2;
   const long long n = static_cast<long long>(wide.scale) * wide.scale;
   for (int row = 0; row < wide.px; ++row) {
     for (int column = 0; column < wide.px; ++column) {
       long long sum = 0;
       for (int dy = 0; dy < wide.scale; ++dy) {
-        const long long y = top + static_cast<long long>(row) * wide.scale + dy;
+        const long long y = (first_row + row) * wide.scale + dy;
         for (int dx = 0; dx < wide.scale; ++dx) {
-          const long long x = left + static_cast<long long>(column) * wide.scale + dx;
+          const long long x = (first_column + column) * wide.scale + dx;
           if (x >= 0 && x < floor_width_px && y >= 0 && y < floor_height_px) sum += floor[y * floor_width_px + x];
         }
       }

@@ -35,9 +35,11 @@ struct FloorPoint {
 inline constexpr int kMaxWideScale = 16;
 
 /// The wider view (worlds' camera.wide_px, camera.wide_scale): a second, coarser window per
-/// robot of px x px pixels, each the mean of scale x scale floor pixels, centred on the robot's
-/// cell like the patch (it starts floor(px * scale / 2) pixels before the cell on each axis). It
-/// covers (px * scale)^2 floor pixels at px^2 pixels' cost. px 0: none.
+/// robot of px x px pixels, each the mean of a block of scale x scale floor pixels. The blocks are
+/// those of the floor's block grid (grid::BlockGrid, laid from the floor's corner), and the window
+/// is the px x px blocks around the block that holds the robot's cell: from that block less
+/// floor(px / 2) on each axis. It covers (px * scale)^2 floor pixels at px^2 pixels' cost, the
+/// robot within a block of its centre. px 0: none.
 struct WideView {
   int px = 0;
   int scale = 1;
@@ -119,8 +121,8 @@ void crop_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_
                 std::uint8_t* patch_out);
 
 /// The CPU reference of the wider view at `cell`: pixel (i, j) is the mean of the floor pixels
-/// [x0 + i s, x0 + (i + 1) s) x [y0 + j s, y0 + (j + 1) s) with x0 = cell.x - floor(px s / 2) (the
-/// same for y), pixels off the floor 0, rounded to nearest (halves up). wide.px^2 bytes out.
+/// [(u + i) s, (u + i + 1) s) x [(v + j) s, (v + j + 1) s) with u = floor(cell.x / s) - floor(px / 2)
+/// (v the same for y), pixels off the floor 0, rounded to nearest (halves up). wide.px^2 bytes out.
 void wide_patch(const std::uint8_t* floor, int floor_width_px, int floor_height_px, WideView wide, PixelPose cell,
                 std::uint8_t* wide_out);
 

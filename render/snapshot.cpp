@@ -15,6 +15,8 @@
 #include <string>
 #include <system_error>
 
+#include "grid/grid.hpp"
+
 namespace scout::render {
 namespace {
 
@@ -309,8 +311,10 @@ void check_snapshot(const Snapshot& snapshot) {
   if (snapshot.patch_px < 1) {
     throw std::invalid_argument("draw_snapshot: patch_px must be positive, got " + std::to_string(snapshot.patch_px));
   }
-  if (snapshot.wide_side_px < 0 || (snapshot.wide_revealed == nullptr) != (snapshot.wide_seen == nullptr)) {
-    throw std::invalid_argument("draw_snapshot: the wider view needs wide_side_px >= 0 and both its map and mask");
+  if (snapshot.wide.px < 0 || snapshot.wide.scale < 1 ||
+      (snapshot.wide_revealed == nullptr) != (snapshot.wide_seen == nullptr)) {
+    throw std::invalid_argument(
+        "draw_snapshot: the wider view needs wide.px >= 0, wide.scale >= 1 and both its map and mask");
   }
   const long long map_width = static_cast<long long>(snapshot.width_px) * snapshot.scale;
   const long long map_height = static_cast<long long>(snapshot.height_px) * snapshot.scale;
@@ -361,13 +365,21 @@ Picture draw_snapshot(const Snapshot& snapshot) {
   for (std::size_t k = 0; k < snapshot.teammates.size(); ++k)
     if (snapshot.teammates[k].goal)
       draw_window(map, snapshot, *snapshot.teammates[k].goal, std::max(1, outline_px / 2), kTeammateColours[k % 7]);
-  // The wider window, thin, under the robot's own: at the grid pose (the camera takes it at the
-  // cell that holds the robot's centre).
-  if (snapshot.wide_side_px > 0) {
+  // The wider window, thin, under the robot's own: the blocks around the grid pose's block (the
+  // camera takes it at the cell that holds the robot's centre), drawn as a window of its side
+  // centred where that side's half puts it on those blocks.
+  if (snapshot.wide.px > 0) {
     const PixelPose cell = snapshot.body ? PixelPose{static_cast<int>(std::floor(snapshot.body->x_px)),
                                                      static_cast<int>(std::floor(snapshot.body->y_px))}
                                          : snapshot.robot;
-    draw_window(map, snapshot, cell, std::max(1, outline_px / 2), kRobotColour, snapshot.wide_side_px);
+    const grid::BlockGrid blocks =
+        grid::BlockGrid::over({.width_px = snapshot.width_px, .height_px = snapshot.height_px}, snapshot.wide.scale);
+    const int side = snapshot.wide.px * snapshot.wide.scale;
+    const auto centre_on_blocks = [&](int v) {
+      return (blocks.block_of(v) - snapshot.wide.px / 2) * snapshot.wide.scale + side / 2;
+    };
+    draw_window(map, snapshot, {centre_on_blocks(cell.x), centre_on_blocks(cell.y)}, std::max(1, outline_px / 2),
+                kRobotColour, side);
   }
   draw_robot(map, snapshot, snapshot.robot, snapshot.body, kRobotColour, kRimColour);
   for (std::size_t k = 0; k < snapshot.teammates.size(); ++k) {

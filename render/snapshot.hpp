@@ -25,12 +25,12 @@ struct Snapshot {
   bool faint_unseen_floor = false;
   int patch_px = 6;  ///< m: size of the robot's and the goal's squares
   /// The wider view (worlds with camera.wide_px): the coarse map (width * height, each floor
-  /// pixel its wide pixel's grey where `wide_seen` is non-zero), shown in the pixels not seen at
-  /// full resolution, and the robot's wider window outlined thinly, `wide_side_px` (wide_px x
-  /// wide_scale) floor pixels a side, placed as the camera places it. Null / 0: none.
+  /// pixel its block's grey where `wide_seen` is non-zero), shown in the pixels not seen at full
+  /// resolution, and the robot's wider window outlined thinly, `wide` as the camera has it (px x
+  /// scale floor pixels a side), placed as the camera places it. Null / px 0: none.
   const std::uint8_t* wide_revealed = nullptr;
   const std::uint8_t* wide_seen = nullptr;
-  int wide_side_px = 0;
+  WideView wide{};
   PixelPose robot;                ///< current grid pose (blue square: the camera window)
   std::optional<PixelPose> goal;  ///< current goal (green square), if any
   std::vector<PixelPose> path;    ///< grid poses visited so far, in order (drawn as a line)

@@ -155,7 +155,7 @@ struct ScenarioMarks {
   const std::uint8_t* obstacles = nullptr;  ///< H * W obstacle mask; null: none
   const std::uint8_t* slip = nullptr;       ///< H * W slip-zone mask; null: none
   bool faint_floor = false;                 ///< a composed floor: its unseen part shows faintly
-  int wide_side_px = 0;                     ///< the wider window's side in floor pixels (0: none)
+  render::WideView wide{};                  ///< the camera's wider view (px 0: none)
 };
 
 // The poses robot `record` had visited by snapshot `snap`, and, where motion is imperfect, its
@@ -190,7 +190,7 @@ void write_images(const fs::path& folder, int run_number, std::span<const learn:
     if (!snap.wide_seen.empty()) {
       s.wide_revealed = snap.wide_revealed.data();
       s.wide_seen = snap.wide_seen.data();
-      s.wide_side_px = marks.wide_side_px;
+      s.wide = marks.wide;
     }
     s.robot = {.x = snap.robot.x(), .y = snap.robot.y()};
     if (snap.goal) s.goal = render::PixelPose{.x = snap.goal->x(), .y = snap.goal->y()};
@@ -317,7 +317,7 @@ void emit_run(const RunOptions& opt, const RunSetup& setup, const env::PlannedRu
                             .obstacles = mask.empty() ? nullptr : mask.data(),
                             .slip = setup.slip_mask.empty() ? nullptr : setup.slip_mask.data(),
                             .faint_floor = world.floor.composed(),
-                            .wide_side_px = world.camera.wide_px * world.camera.wide_scale};
+                            .wide = {world.camera.wide_px, world.camera.wide_scale}};
   if (out.video) {
     interrupt_token().throw_if_requested();
     append_run_frames(*out.video, {.records = team,

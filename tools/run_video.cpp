@@ -9,9 +9,9 @@ namespace scout::tools {
 
 namespace {
 
-// The wider view's coarse map, painted as env::BatchEnv::reveal_wide paints it: every floor pixel
-// of a wide pixel's block takes its mean, the latest look winning, at each grid pose. Empty
-// without the wider view.
+// The wider view's coarse map per floor pixel, as env::BatchEnv::reveal_wide paints it and
+// grid::expand_blocks writes it out: every floor pixel of a block a look covers takes its mean, the
+// latest look winning, at each grid pose. Empty without the wider view.
 class CoarseMap {
  public:
   explicit CoarseMap(const RunAnimation& run)
@@ -25,7 +25,8 @@ class CoarseMap {
     const int width = run_.frame.width_px, height = run_.frame.height_px;
     if (px == 0) return;
     render::wide_patch(run_.floor, width, height, run_.wide, {.x = pose.x(), .y = pose.y()}, look_.data());
-    const int x0 = pose.x() - px * scale / 2, y0 = pose.y() - px * scale / 2;
+    const grid::BlockGrid blocks = grid::BlockGrid::over(run_.frame, scale);
+    const int x0 = (blocks.block_of(pose.x()) - px / 2) * scale, y0 = (blocks.block_of(pose.y()) - px / 2) * scale;
     for (int y = std::max(y0, 0); y < std::min(y0 + px * scale, height); ++y)
       for (int x = std::max(x0, 0); x < std::min(x0 + px * scale, width); ++x) {
         const std::size_t at = static_cast<std::size_t>(y) * width + x;
@@ -36,7 +37,7 @@ class CoarseMap {
 
   // Points the snapshot at the map (nothing without the wider view).
   void show_in(render::Snapshot& s) const {
-    s.wide_side_px = run_.wide.px * run_.wide.scale;
+    s.wide = run_.wide;
     if (values_.empty()) return;
     s.wide_revealed = values_.data();
     s.wide_seen = seen_.data();

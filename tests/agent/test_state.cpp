@@ -219,23 +219,28 @@ TEST(AgentState, TheTeammatesChannelsMarkTheirWindowsAndGoals) {
 }
 
 // The wider view's channels come last: y_w is the coarse map as the networks see pixels where it
-// is set and 0 elsewhere, h_w 0 there and 1 elsewhere; without a coarse map, nothing seen.
+// is set and 0 elsewhere, h_w 0 there and 1 elsewhere, each floor pixel its block's; without a
+// coarse map, nothing seen.
 TEST(AgentState, TheWiderViewsChannelsHoldTheCoarseMapAndWhereItIsSet) {
-  std::vector<std::uint8_t> coarse(kN, 0), covered(kN, 0);
-  for (int i = 0; i < kN / 2; ++i) {
-    coarse[i] = static_cast<std::uint8_t>(3 * i);
+  const grid::BlockGrid blocks = grid::BlockGrid::over(kFloor, 3);  // 2 x 2 blocks, the last row cut short
+  const int b = blocks.area();
+  std::vector<std::uint8_t> coarse(b, 0), covered(b, 0);
+  for (int i = 0; i < b / 2; ++i) {
+    coarse[i] = static_cast<std::uint8_t>(3 * i + 1);
     covered[i] = 1;
   }
-  coarse[kN - 1] = 200;  // a stale byte where nothing is set must not show
+  coarse[b - 1] = 200;  // a stale byte where nothing is set must not show
   const grid::Cell goal{5, 4};
   RobotView view{kObserved.data(), kSeen.data(), {2, 2}, &goal, nullptr};
   view.wide_revealed = coarse.data();
   view.wide_seen = covered.data();
+  view.wide_grid = blocks;
   std::vector<float> u(9 * kN, std::numeric_limits<float>::quiet_NaN());
   write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true, /*team=*/true, /*wide=*/true);
   for (int i = 0; i < kN; ++i) {
-    EXPECT_FLOAT_EQ(u[7 * kN + i], covered[i] ? pixel_value(coarse[i]) : 0.0f) << i;
-    EXPECT_FLOAT_EQ(u[8 * kN + i], covered[i] ? 0.0f : 1.0f) << i;
+    const int block = (i / kW) / 3 * blocks.columns + (i % kW) / 3;
+    EXPECT_FLOAT_EQ(u[7 * kN + i], covered[block] ? pixel_value(coarse[block]) : 0.0f) << i;
+    EXPECT_FLOAT_EQ(u[8 * kN + i], covered[block] ? 0.0f : 1.0f) << i;
   }
   std::vector<float> bare(6 * kN, std::numeric_limits<float>::quiet_NaN());
   write_planner_input(kFloor, 3, view, bare.data(), /*occupancy=*/false, /*team=*/false, /*wide=*/true);

@@ -36,8 +36,8 @@ std::vector<std::uint8_t> floors(int count, const grid::FloorFrame& frame = kFlo
   return out;
 }
 
-// The coarse maps that each robot's looks paint, kept here pixel by pixel (every floor pixel of a
-// look's window, clipped to the floor, takes its wide pixel's value over what was there), checked
+// The coarse maps that each robot's looks paint, kept here block by block (every block of the
+// floor's grid in a look's window takes its wide pixel's value over what was there), checked
 // against the environment's after each look.
 class CoarseMaps {
  public:
@@ -46,7 +46,9 @@ class CoarseMaps {
         floors_(floors),
         wide_(wide),
         area_(static_cast<std::size_t>(env.frame().area_px())),
-        map_(static_cast<std::size_t>(env.count()), std::vector<std::uint8_t>(area_, 0)),
+        grid_(grid::BlockGrid::over(env.frame(), wide.scale)),
+        map_(static_cast<std::size_t>(env.count()),
+             std::vector<std::uint8_t>(static_cast<std::size_t>(grid_.area()), 0)),
         seen_(map_) {}
 
   void clear(int robot) {
@@ -72,18 +74,22 @@ class CoarseMaps {
                        look.data());
     for (std::size_t k = 0; k < look.size(); ++k)
       ASSERT_EQ(env_.wide_patches()[looker * look.size() + k], look[k]) << looker << ", " << k;
-    const int x0 = pose.x() - px * s / 2, y0 = pose.y() - px * s / 2;  // floor(px * s / 2) before the cell
-    for (int y = std::max(0, y0); y < std::min(frame.height_px, y0 + px * s); ++y)
-      for (int x = std::max(0, x0); x < std::min(frame.width_px, x0 + px * s); ++x) {
-        map_[into][static_cast<std::size_t>(y) * frame.width_px + x] = look[(y - y0) / s * px + (x - x0) / s];
-        seen_[into][static_cast<std::size_t>(y) * frame.width_px + x] = 1;
+    // The look's first block: floor(px / 2) blocks before the one that holds the cell.
+    const int u0 = pose.x() / s - px / 2, v0 = pose.y() / s - px / 2;
+    for (int v = std::max(0, v0); v < std::min(grid_.rows, v0 + px); ++v)
+      for (int u = std::max(0, u0); u < std::min(grid_.columns, u0 + px); ++u) {
+        map_[into][static_cast<std::size_t>(v) * grid_.columns + u] = look[(v - v0) * px + (u - u0)];
+        seen_[into][static_cast<std::size_t>(v) * grid_.columns + u] = 1;
       }
   }
 
   // Robot `robot`'s coarse map and where it is set, the environment's against the ones here.
   void expect_maps(int robot) const {
-    const std::uint8_t* map = env_.wide_revealed().data() + area_ * robot;
-    const std::uint8_t* seen = env_.wide_seen().data() + area_ * robot;
+    ASSERT_EQ(env_.wide_grid().columns, grid_.columns);
+    ASSERT_EQ(env_.wide_grid().rows, grid_.rows);
+    ASSERT_EQ(env_.wide_revealed().size(), map_.size() * grid_.area());
+    const std::uint8_t* map = env_.wide_revealed().data() + static_cast<std::size_t>(grid_.area()) * robot;
+    const std::uint8_t* seen = env_.wide_seen().data() + static_cast<std::size_t>(grid_.area()) * robot;
     const grid::Cell pose = env_.poses()[robot];
     EXPECT_TRUE(std::equal(map_[robot].begin(), map_[robot].end(), map))
         << "robot " << robot << " at " << pose.x() << ", " << pose.y();
@@ -97,6 +103,7 @@ class CoarseMaps {
   const std::vector<std::uint8_t>& floors_;
   render::WideView wide_;
   std::size_t area_;
+  grid::BlockGrid grid_;
   std::vector<std::vector<std::uint8_t>> map_, seen_;
 };
 
@@ -163,7 +170,7 @@ TEST(BatchEnv, TheWiderViewFillsTheCoarseMapWithTheBlocksMeans) {
   env.step(std::vector<grid::Cell>{{2, 0}, {0, -2}});
   coarse.expect_look(0);  // the new look over the old one; the rest stays
   coarse.expect_look(1);
-  EXPECT_GT(coarse.seen_count(0), 36 - 12) << "two looks cover more than one";
+  EXPECT_EQ(coarse.seen_count(0), 12) << "two looks of 3 x 3 blocks, one block column apart";
   env.reset(f, starts, no_motion(starts.size()));
   coarse.clear(0);
   coarse.expect_look(0);
@@ -176,9 +183,10 @@ TEST(BatchEnv, TheWiderViewFillsTheCoarseMapWithTheBlocksMeans) {
 }
 
 TEST(BatchEnv, TheCoarseMapsRowsArePaintedWholeAtEveryWidthAndForTheWholeTeam) {
-  // Windows of 24 floor pixels on a 40 x 30 floor: rows painted whole (24), clipped at either
-  // edge (15, 16, 19, 21) and at the top and bottom, and moved over one another. In teams of two,
-  // each look goes into both teammates' maps, the second robot's over the first's.
+  // Windows of 6 blocks of 4 on a 40 x 30 floor (10 x 8 blocks, the last row cut to 2 floor rows):
+  // rows painted whole, clipped at either edge and at the top and bottom, and moved over one
+  // another. In teams of two, each look goes into both teammates' maps, the second robot's over
+  // the first's.
   const grid::FloorFrame frame{.width_px = 40, .height_px = 30, .pixel_size_m = 0.1};
   worlds::World world = small_world(3);
   world.camera.wide_px = 6;
@@ -208,7 +216,7 @@ TEST(BatchEnv, TheCoarseMapsRowsArePaintedWholeAtEveryWidthAndForTheWholeTeam) {
     env.step(commands);
     expect_team_looks();
   }
-  EXPECT_EQ(env.poses()[1], grid::Cell(4, 7)) << "the window [0, 16): one piece of 16";
+  EXPECT_EQ(env.poses()[1], grid::Cell(4, 7)) << "the window's blocks [-2, 4): clipped to 4";
 }
 
 TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {

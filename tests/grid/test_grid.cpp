@@ -47,6 +47,30 @@ TEST(CameraWindow, IsClippedAtTheBorders) {
   EXPECT_EQ(far.area(), 16);
 }
 
+TEST(BlockGrid, LaysBlocksFromTheCornerAndCutsTheLastOnesAtTheEdge) {
+  const BlockGrid grid = BlockGrid::over({100, 60, 0.1}, 6);
+  EXPECT_EQ(grid.columns, 17);  // 16 whole blocks and one of 4 columns
+  EXPECT_EQ(grid.rows, 10);     // 10 whole blocks
+  EXPECT_EQ(grid.area(), 170);
+  // Floor division on both sides of 0.
+  for (const auto& [v, block] : std::vector<std::pair<int, int>>{
+           {0, 0}, {5, 0}, {6, 1}, {99, 16}, {-1, -1}, {-6, -1}, {-7, -2}, {-2147483647 - 1, -357913942}})
+    EXPECT_EQ(grid.block_of(v), block) << v;
+  EXPECT_THROW(BlockGrid::over(kFloor, 0), std::invalid_argument);
+}
+
+TEST(BlockGrid, ExpandedEveryPixelTakesItsBlocksByte) {
+  const FloorFrame frame{7, 5, 0.1};
+  const BlockGrid grid = BlockGrid::over(frame, 3);  // 3 x 2 blocks, the last column and row cut
+  const std::vector<std::uint8_t> blocks = {1, 2, 3, 4, 5, 6};
+  std::vector<std::uint8_t> pixels(35, 0xAB);
+  expand_blocks(grid, frame, blocks.data(), pixels.data());
+  for (int y = 0; y < 5; ++y)
+    for (int x = 0; x < 7; ++x) EXPECT_EQ(pixels[y * 7 + x], blocks[(y / 3) * 3 + x / 3]) << x << ", " << y;
+  EXPECT_EQ(pixels[6], 3);   // the cut column
+  EXPECT_EQ(pixels[34], 6);  // the cut corner
+}
+
 TEST(Protocol, CoversTheFourCases) {
   EXPECT_EQ(decide({3, 4}, {3, 4}), Decision::AtGoal);
   EXPECT_EQ(decide({3, 4}, {3, 20}), Decision::Vertical);
@@ -73,6 +97,39 @@ TEST(RevealMask, CountsOnlyNewPixels) {
   mask.clear();
   EXPECT_EQ(mask.count(), 0);
   EXPECT_FALSE(mask.seen(7, 7));
+}
+
+// clear() zeroes only the bounds of what was seen: they must hold every window revealed since,
+// however scattered, and clearing must leave the whole mask as new.
+TEST(RevealMask, ItsBoundsHoldEverythingSeenAndAClearLeavesNothing) {
+  RevealMask mask(kFloor);
+  EXPECT_EQ(mask.bounds().area(), 0);
+  mask.reveal(camera_window({10, 10}, 6, kFloor));
+  mask.reveal(camera_window({0, 27}, 6, kFloor));  // clipped at a corner
+  mask.reveal(camera_window({20, 3}, 4, kFloor));
+  mask.reveal({5, 5, 5, 9});  // empty: changes nothing
+  const Window b = mask.bounds();
+  EXPECT_EQ(b.x0, 0);
+  EXPECT_EQ(b.y0, 1);
+  EXPECT_EQ(b.x1, 22);
+  EXPECT_EQ(b.y1, 28);
+  for (int y = 0; y < 28; ++y)
+    for (int x = 0; x < 28; ++x) {
+      if (mask.seen(x, y)) {
+        EXPECT_TRUE(x >= b.x0 && x < b.x1 && y >= b.y0 && y < b.y1) << x << ", " << y;
+      }
+    }
+  mask.clear();
+  EXPECT_EQ(mask.data(), std::vector<std::uint8_t>(28 * 28, 0));
+  EXPECT_EQ(mask.bounds().area(), 0);
+  // After assign(), anything may be seen: a clear zeroes the whole floor.
+  std::vector<std::uint8_t> scattered(28 * 28, 0);
+  scattered[0] = scattered[28 * 28 - 1] = 1;
+  mask.assign(scattered);
+  EXPECT_EQ(mask.count(), 2);
+  mask.clear();
+  EXPECT_EQ(mask.data(), std::vector<std::uint8_t>(28 * 28, 0));
+  EXPECT_EQ(mask.count(), 0);
 }
 
 TEST(GridModel, LandsOnPosePlusCommandAndStopsAtTheBorder) {

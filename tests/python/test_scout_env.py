@@ -684,11 +684,12 @@ def test_the_wider_view_is_observed_and_a_wide_view_agent_reads_it_as_scout_run_
     obs, info = envs.reset(seed=seed)
     assert envs.observation_space.contains(obs)
     assert obs["wide_patch"].shape == (n, wide, wide) and obs["wide_seen"].shape == (n, side, side)
-    # What the coarse map holds: each look's window of 48 x 48 floor pixels around the robot's
-    # cell, clipped to the floor, painted block by block with the look's coarse pixels.
+    # What the coarse map holds: each look's window of 48 x 48 floor pixels, the 8 x 8 blocks of
+    # the floor's grid from the robot's block less 4, clipped to the floor, painted block by block
+    # with the look's coarse pixels.
     for step in range(3):
         for i in range(n):
-            x0, y0 = obs["pose"][i] - wide * scale // 2
+            x0, y0 = (obs["pose"][i] // scale - wide // 2) * scale
             block = np.kron(obs["wide_patch"][i], np.ones((scale, scale), np.float32))
             ys, xs = slice(max(y0, 0), min(y0 + wide * scale, side)), slice(max(x0, 0), min(x0 + wide * scale, side))
             window = block[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]

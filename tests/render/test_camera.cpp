@@ -646,21 +646,34 @@ std::vector<std::uint8_t> cpu_wide(const Floors& floors, WideView wide, const st
   return out;
 }
 
-TEST(WidePatch, IsTheMeanOfEachBlockWithTheFloorEdgeBlack) {
-  // A 6 x 4 floor of 10 x + y, seen 2 x 2 blocks of 3 x 3 from cell (1, 1): the window starts at
-  // 1 - floor(6 / 2) = -2 on each axis, so block (0, 0) covers x, y in [-2, 1).
+TEST(WidePatch, IsTheMeanOfEachBlockOfTheFloorsGridWithTheFloorEdgeBlack) {
+  // A 6 x 4 floor of 10 x + y in blocks of 3 x 3 from its corner: 2 columns of blocks, and 2 rows,
+  // the second cut to floor row 3 alone.
   std::vector<std::uint8_t> floor(24);
   for (int y = 0; y < 4; ++y)
     for (int x = 0; x < 6; ++x) floor[y * 6 + x] = static_cast<std::uint8_t>(10 * x + y);
   std::uint8_t out[4] = {};
+  // From cell (4, 3), in block (1, 1): the window is blocks (0, 0) .. (1, 1). Block (0, 0):
+  // 3 (0 + 10 + 20) + 3 (0 + 1 + 2) = 99 -> 11. Block (1, 0): 3 (30 + 40 + 50) + 9 = 369 -> 41.
+  // Block (0, 1), row 3 only: 30 + 9 = 39 -> 4.33 -> 4. Block (1, 1): 120 + 9 = 129 -> 14.33 -> 14.
+  wide_patch(floor.data(), 6, 4, WideView{2, 3}, PixelPose{4, 3}, out);
+  EXPECT_EQ(std::vector<int>(out, out + 4), (std::vector<int>{11, 41, 4, 14}));
+  // Every cell of block (1, 1) sees the same window: the grid, not the cell, places it.
+  for (const PixelPose cell : {PixelPose{3, 3}, PixelPose{5, 3}}) {
+    std::uint8_t same[4] = {};
+    wide_patch(floor.data(), 6, 4, WideView{2, 3}, cell, same);
+    EXPECT_EQ(std::vector<int>(same, same + 4), (std::vector<int>{11, 41, 4, 14})) << cell.x;
+  }
+  // From cell (1, 1), in block (0, 0): blocks (-1, -1) .. (0, 0), the three off the floor black.
   wide_patch(floor.data(), 6, 4, WideView{2, 3}, PixelPose{1, 1}, out);
-  // Block (0, 0): only texel (0, 0) = 0 is on the floor -> 0. Block (1, 0): x 1..3, y 0 only
-  // (y -2, -1 off) -> (10 + 20 + 30 + 0 * 3) / 9 = 6.67 -> 7. Block (0, 1): x 0 only, y 1..3 ->
-  // (1 + 2 + 3) / 9 = 0.67 -> 1. Block (1, 1): x 1..3, y 1..3 -> (3 * 60 + 3 * 6) / 9 = 22.
-  EXPECT_EQ(out[0], 0);
-  EXPECT_EQ(out[1], 7);
-  EXPECT_EQ(out[2], 1);
-  EXPECT_EQ(out[3], 22);
+  EXPECT_EQ(std::vector<int>(out, out + 4), (std::vector<int>{0, 0, 0, 11}));
+  // A cell off the floor's corner lies in the block before block 0 (floor division), and an odd
+  // side puts the robot's block in the middle: blocks (-2, -2) .. (0, 0), block (0, 0) the last.
+  std::uint8_t nine[9] = {};
+  wide_patch(floor.data(), 6, 4, WideView{3, 3}, PixelPose{-1, -1}, nine);
+  EXPECT_EQ(std::vector<int>(nine, nine + 9), (std::vector<int>{0, 0, 0, 0, 0, 0, 0, 0, 11}));
+  wide_patch(floor.data(), 6, 4, WideView{3, 3}, PixelPose{2, 2}, nine);
+  EXPECT_EQ(std::vector<int>(nine, nine + 9), (std::vector<int>{0, 0, 0, 0, 11, 41, 0, 4, 14}));
 }
 
 TEST(PatchCamera, TheWiderViewEqualsTheCpuReferenceAndLeavesThePatchesAsTheyWere) {
