@@ -47,7 +47,7 @@ BatchEnv::BatchEnv(const worlds::World& world, const grid::FloorFrame& frame, in
   poses_.resize(max_robots);
   seen_.assign(max_robots, grid::RevealMask(frame));
   revealed_.resize(area * max_robots);
-  floors_.resize(area * max_robots);
+  if (!world.obstacles.none()) floors_.resize(area * max_robots);
   patches_.resize(static_cast<std::size_t>(max_robots) * patch_px_ * patch_px_);
   pixel_poses_.resize(max_robots);
   centres_.resize(max_robots);
@@ -99,14 +99,16 @@ Eigen::Vector2d BatchEnv::position_px(int robot) const { return robots_->positio
 
 void BatchEnv::set_tick_hook(TickHook hook) { tick_hook_ = std::move(hook); }
 
-// Robot i's memory as a run starts: its floor copied in, the world's fixed obstacles painted over
-// it, and nothing seen yet. Touches robot i's arrays only, so the robots of a reset share the pool.
-// On a 100 x 100 floor: the 10 kB floor copied, y and the mask cleared where the last run saw (a
-// few hundred bytes, not 10 kB each), and the coarse map's two arrays of 289 bytes.
+// Robot i's memory as a run starts: in a world with obstacles its floor copied in and the fixed
+// obstacles painted over it, and nothing seen yet. Touches robot i's arrays only, so the robots of a reset share the
+// pool. On a 100 x 100 floor: y and the mask cleared where the last run saw (a few hundred bytes, not 10 kB each), and
+// the coarse map's two arrays of 289 bytes.
 void BatchEnv::start_buffers(int robot, std::span<const std::uint8_t> floor) {
   const std::size_t area = static_cast<std::size_t>(frame_.area_px());
-  std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
-  for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
+  if (!floors_.empty()) {
+    std::copy(floor.begin(), floor.end(), floors_.begin() + static_cast<std::ptrdiff_t>(area * robot));
+    for (const std::size_t pixel : obstacle_pixels_) floors_[area * robot + pixel] = obstacle_shade_;
+  }
   // y holds bytes only where the robot's team revealed them, which its mask's bounds hold.
   const grid::Window& written = seen_[robot].bounds();
   for (int y = written.y0; y < written.y1; ++y)
@@ -167,7 +169,8 @@ void BatchEnv::reset(std::span<const std::uint8_t> floors, std::span<const grid:
   count_ = count;
   pool_->parallel_for(count, kRobotsPerChunk, [&](int i) { start_buffers(i, floors.subspan(area * i, area)); });
   for (int i = 0; i < count; ++i) place(i, starts[i], motion_seeds[i], motion_seeds[i - i % team_size_]);
-  camera_->load_floors(std::span(floors_.data(), area * count), count, pool_.get());
+  camera_->load_floors(floors_.empty() ? floors : std::span<const std::uint8_t>(floors_.data(), area * count), count,
+                       pool_.get());
   timing_.observe_s += seconds_since(t0);
   observe();
 }
@@ -208,8 +211,12 @@ void BatchEnv::reset_robots(std::span<const int> robots, std::span<const std::ui
                       [&](int k) { start_buffers(robots[k], floors.subspan(area * k, area)); });
   for (std::size_t k = 0; k < robots.size(); ++k)
     place(robots[k], starts[k], motion_seeds[k], motion_seeds[k - k % team_size_]);
-  // One upload of every floor (a few hundred kilobytes) is as cheap as the reset robots' alone.
-  camera_->load_floors(std::span(floors_.data(), area * count_), count_, pool_.get());
+  // Without obstacles the camera takes the reset robots' floors alone; with them, the painted
+  // floors of the whole batch in one upload.
+  if (floors_.empty())
+    camera_->replace_floors(robots, floors, pool_.get());
+  else
+    camera_->load_floors(std::span(floors_.data(), area * count_), count_, pool_.get());
   timing_.observe_s += seconds_since(t0);
   // Looking again from an unchanged pose reveals nothing new and writes the same y.
   observe();

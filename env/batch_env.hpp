@@ -160,7 +160,9 @@ class BatchEnv {
   std::vector<grid::Cell> poses_;
   std::vector<grid::RevealMask> seen_;
   std::vector<std::uint8_t> revealed_;
-  std::vector<std::uint8_t> floors_;  // the floors the camera holds (re-uploaded on a reset)
+  // The floors as the camera holds them, with obstacles painted over (re-uploaded on a reset); in a
+  // world without obstacles empty: the camera takes the caller's floors as they are.
+  std::vector<std::uint8_t> floors_;
   worlds::World world_;
   // Floor pixels whose centre lies on one of the world's fixed obstacles, and the grey the camera
   // sees there: painted over each floor the camera holds (a run's random boxes are painted as it

@@ -623,6 +623,30 @@ struct PatchCamera::Impl {
     gl.ActiveTexture(GL_TEXTURE0);
   }
 
+  // replace_floors' block means: each new floor's made into its slot's place in the CPU copy and
+  // uploaded there (floor after floor's made side by side on `pool` where one is given).
+  void replace_block_means(std::span<const int> slots, std::span<const std::uint8_t> floors, core::WorkerPool* pool) {
+    const int mw = block_means_width_px(), mh = block_means_height_px();
+    const std::size_t table = static_cast<std::size_t>(mw) * static_cast<std::size_t>(mh);
+    const std::size_t floor_bytes =
+        static_cast<std::size_t>(floor_width_px) * static_cast<std::size_t>(floor_height_px);
+    auto one_floor = [&](int k) {
+      block_means_of(floors.data() + floor_bytes * static_cast<std::size_t>(k),
+                     block_means_upload.data() + table * static_cast<std::size_t>(slots[k]));
+    };
+    const int count = static_cast<int>(slots.size());
+    if (pool != nullptr) {
+      pool->parallel_for(count, kFloorsPerChunk, one_floor);
+    } else {
+      for (int k = 0; k < count; ++k) one_floor(k);
+    }
+    gl.ActiveTexture(GL_TEXTURE1);
+    for (const int slot : slots)
+      gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, (slot % floors_per_layer) * mh, slot / floors_per_layer, mw, mh, 1,
+                       GL_RED, GL_UNSIGNED_BYTE, block_means_upload.data() + table * static_cast<std::size_t>(slot));
+    gl.ActiveTexture(GL_TEXTURE0);
+  }
+
   // capture()'s and capture_at()'s argument checks; `what` names the call, `items` its points.
   void check_batch(const char* what, const char* items, std::size_t count, std::size_t patches_size) const {
     const std::size_t patch_bytes = static_cast<std::size_t>(patch_px) * static_cast<std::size_t>(patch_px);
@@ -776,6 +800,35 @@ void PatchCamera::load_floors(std::span<const std::uint8_t> floors, int count, c
   }
   if (impl.wide.px > 0) impl.load_block_means(floors, count, pool);
   impl.floors_loaded = count;
+}
+
+void PatchCamera::replace_floors(std::span<const int> slots, std::span<const std::uint8_t> floors,
+                                 core::WorkerPool* pool) {
+  Impl& impl = *impl_;
+  const std::size_t floor_bytes =
+      static_cast<std::size_t>(impl.floor_width_px) * static_cast<std::size_t>(impl.floor_height_px);
+  if (!(floors.size() == floor_bytes * slots.size()))
+    fail("replace_floors: expected " + std::to_string(slots.size()) + " floors of " +
+         std::to_string(impl.floor_width_px) + " x " + std::to_string(impl.floor_height_px) + " = " +
+         std::to_string(floor_bytes * slots.size()) + " bytes, got " + std::to_string(floors.size()));
+  std::vector<bool> named(static_cast<std::size_t>(impl.floors_loaded), false);
+  for (const int slot : slots) {
+    if (!(slot >= 0 && slot < impl.floors_loaded))
+      fail("replace_floors: slot " + std::to_string(slot) + " is not one of the " + std::to_string(impl.floors_loaded) +
+           " floors loaded");
+    if (named[static_cast<std::size_t>(slot)]) fail("replace_floors: slot " + std::to_string(slot) + " named twice");
+    named[static_cast<std::size_t>(slot)] = true;
+  }
+  if (slots.empty()) return;
+  impl.make_current();
+  // Slot s lies in layer s / floors_per_layer, from row (s % floors_per_layer) x height.
+  for (std::size_t k = 0; k < slots.size(); ++k) {
+    const int slot = slots[k];
+    impl.gl.TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, (slot % impl.floors_per_layer) * impl.floor_height_px,
+                          slot / impl.floors_per_layer, impl.floor_width_px, impl.floor_height_px, 1, GL_RED,
+                          GL_UNSIGNED_BYTE, floors.data() + floor_bytes * k);
+  }
+  if (impl.wide.px > 0) impl.replace_block_means(slots, floors, pool);
 }
 
 void PatchCamera::capture(std::span<const PixelPose> poses, std::span<std::uint8_t> patches,

@@ -82,6 +82,13 @@ class PatchCamera {
   /// camera starts none).
   void load_floors(std::span<const std::uint8_t> floors, int count, core::WorkerPool* pool = nullptr);
 
+  /// Replaces some of the loaded floors: robot slots[k] sees floors' image k from now on (width x
+  /// height bytes each, in the order of `slots`), the others keep theirs. One upload call a floor,
+  /// so a few robots starting again cost their own floors' bytes, not the batch's. Each slot must
+  /// be one of the floors loaded, named once (std::invalid_argument otherwise).
+  void replace_floors(std::span<const int> slots, std::span<const std::uint8_t> floors,
+                      core::WorkerPool* pool = nullptr);
+
   /// Renders the patches of robots 0 .. poses.size()-1 at their grid poses and reads them back
   /// into `patches` (poses.size() * patch_px * patch_px bytes, robot after robot, row-major).
   /// Pixels of a window that fall off the floor are 0. The result equals the CPU crop exactly.

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <limits>
 #include <random>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -742,6 +743,41 @@ TEST(PatchCamera, TheWiderViewOnStackedFloorsReadsNoNeighbouringFloor) {
   std::vector<std::uint8_t> patches(count * m * m), far(count * wide.px * wide.px, 0xAB);
   camera.capture(poses, patches, far);
   EXPECT_EQ(far, cpu_wide(floors, wide, poses));
+}
+
+// replace_floors: the slots named see their new floors (patches and wider view), every other slot
+// keeps its own, on one layer a floor and on floors stacked two a layer (slots in either half of
+// a layer); bad slots are refused and change nothing.
+TEST(PatchCamera, ReplacedFloorsAreSeenAndTheOthersKeptOnPlainAndStackedLayers) {
+  for (const int count : {40, 4096}) {
+    const int width = 11, height = 9, m = 4;
+    const WideView wide{3, 2};
+    const std::vector<PixelPose> poses = random_poses(count, width, height, 101);
+    Floors floors = random_floors(width, height, count, 102);
+    const Floors fresh = random_floors(width, height, 4, 103);
+    PatchCamera camera(width, height, m, count, wide);
+    camera.load_floors(floors.bytes, count);
+    const std::vector<int> slots = {count - 1, 0, 7, count / 2 + 1};
+    scout::core::WorkerPool pool(2);
+    camera.replace_floors(slots, fresh.bytes, count == 40 ? nullptr : &pool);
+    const std::size_t floor_bytes = static_cast<std::size_t>(width) * height;
+    for (std::size_t k = 0; k < slots.size(); ++k)
+      std::copy_n(fresh.image(static_cast<int>(k)), floor_bytes,
+                  floors.bytes.begin() + static_cast<std::ptrdiff_t>(floor_bytes * slots[k]));
+    std::vector<std::uint8_t> patches(count * m * m), far(count * wide.px * wide.px, 0xAB);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(patches, cpu_patches(floors, m, poses)) << count << " floors";
+    EXPECT_EQ(far, cpu_wide(floors, wide, poses)) << count << " floors";
+    // A slot not loaded, a slot named twice, or the wrong number of bytes: refused, nothing replaced.
+    EXPECT_THROW(camera.replace_floors(std::vector<int>{count}, std::span(fresh.bytes).first(floor_bytes)),
+                 std::invalid_argument);
+    EXPECT_THROW(camera.replace_floors(std::vector<int>{3, 3}, std::span(fresh.bytes).first(2 * floor_bytes)),
+                 std::invalid_argument);
+    EXPECT_THROW(camera.replace_floors(std::vector<int>{3}, std::span(fresh.bytes).first(floor_bytes - 1)),
+                 std::invalid_argument);
+    camera.capture(poses, patches, far);
+    EXPECT_EQ(patches, cpu_patches(floors, m, poses)) << count << " floors, after the refusals";
+  }
 }
 
 TEST(PatchCamera, TheWiderViewsBadSizesAndBuffersAreRefused) {
