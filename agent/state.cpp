@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <stdexcept>
 
 namespace scout::agent {
 namespace {
@@ -69,6 +70,8 @@ void write_planner_input(const grid::FloorFrame& frame, int patch_px, const Robo
   }
   // Each block's two values, then its floor pixels (a block row's floor rows are alike).
   const grid::BlockGrid& blocks = view.wide_grid;
+  if (blocks.columns * blocks.scale < frame.width_px || blocks.rows * blocks.scale < frame.height_px)
+    throw std::invalid_argument("write_planner_input: the coarse map's wide_grid does not cover the floor");
   const int width = frame.width_px;
   for (int v = 0; v < blocks.rows; ++v) {
     const std::size_t first = static_cast<std::size_t>(v) * blocks.columns;

@@ -305,7 +305,9 @@ void BatchEnv::reveal_patch(int i) {
 }
 
 // Robot i's wider view into its team's coarse map: each block the look covers takes its mean (the
-// latest look wins) and is marked seen, at the pose the agent reads, as the patch.
+// latest look wins) and is marked seen, at the pose the agent reads, as the patch. (With odometry
+// the camera looked from the true cell's block; where the believed cell lies in another block, the
+// look lands a block off, as the patch lands by the odometry's error.)
 void BatchEnv::reveal_wide(int i) {
   const int px = wide_px_;
   const grid::BlockGrid& grid = wide_grid_;

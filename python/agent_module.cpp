@@ -227,6 +227,18 @@ class AgentCore {
                 static_cast<std::uint8_t>(std::lround(std::clamp(obs.wide_revealed[pixel], 0.0f, 1.0f) * 255.0f));
             wide_seen_[block] = obs.wide_seen[pixel];
           }
+      // A map from a world whose blocks are not the model's would be read misaligned: refused.
+      for (int i = 0; i < n; ++i)
+        for (int y = 0; y < obs.height; ++y)
+          for (int x = 0; x < obs.width; ++x) {
+            const std::size_t pixel = area * i + static_cast<std::size_t>(y) * obs.width + x;
+            const std::size_t first = area * i + static_cast<std::size_t>(y / blocks.scale * blocks.scale) * obs.width +
+                                      static_cast<std::size_t>(x / blocks.scale * blocks.scale);
+            if (obs.wide_revealed[pixel] != obs.wide_revealed[first] || obs.wide_seen[pixel] != obs.wide_seen[first])
+              throw InputError("obs['wide_revealed'], obs['wide_seen']: expected each map constant on the model's " +
+                               std::to_string(blocks.scale) + " x " + std::to_string(blocks.scale) +
+                               " blocks (a world with the model's camera.wide_scale)");
+          }
       state_.wide_revealed = wide_revealed_;
       state_.wide_seen = wide_seen_;
       state_.wide_grid = blocks;

@@ -75,8 +75,9 @@ inline constexpr int kMaxPatchPx = 64;
 struct CameraSpec {
   int patch_px = 6;  ///< m: the camera sees an m x m pixel window, 1 .. kMaxPatchPx
   /// The wider view (off at 0): a second, coarser window of wide_px x wide_px pixels, each the
-  /// mean of wide_scale x wide_scale floor pixels, centred on the robot's cell like the patch and
-  /// taken with it (render::WideView). It covers (wide_px * wide_scale)^2 floor pixels.
+  /// mean of a block of wide_scale x wide_scale floor pixels of the floor's block grid (the blocks
+  /// around the robot's block), taken with the patch (render::WideView). It covers
+  /// (wide_px * wide_scale)^2 floor pixels.
   int wide_px = 0;
   int wide_scale = 4;  ///< floor pixels per wide-view pixel, per side
   bool wide() const { return wide_px > 0; }

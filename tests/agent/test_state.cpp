@@ -222,7 +222,7 @@ TEST(AgentState, TheTeammatesChannelsMarkTheirWindowsAndGoals) {
 // is set and 0 elsewhere, h_w 0 there and 1 elsewhere, each floor pixel its block's; without a
 // coarse map, nothing seen.
 TEST(AgentState, TheWiderViewsChannelsHoldTheCoarseMapAndWhereItIsSet) {
-  const grid::BlockGrid blocks = grid::BlockGrid::over(kFloor, 3);  // 2 x 2 blocks, the last row cut short
+  const grid::BlockGrid blocks = grid::BlockGrid::over(kFloor, 4);  // 2 x 2 blocks, the last column and row cut short
   const int b = blocks.area();
   std::vector<std::uint8_t> coarse(b, 0), covered(b, 0);
   for (int i = 0; i < b / 2; ++i) {
@@ -238,10 +238,14 @@ TEST(AgentState, TheWiderViewsChannelsHoldTheCoarseMapAndWhereItIsSet) {
   std::vector<float> u(9 * kN, std::numeric_limits<float>::quiet_NaN());
   write_planner_input(kFloor, 3, view, u.data(), /*occupancy=*/true, /*team=*/true, /*wide=*/true);
   for (int i = 0; i < kN; ++i) {
-    const int block = (i / kW) / 3 * blocks.columns + (i % kW) / 3;
+    const int block = (i / kW) / blocks.scale * blocks.columns + (i % kW) / blocks.scale;
     EXPECT_FLOAT_EQ(u[7 * kN + i], covered[block] ? pixel_value(coarse[block]) : 0.0f) << i;
     EXPECT_FLOAT_EQ(u[8 * kN + i], covered[block] ? 0.0f : 1.0f) << i;
   }
+  // A view whose grid does not cover the floor (left at its default) is refused, not read short.
+  RobotView gridless = view;
+  gridless.wide_grid = {};
+  EXPECT_THROW(write_planner_input(kFloor, 3, gridless, u.data(), true, true, true), std::invalid_argument);
   std::vector<float> bare(6 * kN, std::numeric_limits<float>::quiet_NaN());
   write_planner_input(kFloor, 3, view, bare.data(), /*occupancy=*/false, /*team=*/false, /*wide=*/true);
   for (int i = 0; i < kN; ++i) EXPECT_FLOAT_EQ(bare[4 * kN + i], u[7 * kN + i]) << i;

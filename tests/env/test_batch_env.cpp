@@ -248,6 +248,40 @@ TEST(BatchEnv, ResettingSomeRobotsLeavesTheOthersAsTheyWere) {
   expect_consistent(env, f);
 }
 
+// Robots started again alone with the wider view, on a floor whose last column and row of blocks
+// are cut short: the camera sees the new floors (patch and wider view), their coarse maps start
+// empty, and the other robots keep theirs.
+TEST(BatchEnv, RobotsResetAloneSeeTheirNewFloorsThroughBothViews) {
+  const grid::FloorFrame frame{.width_px = 17, .height_px = 13, .pixel_size_m = 0.1};
+  worlds::World world = small_world(3);
+  world.camera.wide_px = 3;
+  world.camera.wide_scale = 2;
+  BatchEnv env(world, frame, 3);
+  EXPECT_EQ(env.wide_grid().columns, 9);
+  EXPECT_EQ(env.wide_grid().rows, 7);
+  std::vector<std::uint8_t> f = floors(3, frame);
+  env.reset(f, std::vector<grid::Cell>{{2, 2}, {15, 11}, {8, 6}}, no_motion(3));
+  CoarseMaps coarse(env, f, {3, 2});
+  for (int i = 0; i < 3; ++i) coarse.expect_look(i);
+  env.step(std::vector<grid::Cell>{{2, 0}, {0, 1}, {0, -2}});
+  for (int i = 0; i < 3; ++i) coarse.expect_look(i);
+  // Robot 1 over a fresh floor from (16, 12), the corner where both cut blocks meet.
+  const std::size_t area = static_cast<std::size_t>(frame.area_px());
+  const std::vector<std::uint8_t> fresh = floors(5, frame);
+  const std::vector<std::uint8_t> floor4(fresh.begin() + static_cast<std::ptrdiff_t>(area * 4), fresh.end());
+  env.reset_robots(std::vector<int>{1}, floor4, std::vector<grid::Cell>{{16, 12}}, no_motion(1));
+  std::copy(floor4.begin(), floor4.end(), f.begin() + static_cast<std::ptrdiff_t>(area));
+  coarse.clear(1);
+  coarse.expect_look(1);
+  coarse.expect_maps(0);
+  coarse.expect_maps(2);
+  std::vector<std::uint8_t> crop(9);
+  render::crop_patch(floor4.data(), frame.width_px, frame.height_px, 3, {16, 12}, crop.data());
+  EXPECT_TRUE(std::equal(crop.begin(), crop.end(), env.patches().begin() + 9));
+  env.step(std::vector<grid::Cell>{{-2, 0}, {-2, 0}, {2, 0}});
+  for (int i = 0; i < 3; ++i) coarse.expect_look(i);
+}
+
 TEST(BatchEnv, TheTickHookSeesEveryTickOfEveryRobot) {
   BatchEnv env(small_world(3), kFloor, 2);
   env.reset(floors(2), std::vector<grid::Cell>{{2, 2}, {5, 5}}, no_motion(2));
@@ -390,6 +424,11 @@ TEST(BatchEnv, ATeamSharesWhatEachOfItsRobotsHasSeen) {
   env.reset_robots(std::vector<int>{2, 3}, two, std::vector<grid::Cell>{{3, 3}, {10, 3}}, no_motion(2));
   EXPECT_EQ(env.seen()[2].count(), 18);
   EXPECT_EQ(env.seen()[3].count(), 18);
+  // y cleared within the mask's bounds, which held the teammate's windows too: nothing is left of
+  // the team's earlier run.
+  std::vector<std::uint8_t> now(f);
+  std::copy(two.begin(), two.end(), now.begin() + 2 * kFloor.area_px());
+  expect_consistent(env, now);
   const std::vector<std::uint8_t> three(f.begin(), f.begin() + 3 * kFloor.area_px());
   EXPECT_THROW(env.reset(three, std::vector<grid::Cell>(3, grid::Cell(1, 1)), no_motion(3)),
                std::invalid_argument);  // not whole teams

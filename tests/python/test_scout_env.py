@@ -718,6 +718,10 @@ def test_the_wider_view_is_observed_and_a_wide_view_agent_reads_it_as_scout_run_
     assert not np.array_equal(agent.act(obs, info)["goal"], agent.act(blind, info)["goal"])
     with pytest.raises(ValueError, match=r"planners read the wider view \(--wide-view\): expected obs\['wide_revealed'\]"):
         agent.act({k: v for k, v in obs.items() if not k.startswith("wide_")}, info)
+    # A map not laid on the model's 6 x 6 blocks (here shifted a pixel) would be read misaligned: refused.
+    shifted = dict(obs, wide_seen=np.roll(obs["wide_seen"], 1, axis=2))
+    with pytest.raises(ValueError, match=r"expected each map constant on the model's 6 x 6 blocks"):
+        agent.act(shifted, info)
 
 
 def test_models_and_checkpoints_are_safetensors_files_both_ways(tmp_path):

@@ -777,6 +777,7 @@ TEST(PatchCamera, ReplacedFloorsAreSeenAndTheOthersKeptOnPlainAndStackedLayers) 
                  std::invalid_argument);
     camera.capture(poses, patches, far);
     EXPECT_EQ(patches, cpu_patches(floors, m, poses)) << count << " floors, after the refusals";
+    EXPECT_EQ(far, cpu_wide(floors, wide, poses)) << count << " floors, after the refusals";
   }
 }
 
